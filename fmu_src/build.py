@@ -1,0 +1,141 @@
+"""Build ``FourBar.fmu``: derive, generate, package with pythonfmu, complete and validate.
+
+pythonfmu writes no units and no ``<InitialUnknowns>`` (its issues #131/#193), so
+``fmpy validate`` rejects its FMUs as they come.  ``build_fmu`` rewrites the model
+description with unit definitions, units on every Real variable and the initial
+unknowns FMI 2.0 requires (every output, whose ``initial`` defaults to calculated),
+then validates the result with FMPy.
+"""
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+from .codegen import write_module
+
+__all__ = ["BuildResult", "build_fmu", "RUNTIME_REQUIREMENTS"]
+
+HERE = Path(__file__).resolve().parent
+#: Run-time needs of the FMU's Python code (``pythonfmu deploy`` installs these).
+RUNTIME_REQUIREMENTS = ("numpy>=1.26", "scipy>=1.11")
+
+# Units: name -> (kg, m, s, rad exponents), display units (name, factor).
+_UNITS = {
+    "m": ({"m": "1"}, []),
+    "kg": ({"kg": "1"}, []),
+    "m/s2": ({"m": "1", "s": "-2"}, []),
+    "rad": ({"rad": "1"}, [("deg", 57.29577951308232)]),
+    "rad/s": ({"rad": "1", "s": "-1"}, [("deg/s", 57.29577951308232)]),
+    "J": ({"kg": "1", "m": "2", "s": "-2"}, []),
+    "1": ({}, []),
+}
+_VARIABLE_UNITS = {
+    "L1": "m", "L2": "m", "L3": "m", "L4": "m", "m2": "kg", "m3": "kg", "m4": "kg", "g": "m/s2",
+    "theta2_start": "rad", "omega2_start": "rad/s", "rtol": "1", "atol": "1",
+    "x2": "m", "y2": "m", "x3": "m", "y3": "m", "x4": "m", "y4": "m",
+    "theta2": "rad", "theta3": "rad", "theta4": "rad",
+    "omega2": "rad/s", "omega3": "rad/s", "omega4": "rad/s", "energy": "J",
+    "constraint_residual": "1",
+}
+_DISPLAY = {"theta2_start": "deg", "theta2": "deg", "theta3": "deg", "theta4": "deg"}
+
+
+@dataclass(frozen=True)
+class BuildResult:
+    """Where the FMU went, its GUID and the problems ``fmpy validate`` found (empty = valid)."""
+
+    path: Path
+    guid: str
+    problems: tuple[str, ...]
+
+
+def _complete_model_description(xml: bytes) -> bytes:
+    """Add units and <InitialUnknowns> to pythonfmu's model description."""
+    root = ET.fromstring(xml)
+    # Unit definitions go right after the <CoSimulation> element (schema order).
+    units = ET.Element("UnitDefinitions")
+    for name, (base, displays) in _UNITS.items():
+        unit = ET.SubElement(units, "Unit", {"name": name})
+        ET.SubElement(unit, "BaseUnit", base)
+        for dname, factor in displays:
+            ET.SubElement(unit, "DisplayUnit", {"name": dname, "factor": repr(factor)})
+    position = list(root).index(root.find("CoSimulation")) + 1
+    root.insert(position, units)
+
+    variables = root.find("ModelVariables")
+    outputs = []
+    for index, sv in enumerate(variables.findall("ScalarVariable"), start=1):
+        name = sv.get("name")
+        real = sv.find("Real")
+        if real is not None and name in _VARIABLE_UNITS:
+            real.set("unit", _VARIABLE_UNITS[name])
+            if name in _DISPLAY:
+                real.set("displayUnit", _DISPLAY[name])
+        if sv.get("causality") == "output":
+            outputs.append(index)
+
+    structure = root.find("ModelStructure")
+    for old in structure.findall("InitialUnknowns"):
+        structure.remove(old)
+    if outputs:
+        initial = ET.SubElement(structure, "InitialUnknowns")
+        for index in outputs:
+            ET.SubElement(initial, "Unknown", {"index": str(index)})
+    ET.indent(root)
+    return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+
+
+def _stage(stage: Path) -> Path:
+    """Copy the slave and its run-time package into ``stage`` and generate the equations."""
+    shutil.copy2(HERE / "fourbar_slave.py", stage / "fourbar_slave.py")
+    shutil.copytree(HERE / "fourbar_model", stage / "fourbar_model",
+                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "equations.py"))
+    write_module(stage / "fourbar_model" / "equations.py")
+    (stage / "requirements.txt").write_text("\n".join(RUNTIME_REQUIREMENTS) + "\n")
+    return stage / "fourbar_slave.py"
+
+
+def build_fmu(dest: str | Path = "build/FourBar.fmu", validate: bool = True) -> BuildResult:
+    """Derive the equations, build the FMU at ``dest`` and validate it.
+
+    pythonfmu imports the slave script to write the model description; that import
+    runs in a child process so that the caller's ``sys.modules`` never holds the
+    staged modules (a later FMU load in this process would otherwise reuse them).
+    """
+    dest = Path(dest).resolve()
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="fourbar_stage_") as tmp:
+        stage = Path(tmp)
+        script = _stage(stage)
+        raw = stage / "raw.fmu"
+        code = ("import sys; from pythonfmu.builder import FmuBuilder; "
+                "FmuBuilder.build_FMU(sys.argv[1], dest=sys.argv[2], "
+                "project_files=[sys.argv[3], sys.argv[4]])")
+        proc = subprocess.run(
+            [sys.executable, "-c", code, str(script), str(raw),
+             str(stage / "fourbar_model"), str(stage / "requirements.txt")],
+            cwd=stage, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise RuntimeError(f"pythonfmu could not build the FMU:\n{proc.stderr.strip()}")
+        tmp_dest = dest.with_suffix(".fmu.tmp")
+        with zipfile.ZipFile(raw) as zin, zipfile.ZipFile(tmp_dest, "w", zipfile.ZIP_DEFLATED) as zout:
+            for item in zin.infolist():
+                data = zin.read(item.filename)
+                if item.filename == "modelDescription.xml":
+                    data = _complete_model_description(data)
+                zout.writestr(item, data)
+        tmp_dest.replace(dest)
+    with zipfile.ZipFile(dest) as z:
+        guid = re.search(rb'guid="([^"]+)"', z.read("modelDescription.xml")).group(1).decode()
+    problems: tuple[str, ...] = ()
+    if validate:
+        from fmpy.validation import validate_fmu
+        problems = tuple(validate_fmu(str(dest)))
+    return BuildResult(path=dest, guid=guid, problems=problems)

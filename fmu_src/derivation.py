@@ -1,0 +1,109 @@
+"""Symbolic derivation of the four-bar linkage's constrained equations of motion.
+
+Model (see ARCHITECTURE.md §1)
+------------------------------
+Planar four-bar, link 1 is the ground.  The crank (link 2, length ``L2``) is pinned
+at the origin, the coupler (link 3, ``L3``) joins the crank tip to the rocker tip,
+the rocker (link 4, ``L4``) is pinned at ``(L1, 0)``.  Angles are measured from +x,
+counter-clockwise; gravity ``g`` acts along -y.  Every moving link is a slender
+uniform rod with its mass at the midpoint and ``I = m L**2 / 12`` about it.
+
+Generalized coordinates (the state ordering used everywhere in this project)::
+
+    q = [x2, y2, th2, x3, y3, th3, x4, y4, th4]
+
+8 holonomic, scleronomic constraints ``Phi(q) = 0`` (two per revolute joint, in
+the order: ground-crank, crank-coupler, coupler-rocker, rocker-ground).
+
+Equation form (the paper's eq. (10)-(11))::
+
+    [[M,     Phi_q^T],   [qdd   ]   [Q    ]
+     [Phi_q, 0      ]] . [lambda] = [gamma],   gamma = -(Phi_q qd)_q qd
+
+Sign convention of the multipliers: ``M qdd + Phi_q^T lambda = Q``.  The force
+that the joints exert on the bodies is therefore ``-Phi_q^T lambda``.
+
+``M`` and ``Q`` come from the Lagrangian ``L = T - V`` (eq. 1) through
+Lagrange's equations (eq. 2/10):
+``M = d2L/dqd2`` and ``Q = dL/dq - (d2L/dqd dq) qd``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+__all__ = ["FourBarEquations", "derive_equations", "COORDINATES", "PARAMETERS"]
+
+#: Names of the generalized coordinates, in state order.
+COORDINATES = ("x2", "y2", "th2", "x3", "y3", "th3", "x4", "y4", "th4")
+#: Names of the model parameters, in the order the generated code takes them.
+PARAMETERS = ("L1", "L2", "L3", "L4", "m2", "m3", "m4", "g")
+
+
+@dataclass(frozen=True)
+class FourBarEquations:
+    """Symbolic pieces of the DAE, all as sympy matrices / expressions."""
+
+    q: sp.Matrix          # 9x1 generalized coordinates
+    qd: sp.Matrix         # 9x1 generalized velocities
+    params: tuple         # sympy symbols, ordered as PARAMETERS
+    mass_matrix: sp.Matrix        # 9x9, M
+    forces: sp.Matrix             # 9x1, Q
+    constraints: sp.Matrix        # 8x1, Phi
+    jacobian: sp.Matrix           # 8x9, Phi_q
+    gamma: sp.Matrix              # 8x1, -(Phi_q qd)_q qd
+    kinetic_energy: sp.Expr
+    potential_energy: sp.Expr
+
+
+def derive_equations() -> FourBarEquations:
+    """Derive ``M``, ``Q``, ``Phi``, ``Phi_q`` and ``gamma`` for the four-bar.
+
+    Returns
+    -------
+    FourBarEquations
+        Symbolic matrices; see the module docstring for the equation form and the
+        sign convention of the Lagrange multipliers.
+    """
+    q = sp.Matrix(sp.symbols(" ".join(COORDINATES), real=True))
+    qd = sp.Matrix(sp.symbols(" ".join(n + "_d" for n in COORDINATES), real=True))
+    L1, L2, L3, L4, m2, m3, m4, g = params = sp.symbols(" ".join(PARAMETERS), positive=True)
+    x2, y2, th2, x3, y3, th3, x4, y4, th4 = q
+    links = ((x2, y2, th2, m2, L2), (x3, y3, th3, m3, L3), (x4, y4, th4, m4, L4))
+
+    # Lagrangian of three slender rods (eq. 1).
+    T = sp.Integer(0)
+    V = sp.Integer(0)
+    for x, y, th, m, L in links:
+        xd, yd, thd = (qd[list(q).index(s)] for s in (x, y, th))
+        T += sp.Rational(1, 2) * m * (xd**2 + yd**2) + sp.Rational(1, 2) * (m * L**2 / 12) * thd**2
+        V += m * g * y
+    lagrangian = T - V
+
+    # Lagrange's equations (eq. 2/10): d/dt dL/dqd - dL/dq = Q_ext (+ constraint forces).
+    dL_dqd = sp.Matrix([sp.diff(lagrangian, s) for s in qd])
+    M = dL_dqd.jacobian(qd)
+    Q = sp.Matrix([sp.diff(lagrangian, s) for s in q]) - dL_dqd.jacobian(q) * qd
+
+    # Revolute joints: two scalar equations each.
+    c, s = sp.cos, sp.sin
+    Phi = sp.Matrix([
+        x2 - L2 / 2 * c(th2),                                   # crank pinned at origin
+        y2 - L2 / 2 * s(th2),
+        (x2 + L2 / 2 * c(th2)) - (x3 - L3 / 2 * c(th3)),        # crank tip = coupler start
+        (y2 + L2 / 2 * s(th2)) - (y3 - L3 / 2 * s(th3)),
+        (x3 + L3 / 2 * c(th3)) - (x4 + L4 / 2 * c(th4)),        # coupler end = rocker tip
+        (y3 + L3 / 2 * s(th3)) - (y4 + L4 / 2 * s(th4)),
+        (x4 - L4 / 2 * c(th4)) - L1,                            # rocker pinned at (L1, 0)
+        (y4 - L4 / 2 * s(th4)),
+    ])
+    Phi_q = Phi.jacobian(q)
+    gamma = -(Phi_q * qd).jacobian(q) * qd
+
+    return FourBarEquations(
+        q=q, qd=qd, params=tuple(params),
+        mass_matrix=sp.simplify(M), forces=sp.simplify(Q),
+        constraints=Phi, jacobian=Phi_q, gamma=sp.simplify(gamma),
+        kinetic_energy=T, potential_energy=V,
+    )

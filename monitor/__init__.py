@@ -1,0 +1,1 @@
+"""monitor package (work in progress)."""
