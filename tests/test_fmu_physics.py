@@ -1,0 +1,176 @@
+"""Physics of the FourBar FMU, run through FMPy: assembly, constraints, energy, accuracy.
+
+Table 1 tolerances (rtol 1e-9, atol 1e-6) bound the Runge-Kutta *local* error at ~1e-6
+per step, which compounds to ~1e-4 m / ~1e-3 J over 100 s (docs/benchmarks.md measures
+it).  The accuracy and energy targets (1e-6 m, 1e-8 J) are therefore checked with the
+FMU's tolerances tightened to rtol = atol = 1e-12: they verify the formulation, not the
+coarseness of Table 1's settings.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from fmpy import simulate_fmu
+from numpy.testing import assert_allclose
+
+from reference_theta2 import simulate as reference
+
+TABLE1 = dict(L1=3.0, L2=1.0, L3=4.0, L4=2.5, m2=1.0, m3=1.0, m4=1.0, g=9.81)
+THETA2_0 = math.radians(30.0)
+TIGHT = {"rtol": 1e-12, "atol": 1e-12}
+CENTRES = ["x2", "y2", "x3", "y3", "x4", "y4"]
+ALL = CENTRES + ["theta2", "theta3", "theta4", "omega2", "omega3", "omega4", "energy",
+                 "constraint_residual"]
+
+
+def run(fmu, stop=100.0, start_values=None, l2_step=None, output=ALL, logger=None):
+    """Simulate with FMPy on the 0.01 s grid; ``l2_step=(t, value)`` the standard FMI way."""
+    signal = None
+    if l2_step is not None:
+        t, value = l2_step
+        signal = np.array([(0.0, TABLE1["L2"]), (t, TABLE1["L2"]), (t, value)],
+                          dtype=[("time", float), ("L2", float)])
+    # pythonfmu passes messages to the logger only when debug logging is on.
+    return simulate_fmu(str(fmu), stop_time=stop, output_interval=0.01, start_values=start_values or {},
+                        input=signal, output=output, logger=logger, debug_logging=logger is not None)
+
+
+@pytest.fixture(scope="module")
+def case1(fourbar_fmu):
+    return run(fourbar_fmu)
+
+
+@pytest.fixture(scope="module")
+def case2(fourbar_fmu):
+    return run(fourbar_fmu, l2_step=(10.0, 1.1))
+
+
+@pytest.fixture(scope="module")
+def case1_tight(fourbar_fmu):
+    return run(fourbar_fmu, start_values=TIGHT)
+
+
+@pytest.fixture(scope="module")
+def case2_tight(fourbar_fmu):
+    return run(fourbar_fmu, start_values=TIGHT, l2_step=(10.0, 1.1))
+
+
+def joint_mismatch(r, L2):
+    """Largest joint separation (m) computed from the reported centres and angles alone."""
+    L1, L3, L4 = TABLE1["L1"], TABLE1["L3"], TABLE1["L4"]
+    c2, s2 = np.cos(r["theta2"]), np.sin(r["theta2"])
+    c3, s3 = np.cos(r["theta3"]), np.sin(r["theta3"])
+    c4, s4 = np.cos(r["theta4"]), np.sin(r["theta4"])
+    gaps = [
+        r["x2"] - L2 / 2 * c2, r["y2"] - L2 / 2 * s2,                                 # ground pin O2
+        r["x2"] + L2 / 2 * c2 - (r["x3"] - L3 / 2 * c3), r["y2"] + L2 / 2 * s2 - (r["y3"] - L3 / 2 * s3),
+        r["x3"] + L3 / 2 * c3 - (r["x4"] + L4 / 2 * c4), r["y3"] + L3 / 2 * s3 - (r["y4"] + L4 / 2 * s4),
+        r["x4"] - L4 / 2 * c4 - L1, r["y4"] - L4 / 2 * s4,                            # ground pin O4
+    ]
+    return np.max(np.abs(gaps), axis=0)
+
+
+def test_initial_assembly_is_table1(case1):
+    # Table 1 gives the angles to 0.01 deg.
+    assert math.degrees(case1["theta2"][0]) == pytest.approx(30.0, abs=1e-12)
+    assert math.degrees(case1["theta3"][0]) == pytest.approx(20.71, abs=0.01)
+    assert math.degrees(case1["theta4"][0]) == pytest.approx(49.98, abs=0.01)
+    assert case1["omega2"][0] == 0.0
+
+
+def test_nothing_moves_without_gravity(fourbar_fmu):
+    r = run(fourbar_fmu, stop=5.0, start_values={"g": 0.0})
+    for name in ALL[:-2]:
+        # At rest with no force the exact solution is constant; allow round-off only.
+        assert np.ptp(r[name]) <= 1e-12, name
+
+
+@pytest.mark.parametrize("which", ["case1", "case2"])
+def test_constraints_hold_at_every_output(which, request):
+    r = request.getfixturevalue(which)
+    assert len(r) == 10001
+    # The FMU's own residual: positions and velocities satisfy Phi = 0, Phi_q qd = 0.
+    assert r["constraint_residual"].max() <= 1e-10
+    # Independently, from the published centres and angles (L2 = 1.1 m after t = 10 s).
+    L2 = np.where(r["time"] > 10.0 + 1e-9, 1.1, 1.0) if which == "case2" else 1.0
+    assert joint_mismatch(r, L2).max() <= 1e-10
+
+
+def test_energy_constant_case1(case1_tight):
+    # Conservative system: T + V constant.  Tight tolerances (see module docstring).
+    drift = np.ptp(case1_tight["energy"])
+    assert drift <= 1e-8, f"energy drift {drift:.3g} J over 100 s"
+
+
+def test_energy_at_table1_tolerances(case1):
+    # Table 1's atol = 1e-6 rad per step: measured drift ~1e-3 J of 23.69 J.  This bound
+    # (1e-2 J, 0.04 %) catches a formulation error, which shows as drift of order 1 J.
+    assert np.ptp(case1["energy"]) <= 1e-2
+
+
+def test_energy_changes_only_at_the_fault(case2_tight):
+    t, e = case2_tight["time"], case2_tight["energy"]
+    before, after = e[t <= 10.0 + 1e-9], e[t > 10.0 + 1e-9]
+    assert np.ptp(before) <= 1e-8 and np.ptp(after) <= 1e-8
+    # Re-assembly with a longer crank at the same theta2, omega2 changes T + V.
+    assert abs(after[0] - before[-1]) > 1e-3
+
+
+@pytest.fixture(scope="module")
+def times():
+    return np.round(np.arange(10001) * 0.01, 10)
+
+
+def test_agrees_with_independent_formulation_case1(case1_tight, times):
+    ref = reference(times, THETA2_0, **TABLE1)
+    fmu = np.column_stack([case1_tight[n] for n in CENTRES])
+    err = np.abs(fmu - ref).max()
+    assert err <= 1e-6, f"max |FMU - theta2 formulation| = {err:.3g} m"
+
+
+def test_agrees_with_independent_formulation_case2(case2_tight, times):
+    ref = reference(times, THETA2_0, switches=((10.0, {"L2": 1.1}),), **TABLE1)
+    fmu = np.column_stack([case2_tight[n] for n in CENTRES])
+    err = np.abs(fmu - ref).max()
+    assert err <= 1e-6, f"max |FMU - theta2 formulation| = {err:.3g} m"
+    # Output convention: the row at 10.00 s has the old crank, 10.01 s the new one.
+    k = int(np.searchsorted(case2_tight["time"], 10.0 - 1e-9))
+    for j, L2 in ((k, 1.0), (k + 1, 1.1)):
+        r = case2_tight[j]
+        assert math.hypot(r["x2"], r["y2"]) == pytest.approx(L2 / 2, abs=1e-12)
+
+
+def test_rk45_is_selectable_and_accurate(fourbar_fmu, times):
+    r = run(fourbar_fmu, stop=10.0, start_values={"integrator": "RK45", "rtol": 1e-11, "atol": 1e-11},
+            output=CENTRES)
+    ref = reference(times[:1001], THETA2_0, **TABLE1)
+    assert np.abs(np.column_stack([r[n] for n in CENTRES]) - ref).max() <= 1e-6
+
+
+def _capture():
+    messages = []
+
+    def logger(env, instance, status, category, message):
+        messages.append(message.decode(errors="replace"))
+    return messages, logger
+
+
+@pytest.mark.parametrize("name, value, unit", [("L4", -1.0, "m"), ("m3", 0.0, "kg"), ("L1", float("nan"), "m")])
+def test_bad_start_parameters_are_rejected(fourbar_fmu, name, value, unit):
+    messages, logger = _capture()
+    with pytest.raises(Exception, match="fmi2ExitInitializationMode"):
+        run(fourbar_fmu, stop=0.1, start_values={name: value}, logger=logger)
+    assert any(f"{name} = {value!r} {unit}: must be a finite positive number" in m for m in messages), messages
+
+
+def test_unassemblable_length_fails_the_step_cleanly(fourbar_fmu):
+    # L2 = 10 m puts the crank tip ~10 m from the rocker pivot; L3 + L4 = 6.5 m.  The step
+    # returns fmi2Discard (pythonfmu's non-fatal failure status) with an error-level log
+    # message; simulate_fmu stops there and returns the rows computed so far.
+    messages, logger = _capture()
+    r = run(fourbar_fmu, stop=2.0, l2_step=(1.0, 10.0), logger=logger)
+    assert r["time"][-1] == pytest.approx(1.0, abs=1e-12)
+    text = " ".join(messages)
+    assert "L2 1 -> 10" in text and "cannot be closed" in text and "between 1.5 m and 6.5 m" in text, text
