@@ -70,6 +70,20 @@ def _function(name: str, args: str, doc: str, outputs: dict[str, sp.Matrix | sp.
     return "\n".join(lines) + "\n"
 
 
+def _fill_function(name: str, matrix: sp.Matrix, state: set, doc: str) -> str:
+    """A function writing only the state-dependent entries of ``matrix`` into an array."""
+    printer = _Printer({"fully_qualified_modules": False, "standard": "python3"})
+    entries = [(i, j, matrix[i, j]) for i in range(matrix.rows) for j in range(matrix.cols)
+               if matrix[i, j].free_symbols & state]
+    replacements, reduced = sp.cse([e for _, _, e in entries], symbols=sp.numbered_symbols("_c"),
+                                   optimizations="basic")
+    lines = [f"def {name}(out, q, p):", f'    """{doc}"""',
+             f"    {', '.join(COORDINATES)} = q", f"    {', '.join(PARAMETERS)} = p"]
+    lines += [f"    {sym} = {printer.doprint(expr)}" for sym, expr in replacements]
+    lines += [f"    out[{i}, {j}] = {printer.doprint(e)}" for (i, j, _), e in zip(entries, reduced)]
+    return "\n".join(lines) + "\n"
+
+
 def generate_module(eqs: FourBarEquations | None = None) -> str:
     """Return the source text of the generated equations module."""
     eqs = eqs or derive_equations()
@@ -92,6 +106,8 @@ N_COORDINATES = {len(COORDINATES)}
 N_CONSTRAINTS = {eqs.constraints.shape[0]}
 #: True when M does not depend on the state (it can be cached per parameter set).
 MASS_IS_CONSTANT = {not (eqs.mass_matrix.free_symbols & (set(eqs.q) | set(eqs.qd)))}
+#: True when Q does not depend on the state (gravity only: cached per parameter set).
+FORCES_ARE_CONSTANT = {not (eqs.forces.free_symbols & (set(eqs.q) | set(eqs.qd)))}
 
 
 '''
@@ -101,6 +117,9 @@ MASS_IS_CONSTANT = {not (eqs.mass_matrix.free_symbols & (set(eqs.q) | set(eqs.qd
                   {"Q": eqs.forces}),
         _function("constraints", "q, p", "Constraint residual Phi (8,).", {"Phi": eqs.constraints}),
         _function("jacobian", "q, p", "Constraint Jacobian Phi_q (8x9).", {"Phi_q": eqs.jacobian}),
+        _fill_function("jacobian_fill", eqs.jacobian, set(eqs.q),
+                       "Write the state-dependent entries of Phi_q into ``out`` (8x9); the others "
+                       "are those of ``jacobian`` for the same parameters."),
         _function("gamma", "q, qd, p", "Right-hand side gamma = -(Phi_q qd)_q qd (8,).",
                   {"gamma": eqs.gamma}),
         _function("energy", "q, qd, p", "Kinetic and potential energy (J).",

@@ -158,15 +158,23 @@ class FourBarDAE:
         self._n = n
         self._A = np.zeros((n + m, n + m), order="F")
         self._b = np.zeros(n + m)
-        self._A[:n, :n] = self.eq.mass_matrix([0.0] * n, self.p)
+        zeros = [0.0] * n
+        self._A[:n, :n] = self.eq.mass_matrix(zeros, self.p)
+        self._constant_forces = self.eq.FORCES_ARE_CONSTANT
+        if self._constant_forces:
+            self._b[:n] = self.eq.forces(zeros, zeros, self.p)
         self._V = np.zeros((n, n), order="F")     # [Phi_q; e_th2], see _velocities
         self._V[m, _I] = 1.0
+        # Phi_q with its constant entries in place; jacobian_fill updates the others.
+        self._J = self.eq.jacobian(zeros, self.p)
 
     # -- the DAE -----------------------------------------------------------------
     def state(self, theta2: float, omega2: float) -> tuple[np.ndarray, np.ndarray]:
         """Full consistent (q, qd) for the independent pair on the current branch."""
         q = _positions(theta2, self.p, self.branch)
-        return np.array(q), _velocities(self.eq.jacobian(q, self.p), omega2, self._V)
+        J = self._J
+        self.eq.jacobian_fill(J, q, self.p)
+        return np.array(q), _velocities(J, omega2, self._V)
 
     def accelerations(self, q, qd) -> tuple[np.ndarray, np.ndarray]:
         """Solve eq. (11) for (qdd, lambda) at a consistent state."""
@@ -189,12 +197,14 @@ class FourBarDAE:
         theta2, omega2 = float(y[0]), float(y[1])
         eq, p = self.eq, self.p
         q = _positions(theta2, p, self.branch)
-        J = eq.jacobian(q, p)
+        J = self._J
+        eq.jacobian_fill(J, q, p)
         qd = _velocities(J, omega2, self._V).tolist()
         A, b, n = self._A, self._b, self._n
         A[:n, n:] = J.T
         A[n:, :n] = J
-        b[:n] = eq.forces(q, qd, p)
+        if not self._constant_forces:
+            b[:n] = eq.forces(q, qd, p)
         b[n:] = eq.gamma(q, qd, p)
         lu, piv, x, info = lapack.dgesv(A, b)
         if info != 0:
@@ -216,7 +226,13 @@ class FourBarDAE:
         self.starts += 1
 
     def advance(self, t_end: float) -> None:
-        """Integrate to ``t_end`` (s) and store the consistent state in ``q``, ``qd``."""
+        """Integrate to ``t_end`` (s) and store the consistent state in ``q``, ``qd``.
+
+        The integrator keeps its own step size; communication points inside an accepted
+        step are read from its dense output.  Masters step on a regular grid, so the
+        points of the grid that fall inside the current step are interpolated together
+        in one vectorised call and cached.
+        """
         solver = self._solver
         eps = 1e-12 * max(1.0, abs(t_end))      # a step ending within round-off reaches t_end
         try:
@@ -228,15 +244,31 @@ class FourBarDAE:
             if abs(solver.t - t_end) <= eps:
                 y = solver.y
             else:
-                if self._dense is None:
-                    self._dense = solver.dense_output()
-                y = self._dense(t_end)
+                y = self._interpolate(t_end, eps)
             if not (math.isfinite(y[0]) and math.isfinite(y[1])):
                 raise IntegrationError(f"{self.method} produced a non-finite state before t = {t_end:.9g} s")
             self.q, self.qd = self.state(float(y[0]), float(y[1]))
         except AssemblyError as exc:
             raise IntegrationError(f"at t = {t_end:.9g} s {exc}") from None
+        self._last_step = t_end - self.t
         self.t = float(t_end)
+
+    def _interpolate(self, t_end: float, eps: float) -> np.ndarray:
+        if self._dense is None:
+            dense = self._solver.dense_output()
+            dt = getattr(self, "_last_step", 0.0)
+            if dt > 0.0:
+                n = int((self._solver.t - t_end) / dt) + 1
+                grid = t_end + dt * np.arange(n)
+                self._dense = (dense, grid, dense(grid))
+            else:
+                self._dense = (dense, np.empty(0), None)
+        dense, grid, values = self._dense
+        if grid.size:
+            k = int(np.searchsorted(grid, t_end - eps))
+            if k < grid.size and abs(grid[k] - t_end) <= eps:
+                return values[:, k]
+        return dense(t_end)
 
     def change_parameters(self, p) -> None:
         """Apply new lengths/masses at the current time by re-assembly keeping th2 and omega2.
@@ -258,7 +290,8 @@ class FourBarDAE:
 
     def constraint_residual(self) -> float:
         """max(|Phi(q)|_inf in m, |Phi_q qd|_inf in m/s) of the current state."""
-        ql = list(self.q)
-        pos = np.max(np.abs(self.eq.constraints(ql, self.p)))
-        vel = np.max(np.abs(self.eq.jacobian(ql, self.p) @ self.qd))
-        return float(max(pos, vel))
+        ql = self.q.tolist()
+        J = self._J
+        self.eq.jacobian_fill(J, ql, self.p)
+        phi = self.eq.constraints(ql, self.p)
+        return float(max(np.abs(phi).max(), np.abs(J @ self.qd).max()))

@@ -1,0 +1,140 @@
+#!/usr/bin/env python3
+"""Wall time of FourBar.fmu through FMPy against the pythonfmu/FMPy floor.
+
+The floor is a trivial pythonfmu FMU built here with the same variables as FourBar
+(same parameters, same 14 outputs) whose do_step only copies numbers: FMPy records
+every output for both, so the ratio isolates the cost of FourBar's numerics.
+Also reports right-hand-side evaluations per simulated second (counted by running the
+FMU's own integrator, fmu_src/fourbar_model/dae.py, outside the FMU).
+
+Usage: python benchmarks/fmu_speed.py [--fmu build/FourBar.fmu] [--repeat 5]
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+import types
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+
+FLOOR_SOURCE = textwrap.dedent('''
+    from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, DefaultExperiment
+    from pythonfmu.variables import Real, String
+
+    PARAMS = {"L1": 3.0, "L2": 1.0, "L3": 4.0, "L4": 2.5, "m2": 1.0, "m3": 1.0, "m4": 1.0, "g": 9.81}
+    FIXED = {"theta2_start": 0.5235987755982988, "omega2_start": 0.0, "rtol": 1e-9, "atol": 1e-6}
+    OUTPUTS = ["x2", "y2", "x3", "y3", "x4", "y4", "theta2", "theta3", "theta4",
+               "omega2", "omega3", "omega4", "energy", "constraint_residual"]
+
+    class Floor(Fmi2Slave):
+        default_experiment = DefaultExperiment(0.0, 100.0, 0.01, 1e-9)
+
+        def __init__(self, **kwargs):
+            super().__init__(**kwargs)
+            for name, value in PARAMS.items():
+                setattr(self, name, value)
+                self.register_variable(Real(name, causality=Fmi2Causality.parameter,
+                                            variability=Fmi2Variability.tunable))
+            for name, value in FIXED.items():
+                setattr(self, name, value)
+                self.register_variable(Real(name, causality=Fmi2Causality.parameter,
+                                            variability=Fmi2Variability.fixed))
+            self.integrator = "DOP853"
+            self.register_variable(String("integrator", causality=Fmi2Causality.parameter,
+                                          variability=Fmi2Variability.fixed))
+            for name in OUTPUTS:
+                setattr(self, name, 0.0)
+                self.register_variable(Real(name, causality=Fmi2Causality.output,
+                                            variability=Fmi2Variability.continuous))
+
+        def do_step(self, current_time, step_size):
+            self.x2 = current_time + step_size
+            return True
+''')
+
+
+def build_floor(directory: Path) -> Path:
+    script = directory / "floor_slave.py"
+    script.write_text(FLOOR_SOURCE)
+    subprocess.run([sys.executable, "-c",
+                    "import sys; from pythonfmu.builder import FmuBuilder; "
+                    "FmuBuilder.build_FMU(sys.argv[1], dest=sys.argv[2])", str(script), str(directory)],
+                   check=True, cwd=directory, capture_output=True)
+    return directory / "Floor.fmu"
+
+
+def l2_step():
+    return np.array([(0.0, 1.0), (10.0, 1.0), (10.0, 1.1)], dtype=[("time", float), ("L2", float)])
+
+
+def time_runs(fmu: Path, repeat: int, fault: bool) -> list[float]:
+    from fmpy import simulate_fmu
+    simulate_fmu(str(fmu), stop_time=1.0, output_interval=0.01)          # warm-up: imports, first load
+    times = []
+    for _ in range(repeat):
+        t0, c0 = time.perf_counter(), time.process_time()
+        simulate_fmu(str(fmu), stop_time=100.0, output_interval=0.01, input=l2_step() if fault else None)
+        times.append((time.perf_counter() - t0, time.process_time() - c0))
+    return times
+
+
+def medians(runs):
+    return statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs)
+
+
+def rhs_counts() -> dict[str, int]:
+    """RHS evaluations of the FMU's integrator for Cases 1 and 2 (same code as in the FMU)."""
+    from fmu_src.codegen import generate_module
+    from fmu_src.fourbar_model.dae import FourBarDAE, assemble
+    eq = types.ModuleType("equations")
+    exec(compile(generate_module(), "<generated>", "exec"), eq.__dict__)
+    counts = {}
+    for case, fault in (("Case 1", False), ("Case 2", True)):
+        p = (3.0, 1.0, 4.0, 2.5, 1.0, 1.0, 1.0, 9.81)
+        dae = FourBarDAE(eq, p, rtol=1e-9, atol=1e-6, t_bound=101.0)
+        q, qd = assemble(math.radians(30), 0.0, p, eq)
+        dae.start(0.0, q, qd)
+        for k in range(1, 10001):
+            if fault and k == 1001:
+                dae.change_parameters((3.0, 1.1, 4.0, 2.5, 1.0, 1.0, 1.0, 9.81))
+            dae.advance(k * 0.01)
+        counts[case] = dae.rhs_evaluations
+    return counts
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--fmu", default=str(REPO / "build" / "FourBar.fmu"))
+    parser.add_argument("--repeat", type=int, default=5)
+    args = parser.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        floor = build_floor(Path(tmp))
+        rows = []
+        floor_t = medians(time_runs(floor, args.repeat, fault=False))
+        counts = rhs_counts()
+        for case, fault in (("Case 1", False), ("Case 2", True)):
+            t = medians(time_runs(Path(args.fmu), args.repeat, fault))
+            rows.append((case, t, floor_t, counts[case] / 100.0))
+    print(f"Machine: {platform.processor() or platform.machine()}, {platform.python_implementation()} "
+          f"{platform.python_version()}, {__import__('os').cpu_count()} cores; median of {args.repeat} runs")
+    print()
+    print("| run (100 s, step 0.01 s, rtol 1e-9, atol 1e-6) | wall s | floor wall s | ratio (wall) "
+          "| CPU s | floor CPU s | ratio (CPU) | RHS evals / sim s |")
+    print("|---|---|---|---|---|---|---|---|")
+    for case, (tw, tc), (fw, fc), rate in rows:
+        print(f"| FourBar {case} | {tw:.3f} | {fw:.3f} | {tw / fw:.2f}x | {tc:.3f} | {fc:.3f} | {tc / fc:.2f}x | {rate:.0f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
