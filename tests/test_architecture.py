@@ -1,0 +1,49 @@
+"""The three parts stay independent: they meet only through FMI and through files.
+
+Static scan of every module's imports (``ast``), so a lazy import inside a function
+counts too.  ``sweep`` is the one integration package and may use orchestrator and monitor.
+"""
+from __future__ import annotations
+
+import ast
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+PARTS = ("fmu_src", "orchestrator", "monitor")
+# What the FMU's run-time code (shipped in resources/) may import besides the stdlib.
+FMU_RUNTIME_ALLOWED = {"numpy", "scipy", "pythonfmu", "fourbar_model"}
+
+
+def imported_roots(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text(), filename=str(path))
+    roots = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            roots.update(alias.name.split(".")[0] for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            roots.add(node.module.split(".")[0])
+    return roots
+
+
+@pytest.mark.parametrize("part", PARTS)
+def test_parts_do_not_import_each_other(part):
+    others = (set(PARTS) - {part}) | {"sweep"}
+    if part != "fmu_src":
+        others.add("fourbar_model")        # the FMU's run-time package, reachable only via FMI
+    offenders = {}
+    for path in sorted((REPO / part).rglob("*.py")):
+        bad = imported_roots(path) & others
+        if bad:
+            offenders[str(path.relative_to(REPO))] = sorted(bad)
+    assert not offenders, f"{part} imports other parts: {offenders}"
+
+
+def test_fmu_runtime_needs_only_numpy_and_scipy():
+    stdlib = set(sys.stdlib_module_names)
+    files = [REPO / "fmu_src" / "fourbar_slave.py", *sorted((REPO / "fmu_src" / "fourbar_model").glob("*.py"))]
+    for path in files:
+        extra = imported_roots(path) - stdlib - FMU_RUNTIME_ALLOWED
+        assert not extra, f"{path.name} imports {sorted(extra)}: the FMU ships only numpy/scipy needs"
