@@ -17,7 +17,7 @@ from pythonfmu.enums import Fmi2Status
 from pythonfmu.variables import Real, String
 
 from fourbar_model import equations
-from fourbar_model.dae import INTEGRATORS, AssemblyError, FourBarDAE, IntegrationError, assemble
+from fourbar_model.dae import INTEGRATORS, AssemblyError, FourBarDAE, IntegrationError, assemble, snap_time
 
 _TUNABLE = {   # name: (start value of Table 1, description)
     "L1": (3.0, "Ground link length: distance between the crank and rocker pivots [m]"),
@@ -47,8 +47,6 @@ _OUTPUTS = {
     "constraint_residual": "max(|Phi|, |Phi_q qd|) of the reported state [m, m/s]",
 }
 _PARAMETER_ORDER = equations.PARAMETERS   # (L1, L2, L3, L4, m2, m3, m4, g)
-
-
 class FourBar(Fmi2Slave):
     author = "fourbar-cosim developers"
     description = ("Planar four-bar linkage (Table 1 of Park's integrated engineering education model): "
@@ -136,14 +134,14 @@ class FourBar(Fmi2Slave):
         bound = self._stop_time + 1.0 if math.isfinite(self._stop_time) else math.inf
         self._dae = FourBarDAE(equations, p, method=self.integrator, rtol=self.rtol,
                                atol=self.atol, t_bound=bound)
-        self._dae.start(start, q, qd)
+        self._dae.start(snap_time(start), q, qd)
         self._publish()
 
     def do_step(self, current_time, step_size):
         dae = self._dae
         if dae is None:
             return self._fail("do_step called before initialization")
-        if abs(current_time - dae.t) > 1e-9 * max(1.0, abs(dae.t)):
+        if abs(snap_time(current_time) - dae.t) > 1e-9 * max(1.0, abs(dae.t)):
             return self._fail(f"do_step at t = {current_time!r} s, but the model is at t = {dae.t!r} s")
         p = self._parameters()
         if p != dae.p:
@@ -158,7 +156,7 @@ class FourBar(Fmi2Slave):
             self.log(f"applied {changed} at t = {current_time:.9g} s (re-assembled keeping theta2, omega2)",
                      Fmi2Status.ok)
         try:
-            dae.advance(current_time + step_size)
+            dae.advance(snap_time(current_time + step_size))
         except (IntegrationError, AssemblyError, ArithmeticError) as exc:
             return self._fail(str(exc))
         self._publish()

@@ -28,8 +28,8 @@ import numpy as np
 from scipy.integrate import DOP853, RK45
 from scipy.linalg import lapack
 
-__all__ = ["AssemblyError", "IntegrationError", "FourBarDAE", "assemble", "branch_of",
-           "INTEGRATORS", "BRANCH_OPEN"]
+__all__ = ["AssemblyError", "IntegrationError", "FourBarDAE", "assemble", "branch_of", "snap_time",
+           "INTEGRATORS", "BRANCH_OPEN", "TIME_RESOLUTION"]
 
 #: Explicit Runge-Kutta methods that may be selected (scipy classes).
 INTEGRATORS = {"DOP853": DOP853, "RK45": RK45}
@@ -41,6 +41,18 @@ BRANCH_OPEN = 1.0
 
 #: Independent coordinate (th2) in q.
 _I = 2
+
+#: Time resolution of the FMU: 1 ns.  Communication times are snapped to whole
+#: nanoseconds, so masters that compute the same grid differently (FMPy: n*h; libcosim:
+#: integer nanoseconds) drive exactly the same arithmetic.  Without it a one-ulp difference
+#: at a re-assembly changes the Runge-Kutta step sequence, and at Table 1's atol = 1e-6
+#: the trajectories then differ by up to the global error (~3e-3 m was measured).
+TIME_RESOLUTION = 1e-9
+
+
+def snap_time(t):
+    """``t`` (s, float or array) rounded to whole nanoseconds, in one canonical form."""
+    return np.round(np.asarray(t) * 1e9) / 1e9 if np.ndim(t) else round(t * 1e9) / 1e9
 
 
 class AssemblyError(ValueError):
@@ -259,7 +271,8 @@ class FourBarDAE:
             dt = getattr(self, "_last_step", 0.0)
             if dt > 0.0:
                 n = int((self._solver.t - t_end) / dt) + 1
-                grid = t_end + dt * np.arange(n)
+                # Predicted grid, snapped like the master's times are (whole nanoseconds).
+                grid = snap_time(t_end + dt * np.arange(n))
                 self._dense = (dense, grid, dense(grid))
             else:
                 self._dense = (dense, np.empty(0), None)
