@@ -9,10 +9,15 @@ coarseness of Table 1's settings.
 from __future__ import annotations
 
 import math
+import shutil
+from ctypes import byref
 
 import numpy as np
 import pytest
-from fmpy import simulate_fmu
+from fmpy import extract, read_model_description, simulate_fmu
+from fmpy.fmi2 import (FMU2Slave, calloc, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, free)
+from fmpy.logging import addLoggerProxy
 from numpy.testing import assert_allclose
 
 from reference_theta2 import simulate as reference
@@ -25,16 +30,55 @@ ALL = CENTRES + ["theta2", "theta3", "theta4", "omega2", "omega3", "omega4", "en
                  "constraint_residual"]
 
 
-def run(fmu, stop=100.0, start_values=None, l2_step=None, output=ALL, logger=None):
-    """Simulate with FMPy on the 0.01 s grid; ``l2_step=(t, value)`` the standard FMI way."""
+def run(fmu, stop=100.0, start_values=None, l2_step=None, output=ALL, capture_log=False):
+    """Simulate with FMPy on the 0.01 s grid; ``l2_step=(t, value)`` the standard FMI way.
+
+    With ``capture_log`` the FMU's messages are appended to ``LOG`` (see ``_logged_instance``).
+    """
     signal = None
     if l2_step is not None:
         t, value = l2_step
         signal = np.array([(0.0, TABLE1["L2"]), (t, TABLE1["L2"]), (t, value)],
                           dtype=[("time", float), ("L2", float)])
-    # pythonfmu passes messages to the logger only when debug logging is on.
-    return simulate_fmu(str(fmu), stop_time=stop, output_interval=0.01, start_values=start_values or {},
-                        input=signal, output=output, logger=logger, debug_logging=logger is not None)
+    kwargs = dict(stop_time=stop, output_interval=0.01, start_values=start_values or {},
+                  input=signal, output=output)
+    if not capture_log:
+        return simulate_fmu(str(fmu), **kwargs)
+    md = read_model_description(str(fmu))
+    unzipdir = extract(str(fmu))
+    instance = _logged_instance(md, unzipdir)
+    try:
+        return simulate_fmu(unzipdir, model_description=md, fmu_instance=instance, debug_logging=True, **kwargs)
+    finally:
+        instance.freeInstance()
+        shutil.rmtree(unzipdir, ignore_errors=True)
+
+
+# FMPy's logger proxy keeps a pointer to the last registered ctypes logger in one
+# process-wide C variable.  simulate_fmu(logger=f) makes a thunk per call and frees it
+# afterwards, leaving that pointer dangling (heap corruption at a later log call or at
+# exit).  So the tests register one thunk that lives as long as this module.
+LOG: list[str] = []
+
+
+def _collect(env, instance, status, category, message):
+    LOG.append(message.decode(errors="replace"))
+
+
+_LOG_THUNK = fmi2CallbackLoggerTYPE(_collect)
+
+
+def _logged_instance(md, unzipdir):
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = _LOG_THUNK
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    addLoggerProxy(byref(callbacks))
+    instance = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,
+                         modelIdentifier=md.coSimulation.modelIdentifier, instanceName="FourBar")
+    instance.instantiate(callbacks=callbacks, loggingOn=True)   # pythonfmu logs only when on
+    instance.kept_callbacks = callbacks
+    return instance
 
 
 @pytest.fixture(scope="module")
@@ -149,28 +193,20 @@ def test_rk45_is_selectable_and_accurate(fourbar_fmu, times):
     assert np.abs(np.column_stack([r[n] for n in CENTRES]) - ref).max() <= 1e-6
 
 
-def _capture():
-    messages = []
-
-    def logger(env, instance, status, category, message):
-        messages.append(message.decode(errors="replace"))
-    return messages, logger
-
-
 @pytest.mark.parametrize("name, value, unit", [("L4", -1.0, "m"), ("m3", 0.0, "kg"), ("L1", float("nan"), "m")])
 def test_bad_start_parameters_are_rejected(fourbar_fmu, name, value, unit):
-    messages, logger = _capture()
+    LOG.clear()
     with pytest.raises(Exception, match="fmi2ExitInitializationMode"):
-        run(fourbar_fmu, stop=0.1, start_values={name: value}, logger=logger)
-    assert any(f"{name} = {value!r} {unit}: must be a finite positive number" in m for m in messages), messages
+        run(fourbar_fmu, stop=0.1, start_values={name: value}, capture_log=True)
+    assert any(f"{name} = {value!r} {unit}: must be a finite positive number" in m for m in LOG), LOG
 
 
 def test_unassemblable_length_fails_the_step_cleanly(fourbar_fmu):
     # L2 = 10 m puts the crank tip ~10 m from the rocker pivot; L3 + L4 = 6.5 m.  The step
     # returns fmi2Discard (pythonfmu's non-fatal failure status) with an error-level log
     # message; simulate_fmu stops there and returns the rows computed so far.
-    messages, logger = _capture()
-    r = run(fourbar_fmu, stop=2.0, l2_step=(1.0, 10.0), logger=logger)
+    LOG.clear()
+    r = run(fourbar_fmu, stop=2.0, l2_step=(1.0, 10.0), capture_log=True)
     assert r["time"][-1] == pytest.approx(1.0, abs=1e-12)
-    text = " ".join(messages)
+    text = " ".join(LOG)
     assert "L2 1 -> 10" in text and "cannot be closed" in text and "between 1.5 m and 6.5 m" in text, text

@@ -1,0 +1,128 @@
+"""``fourbar-run``: run a case file through its FMU and write the exchange file.
+
+Exit codes: 0 finished, 1 the run failed (FMU error, I/O error), 2 usage or case-file
+error, 130 interrupted (Ctrl-C).  Heavy imports (FMPy, numpy) happen inside the handler,
+so ``--help`` and ``--version`` answer at once.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+__all__ = ["main"]
+
+_DESCRIPTION = """\
+Run a co-simulation case: drive the case's FMI 2.0 co-simulation FMU with FMPy over the
+communication grid start + k*step, apply the case's faults (step and ramp events) exactly
+on their grid points, and stream the outputs to DIR/exchange.csv (CSV, appended every
+flush interval of simulated time) with DIR/run.json (status, parameters, injected faults).
+"""
+
+_EPILOG = """\
+examples:
+  fourbar-run cases/case2_fault_L2.toml
+  fourbar-run cases/case2_fault_L2.toml --realtime 1          # wall-clock pace (100 s)
+  fourbar-run cases/case1_normal.toml --stop 20 --set L2=1.05 --out out/try
+
+The row at an event's time shows the state before the change (the change acts from the
+next step on).  Case-file keys: docs/orchestrator.md.
+exit status: 0 finished, 1 run failed, 2 usage or case-file error, 130 interrupted.
+"""
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("fourbar-cosim")
+    except Exception:   # not installed (run from a source tree)
+        return "unknown"
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="fourbar-run", description=_DESCRIPTION, epilog=_EPILOG,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("case", metavar="CASE.toml", help="the case file to run")
+    parser.add_argument("--out", metavar="DIR", help="output directory (default: out/<case name>)")
+    parser.add_argument("--stop", metavar="SECONDS", type=float,
+                        help="end time in s, replacing experiment.stop (must stay on the grid)")
+    parser.add_argument("--realtime", metavar="FACTOR", type=float,
+                        help="pace simulated time to the wall clock: 1 = real time, 20 = 20x faster, "
+                             "0 = as fast as possible (replaces exchange.realtime_factor)")
+    parser.add_argument("--set", metavar="NAME=VALUE", action="append", default=[], dest="overrides",
+                        help="start value of an FMU parameter, replacing [parameters]; VALUE is read as "
+                             "TOML (1.1, 3, true, \"RK45\"), else as a string; repeatable")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no summary line")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    return parser
+
+
+def _parse_overrides(items: list[str]) -> dict:
+    """``NAME=VALUE`` strings -> {name: value}; ValueError names the bad item."""
+    import tomllib
+
+    overrides = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise ValueError(f"--set {item!r}: expected NAME=VALUE, e.g. --set L2=1.1")
+        try:
+            value = tomllib.loads(f"v = {text}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text
+        overrides[name] = value
+    return overrides
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = _parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:   # --help, --version (0) or a usage error (2, message printed)
+        return int(exc.code or 0)
+    try:
+        overrides = _parse_overrides(args.overrides)
+    except ValueError as exc:
+        print(f"fourbar-run: error: {exc}", file=sys.stderr)
+        return 2
+    return _run(args.case, out=args.out, stop=args.stop, realtime=args.realtime, overrides=overrides,
+                quiet=args.quiet)
+
+
+def _run(case: str, *, out, stop, realtime, overrides, quiet: bool) -> int:
+    from .config import ConfigError
+    from .run import RunInterrupted, run_case
+
+    try:
+        result = run_case(case, out, stop=stop, realtime=realtime, overrides=overrides or None,
+                          progress=not quiet and sys.stderr.isatty())
+    except ConfigError as exc:
+        print(f"fourbar-run: error: {exc}", file=sys.stderr)
+        return 2
+    except RunInterrupted as exc:
+        r = exc.result
+        print(f"fourbar-run: {r.case.name}: interrupted after {r.rows_written} rows "
+              f"(last t = {r.last_time!r} s); kept in {r.exchange_path}", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:
+        print("fourbar-run: interrupted before the run started", file=sys.stderr)
+        return 130
+    if not result.ok:
+        where = (f"after {result.rows_written} rows (last t = {result.last_time!r} s)" if result.rows_written
+                 else "before the first row")
+        print(f"fourbar-run: error: {result.case.name}: run failed {where}: {result.error}", file=sys.stderr)
+        if result.exchange_path.exists():
+            print(f"fourbar-run: rows kept in {result.exchange_path}; status in {result.run_json_path}",
+                  file=sys.stderr)
+        return 1
+    if not quiet:
+        exp = result.case.experiment
+        print(f"{result.case.name}: finished, {result.rows_written} rows, t = {exp.start:g} .. "
+              f"{result.last_time:g} s, {len(result.case.events)} event(s), {result.wall_time_s:.2f} s wall "
+              f"-> {result.exchange_path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

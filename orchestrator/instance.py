@@ -1,0 +1,240 @@
+"""One FMI 2.0 co-simulation instance, driven through FMPy's ``FMU2Slave``.
+
+:class:`FmuInstance` extracts the FMU, instantiates it with a logger that keeps the FMU's
+messages (so a failure carries the FMU's own reason), reads and writes variables by name
+whatever their type, and always frees the instance and removes the extracted files.
+Any FMI 2.0 co-simulation FMU works; nothing here knows about the four-bar.
+"""
+from __future__ import annotations
+
+import collections
+import itertools
+import shutil
+import threading
+from typing import Any, Callable, Iterable, Sequence
+
+__all__ = ["FmuError", "FmuInstance"]
+
+_STATUS = ("ok", "warning", "discard", "error", "fatal", "pending")
+
+# FMPy's logger proxy (fmpy.logging.addLoggerProxy, needed to format the FMU's printf-style
+# messages) keeps the Python logger in ONE process-wide C variable, which FMPy's default
+# callbacks (simulate_fmu & co.) also go through.  A per-instance ctypes callback would be
+# freed with its instance and leave that variable dangling: the next FMU that logs in this
+# process would call freed memory (observed: a segfault in simulate_fmu after run_case).
+# So there is one callback for the life of the process; it routes each message by the
+# componentEnvironment pointer the FMU passes back, and hands unknown ones to FMPy's printer.
+_ROUTES: dict[int, "FmuInstance"] = {}
+_ENV_IDS = itertools.count(1)
+_LOGGER_LOCK = threading.Lock()
+_LOGGER = None   # the process-wide ctypes callback, created on first use
+
+
+def _route_log_message(env, instance_name, status, category, message) -> None:
+    target = _ROUTES.get(env or 0)
+    if target is not None:
+        target._logger(env, instance_name, status, category, message)
+        return
+    from fmpy.fmi1 import printLogMessage   # what FMPy's default callbacks do
+
+    printLogMessage(env, instance_name, status, category, message)
+
+
+def _process_logger():
+    global _LOGGER
+    with _LOGGER_LOCK:
+        if _LOGGER is None:
+            from fmpy.fmi2 import fmi2CallbackLoggerTYPE
+
+            _LOGGER = fmi2CallbackLoggerTYPE(_route_log_message)
+        return _LOGGER
+
+
+class FmuError(RuntimeError):
+    """An FMI call failed; the message names the call, the status and the FMU's log."""
+
+    def __init__(self, message: str, status: int | None = None):
+        super().__init__(message)
+        self.status = status
+
+
+class FmuInstance:
+    """Context manager around ``fmpy.fmi2.FMU2Slave`` for one run.
+
+    ``model_description`` is the one FMPy read from ``path``.  On leaving the context the
+    instance is terminated (only after a clean run, as FMI 2.0 allows), freed, and the
+    extracted directory removed, whatever happened.
+    """
+
+    def __init__(self, path, model_description, instance_name: str, log_size: int = 200):
+        self.path = path
+        self.md = model_description
+        self.instance_name = instance_name
+        self.variables = {v.name: v for v in model_description.modelVariables}
+        self.log = collections.deque(maxlen=log_size)   # (sequence number, status, category, message)
+        self._log_count = 0
+        self._slave = None
+        self._callbacks = None
+        self._unzipdir = None
+        self._env = 0
+        self._instantiated = False
+        self._failed_status: int | None = None
+        self._call_error: type = Exception   # fmpy's FMICallException once FMPy is imported
+
+    # -- life cycle -------------------------------------------------------------------
+    def __enter__(self) -> "FmuInstance":
+        try:
+            self._open()
+        except BaseException:
+            self._close(clean=False)
+            raise
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self._close(clean=exc_type is None)
+
+    def _open(self) -> None:
+        from ctypes import byref
+
+        from fmpy import extract
+        from fmpy.fmi2 import (FMU2Slave, calloc, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                               fmi2CallbackFunctions, free)
+        from fmpy.fmi1 import FMICallException
+        from fmpy.logging import addLoggerProxy
+
+        self._call_error = FMICallException
+
+        self._unzipdir = extract(str(self.path))
+        self._env = next(_ENV_IDS)
+        _ROUTES[self._env] = self
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = _process_logger()
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        callbacks.componentEnvironment = self._env   # passed back to the logger: routes the messages
+        addLoggerProxy(byref(callbacks))   # formats the FMU's printf-style message before our callback
+        self._callbacks = callbacks        # must outlive the instance
+        self._slave = FMU2Slave(guid=self.md.guid, unzipDirectory=self._unzipdir,
+                                modelIdentifier=self.md.coSimulation.modelIdentifier,
+                                instanceName=self.instance_name)
+        try:
+            # loggingOn: pythonfmu (and many FMUs) forward messages only when logging is on.
+            self._slave.instantiate(callbacks=callbacks, loggingOn=True)
+        except Exception as exc:   # FMPy raises a bare Exception when fmi2Instantiate returns NULL
+            raise FmuError(self._describe(f"fmi2Instantiate failed ({exc})", 0)) from None
+        self._instantiated = True
+
+    def _close(self, clean: bool) -> None:
+        slave, self._slave = self._slave, None
+        try:
+            if slave is not None:
+                if self._instantiated:
+                    if clean and self._failed_status is None:
+                        try:
+                            slave.terminate()
+                        except Exception:   # a failing terminate must not hide the run's result
+                            pass
+                    slave.freeInstance()    # frees the instance and unloads the library
+                else:
+                    slave.freeLibrary()
+        finally:
+            _ROUTES.pop(self._env, None)
+            if self._unzipdir is not None:
+                shutil.rmtree(self._unzipdir, ignore_errors=True)
+                self._unzipdir = None
+
+    # -- logging ----------------------------------------------------------------------
+    def _logger(self, component, instance_name, status, category, message) -> None:
+        self._log_count += 1
+        text = message.decode("utf-8", "replace") if message else ""
+        cat = category.decode("utf-8", "replace") if category else ""
+        self.log.append((self._log_count, int(status), cat, text))
+
+    def _describe(self, what: str, since: int) -> str:
+        """``what`` followed by the FMU's warnings/errors logged since message ``since``."""
+        recent = [m for m in self.log if m[0] > since]
+        important = [m for m in recent if m[1] >= 1] or recent[-3:]
+        if not important:
+            return f"{what} (the FMU logged no message)"
+        return what + ": " + " | ".join(m[3] for m in important)
+
+    def _failure(self, what: str, exc, mark: int) -> FmuError:
+        """:class:`FmuError` for FMPy's ``FMICallException`` ``exc``, with the FMU's log since ``mark``."""
+        self._failed_status = exc.status
+        label = _STATUS[exc.status] if 0 <= exc.status < len(_STATUS) else str(exc.status)
+        return FmuError(self._describe(f"{what} returned {label}", mark), exc.status)
+
+    def _call(self, what: str, function: Callable, *args) -> Any:
+        """Run one FMI call; turn FMPy's exception into :class:`FmuError` with the FMU's log."""
+        mark = self._log_count
+        try:
+            return function(*args)
+        except self._call_error as exc:
+            raise self._failure(what, exc, mark) from None
+
+    # -- FMI calls --------------------------------------------------------------------
+    def setup_experiment(self, start: float, stop: float, tolerance: float | None) -> None:
+        self._call("fmi2SetupExperiment", self._slave.setupExperiment, tolerance, start, stop)
+
+    def enter_initialization_mode(self) -> None:
+        self._call("fmi2EnterInitializationMode", self._slave.enterInitializationMode)
+
+    def exit_initialization_mode(self) -> None:
+        self._call("fmi2ExitInitializationMode", self._slave.exitInitializationMode)
+
+    def do_step(self, t: float, h: float) -> None:
+        """``fmi2DoStep(t, h)`` (the hot path: no work beyond the call unless it fails)."""
+        mark = self._log_count
+        try:
+            self._slave.doStep(t, h)
+        except self._call_error as exc:
+            raise self._failure(f"fmi2DoStep(t = {t!r} s, h = {h:.12g} s)", exc, mark) from None
+
+    def set_values(self, values: Iterable[tuple[str, Any]]) -> None:
+        """Set variables by name (grouped per FMI type)."""
+        groups: dict[str, tuple[list, list]] = {}
+        for name, value in values:
+            var = self.variables[name]
+            vrs, vals = groups.setdefault(_setter_type(var.type), ([], []))
+            vrs.append(var.valueReference)
+            vals.append(value)
+        for kind, (vrs, vals) in groups.items():
+            setter = getattr(self._slave, f"set{kind}")
+            self._call(f"fmi2Set{kind}({', '.join(_names(self.md, vrs))})", setter, vrs, vals)
+
+    def reader(self, names: Sequence[str]) -> Callable[[], list]:
+        """A function returning the current values of ``names`` (in that order) as Python numbers."""
+        kinds = [_setter_type(self.variables[n].type) for n in names]
+        vrs = [self.variables[n].valueReference for n in names]
+        slave = self._slave
+        if all(k == "Real" for k in kinds):
+            get_real = slave.getReal
+            return lambda: get_real(vrs)
+        groups: dict[str, list[int]] = {}
+        for i, kind in enumerate(kinds):
+            groups.setdefault(kind, []).append(i)
+        plan = [(getattr(slave, f"get{kind}"), [vrs[i] for i in idx], idx, kind == "Boolean")
+                for kind, idx in groups.items()]
+        n = len(names)
+
+        def read() -> list:
+            row = [0] * n
+            for getter, group_vrs, idx, is_bool in plan:
+                for i, value in zip(idx, getter(group_vrs)):
+                    row[i] = int(bool(value)) if is_bool else value
+            return row
+
+        return read
+
+    @property
+    def guid(self) -> str:
+        return self.md.guid
+
+
+def _setter_type(vtype: str) -> str:
+    return "Integer" if vtype == "Enumeration" else vtype
+
+
+def _names(md, vrs) -> list[str]:
+    by_vr = {v.valueReference: v.name for v in md.modelVariables}
+    return [by_vr.get(vr, str(vr)) for vr in vrs]

@@ -1,0 +1,311 @@
+"""The co-simulation loop: one case, one FMU instance, one exchange file.
+
+Loop (communication points ``t_k = start + k*step``, ``k = 0 .. n``; integer count)::
+
+    read the outputs at t_k               -> row k (the state before any change at t_k)
+    every flush interval: append rows     -> exchange.csv (real-time: once t_k is due)
+    set the events due at t_k             (steps at their time, ramp values at each point)
+    fmi2DoStep(t_k, t_{k+1} - t_k)
+
+So with L2 set at 10 s, the row at 10.00 s still shows the old geometry and the row at
+10.01 s the new one (ARCHITECTURE.md section 1).  The step passed to the FMU is
+``t_{k+1} - t_k`` rather than ``step``: it makes the FMU end each step exactly on the grid
+(as ``fmpy.simulate_fmu`` does), instead of drifting by round-off.
+
+run.json is written when the run starts (``running``), after flushes (at most every
+0.2 s of wall time) and at the end (``finished``, ``failed`` or ``interrupted``, with the
+reason).  Rows already appended stay whatever happens; the FMU instance is always freed.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import time
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Mapping
+
+from .config import Case, RampEvent, StepEvent, Value, apply_overrides, load_case
+from .exchange import ExchangeWriter, format_row, write_json_atomic
+from .pacing import InterruptFlag, RealtimePacer
+
+__all__ = ["RunInterrupted", "RunResult", "run_case", "SCHEMA_VERSION"]
+
+SCHEMA_VERSION = 1
+_RUN_JSON_MIN_INTERVAL = 0.2   # s of wall time between two "running" updates of run.json
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What a run produced.  ``status`` is ``finished``, ``failed`` or ``interrupted``."""
+
+    case: Case
+    status: str
+    out_dir: Path
+    exchange_path: Path
+    run_json_path: Path
+    rows_written: int            # data rows in exchange.csv (header not counted)
+    last_time: float | None      # time of the last row written, s
+    wall_time_s: float           # the whole run_case call, FMU loading included
+    sim_wall_time_s: float | None  # from reading the first row to writing the last one
+    error: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "finished"
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped a run; run.json says ``interrupted``; ``result`` describes what was kept."""
+
+    def __init__(self, result: RunResult):
+        super().__init__(result.error)
+        self.result = result
+
+
+def run_case(case: Case | str | Path, out_dir: str | Path | None = None, *, stop: float | None = None,
+             realtime: float | None = None, overrides: Mapping[str, Value] | None = None,
+             progress: bool = False) -> RunResult:
+    """Run ``case`` (a :class:`Case` or a case-file path) and write ``out_dir``.
+
+    ``out_dir`` defaults to ``out/<case name>`` (relative to the working directory).
+    ``stop`` (s), ``realtime`` (factor) and ``overrides`` (parameter start values) replace
+    the case's values; the result is validated again (:class:`~orchestrator.ConfigError`).
+    ``progress`` shows a tqdm bar on stderr.
+
+    A failure of the FMU or of writing returns a result with status ``failed`` and the
+    reason in ``error`` (also in run.json).  Ctrl-C records ``interrupted`` in run.json
+    and raises :class:`RunInterrupted` (a ``KeyboardInterrupt``).
+    """
+    wall0 = time.monotonic()
+    if isinstance(case, Case):
+        case = apply_overrides(case, overrides=overrides, stop=stop, realtime=realtime)
+    else:
+        case = load_case(case, overrides=overrides, stop=stop, realtime=realtime)
+    out = Path(out_dir) if out_dir is not None else Path("out") / case.name
+    return _Run(case, out, progress, wall0).execute()
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
+
+
+def _schedule(case: Case) -> dict[int, list[tuple[str, Value]]]:
+    """Grid index -> the (variable, value) pairs to set after reading that row."""
+    exp = case.experiment
+    schedule: dict[int, list[tuple[str, Value]]] = {}
+    for event in case.events:
+        if isinstance(event, StepEvent):
+            schedule.setdefault(exp.index(event.time), []).append((event.variable, event.value))
+        elif isinstance(event, RampEvent):
+            k0, k1 = exp.index(event.start), exp.index(event.end)
+            for k in range(k0, min(k1, exp.n_steps) + 1):
+                schedule.setdefault(k, []).append((event.variable, event.value_at((k - k0) / (k1 - k0))))
+    return schedule
+
+
+class _Run:
+    def __init__(self, case: Case, out_dir: Path, progress: bool, wall0: float):
+        self.case = case
+        self.out_dir = out_dir
+        self.exchange_path = out_dir / "exchange.csv"
+        self.run_json_path = out_dir / "run.json"
+        self.progress = progress
+        self.wall0 = wall0
+        self.status = "running"
+        self.error: str | None = None
+        self.rows_written = 0
+        self.last_time: float | None = None
+        self.loop_wall0: float | None = None
+        self.loop_wall1: float | None = None
+        self.last_json_write = -1e300
+        self.writer: ExchangeWriter | None = None
+        self.bar = None
+        self.pending_t: list[float] = []
+        self.pending_v: list[list] = []
+        self.noise = None
+        self.pacer: RealtimePacer | None = None
+        self.record = self._record()
+
+    # -- run.json ---------------------------------------------------------------------
+    def _record(self) -> dict:
+        case = self.case
+        from fmpy import read_model_description   # validated already; cheap (reads the XML)
+
+        md = read_model_description(str(case.fmu))
+        self.md = md
+        return {
+            "schema": SCHEMA_VERSION, "status": "running", "case": case.name,
+            "case_file": str(case.source) if case.source is not None else None,
+            "description": case.description,
+            "fmu": {"path": str(case.fmu), "guid": md.guid, "model_name": md.modelName},
+            "experiment": case.experiment.as_dict(),
+            "parameters": dict(case.parameters),
+            "events": [e.as_dict() for e in case.events],
+            "fault_time": case.fault_time,
+            "outputs": list(case.outputs),
+            "noise": case.noise.as_dict() if case.noise is not None else None,
+            "exchange": case.exchange.as_dict(),
+            "rows_written": 0, "last_time": None,
+            "started_at": _now(), "updated_at": None, "finished_at": None,
+            "wall_time_s": 0.0, "error": None,
+        }
+
+    def _write_record(self, final: bool = False) -> None:
+        now = time.monotonic()
+        record = self.record
+        record.update(status=self.status, rows_written=self.rows_written, last_time=self.last_time,
+                      updated_at=_now(), wall_time_s=round(now - self.wall0, 6), error=self.error)
+        if final:
+            record["finished_at"] = record["updated_at"]
+        write_json_atomic(self.run_json_path, record)
+        self.last_json_write = now
+
+    # -- rows -------------------------------------------------------------------------
+    def _flush(self, wait: bool = True) -> None:
+        if not self.pending_t:
+            return
+        if wait and self.pacer is not None:
+            self.pacer.wait_until(self.pending_t[-1])
+        values = self.pending_v
+        if self.noise is not None:
+            values = self.noise.apply(values)
+        lines = [format_row((t, *v)) for t, v in zip(self.pending_t, values)]
+        self.writer.append(lines)
+        self.rows_written += len(lines)
+        self.last_time = self.pending_t[-1]
+        self.pending_t, self.pending_v = [], []
+        self.loop_wall1 = time.monotonic()
+        if self.bar is not None:
+            self.bar.update(len(lines))
+        if self.loop_wall1 - self.last_json_write >= _RUN_JSON_MIN_INTERVAL:
+            self._write_record()
+
+    # -- the run ----------------------------------------------------------------------
+    def execute(self) -> RunResult:
+        from .instance import FmuError, FmuInstance
+
+        interrupted, note = False, ""
+        try:
+            with InterruptFlag() as flag:
+                try:
+                    self.out_dir.mkdir(parents=True, exist_ok=True)
+                    self._write_record()
+                    self.writer = ExchangeWriter(self.exchange_path, ("time", *self.case.outputs))
+                    if self.progress:
+                        from tqdm import tqdm
+
+                        self.bar = tqdm(total=self.case.experiment.n_steps + 1, unit="row", desc=self.case.name,
+                                        file=sys.stderr, dynamic_ncols=True, leave=False)
+                    with FmuInstance(self.case.fmu, self.md, self.case.name) as fmu:
+                        self._loop(fmu, flag)
+                    self.status = "finished"
+                except FmuError as exc:
+                    note = self._after_failure()
+                    if flag.requested:
+                        interrupted = True
+                    else:
+                        self.status, self.error = "failed", str(exc) + note
+                except KeyboardInterrupt:
+                    note = self._after_failure()
+                    interrupted = True
+                except OSError as exc:
+                    self.status, self.error = "failed", f"{type(exc).__name__}: {exc}"
+                if interrupted:
+                    where = f" at t = {self.last_time!r} s" if self.last_time is not None else ""
+                    self.status, self.error = "interrupted", f"interrupted by Ctrl-C{where}{note}"
+        except KeyboardInterrupt:      # a second Ctrl-C while keeping the rows
+            self.status, self.error = "interrupted", "interrupted by Ctrl-C"
+            self._finish()
+            raise RunInterrupted(self._result()) from None
+        except BaseException as exc:   # a bug: record it, then let the traceback through
+            self.status, self.error = "failed", f"internal error: {type(exc).__name__}: {exc}"
+            self._finish()
+            raise
+        self._finish()
+        result = self._result()
+        if interrupted:
+            raise RunInterrupted(result)
+        return result
+
+    def _after_failure(self) -> str:
+        """Keep the rows read before a failure (they are valid), without real-time waiting.
+
+        Returns "" or a note for the error message when even that write failed.
+        """
+        try:
+            if self.writer is not None:
+                self._flush(wait=False)
+        except OSError as exc:
+            return f"; the last rows could not be written: {type(exc).__name__}: {exc}"
+        return ""
+
+    def _finish(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+        if self.writer is not None:
+            self.writer.close()
+        try:
+            self._write_record(final=True)
+        except OSError as exc:
+            note = f"run.json could not be written: {exc}"
+            self.error = f"{self.error}; {note}" if self.error else note
+            if self.status == "finished":
+                self.status = "failed"
+
+    def _result(self) -> RunResult:
+        sim_wall = None
+        if self.loop_wall0 is not None and self.loop_wall1 is not None:
+            sim_wall = self.loop_wall1 - self.loop_wall0
+        return RunResult(case=self.case, status=self.status, out_dir=self.out_dir,
+                         exchange_path=self.exchange_path, run_json_path=self.run_json_path,
+                         rows_written=self.rows_written, last_time=self.last_time,
+                         wall_time_s=time.monotonic() - self.wall0, sim_wall_time_s=sim_wall, error=self.error)
+
+    def _loop(self, fmu, flag: InterruptFlag) -> None:
+        case = self.case
+        exp = case.experiment
+        n = exp.n_steps
+        start, step = exp.start, exp.step
+        t_last = exp.time(n)
+
+        fmu.setup_experiment(start, max(exp.stop, t_last), exp.tolerance)
+        if case.parameters:
+            fmu.set_values(case.parameters.items())
+        fmu.enter_initialization_mode()
+        fmu.exit_initialization_mode()
+
+        if case.noise is not None:
+            from .noise import NoiseSource
+
+            self.noise = NoiseSource(case.noise, case.outputs)
+        if case.exchange.realtime_factor > 0.0:
+            self.pacer = RealtimePacer(case.exchange.realtime_factor, start, flag)
+        flush_every = max(1, round(case.exchange.flush_interval / step))
+        schedule = _schedule(case)
+        read = fmu.reader(case.outputs)
+        do_step, set_values = fmu.do_step, fmu.set_values
+        pending_t, pending_v = self.pending_t, self.pending_v
+
+        flag.check()
+        self.loop_wall0 = time.monotonic()
+        if self.pacer is not None:
+            self.pacer.start()
+        t = start
+        for k in range(n + 1):
+            pending_t.append(t)
+            pending_v.append(read())
+            if k % flush_every == 0 or k == n:
+                self._flush()
+                pending_t, pending_v = self.pending_t, self.pending_v
+            if k == n:
+                break
+            actions = schedule.get(k)
+            if actions:
+                set_values(actions)
+            if flag.requested:
+                raise KeyboardInterrupt
+            t_next = start + (k + 1) * step
+            do_step(t, t_next - t)
+            t = t_next

@@ -1,0 +1,205 @@
+"""The exchange file while it grows: a reader polling it during a run (another process, as
+the monitor would) only ever finds complete rows behind the last newline and a run.json
+that parses; real-time mode releases each block when its time has come on the wall
+clock (1 s simulated at factor 1 takes 1.0-1.3 s); Ctrl-C keeps the rows, says
+`interrupted` and exits 130."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from orchestrator import ExchangeSettings, load_case, run_case
+
+REPO = Path(__file__).resolve().parents[1]
+FOURBAR_RUN = [sys.executable, "-m", "orchestrator.cli"]
+
+
+def shipped_case(name: str, fmu: Path, dest: Path, **exchange) -> Path:
+    text = (REPO / "cases" / f"{name}.toml").read_text()
+    text, count = re.subn(r"^fmu = .*$", f"fmu = {json.dumps(str(fmu))}", text, flags=re.M)
+    assert count == 1
+    for key, value in exchange.items():
+        text, count = re.subn(rf"^{key} = \S+", f"{key} = {value!r}", text, flags=re.M)
+        assert count == 1
+    path = dest / f"{name}.toml"
+    path.write_text(text)
+    return path
+
+
+def complete_part(data: bytes) -> bytes:
+    """What a reader may use: everything up to and including the last newline."""
+    return data[: data.rfind(b"\n") + 1]
+
+
+def check_rows(complete: bytes, step: float = 0.01) -> int:
+    """Every complete line after the header is a whole row on the grid; returns the row count."""
+    lines = complete.decode().splitlines()
+    if not lines:
+        return 0
+    assert lines[0] == "time,x2,y2,x3,y3,x4,y4"
+    for k, line in enumerate(lines[1:]):
+        fields = line.split(",")
+        assert len(fields) == 7, f"partial row {k}: {line!r}"
+        values = [float(v) for v in fields]          # every field parses
+        assert values[0] == 0.0 + k * step           # no row missing, none out of order
+    return len(lines) - 1
+
+
+def test_concurrent_reader_never_sees_a_partial_row(fourbar_fmu, tmp_path):
+    # Many small appends (every 0.05 s of simulated time) at 8x real time: ~1.5 s of run.
+    path = shipped_case("case2_fault_L2", fourbar_fmu, tmp_path, flush_interval=0.05)
+    out = tmp_path / "out"
+    exchange, run_json = out / "exchange.csv", out / "run.json"
+    proc = subprocess.Popen([*FOURBAR_RUN, str(path), "--out", str(out), "--stop", "12", "--realtime", "8"],
+                            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    snapshots, sizes, partial_tails, statuses = [], set(), 0, []
+    last_rows_json = 0
+    try:
+        while True:
+            running = proc.poll() is None
+            if run_json.exists():
+                record = json.loads(run_json.read_text())     # must always parse (atomic replace)
+                statuses.append(record["status"])
+                assert record["rows_written"] >= last_rows_json
+                last_rows_json = record["rows_written"]
+            if exchange.exists():
+                data = exchange.read_bytes()
+                complete = complete_part(data)
+                partial_tails += data != complete
+                rows = check_rows(complete)
+                # run.json is written after the rows it counts (read before the exchange file here).
+                assert rows >= last_rows_json
+                snapshots.append(complete)
+                sizes.add(len(data))
+            if not running:
+                break
+            time.sleep(0.002)
+        stdout, stderr = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, stderr
+    final = exchange.read_bytes()
+    assert check_rows(final) == 1201 and final.endswith(b"\n")
+    assert all(final.startswith(s) for s in snapshots)     # nothing seen was later rewritten
+    assert len(sizes) >= 10, "the reader should have watched the file grow"
+    assert statuses[0] == "running" and statuses[-1] == "finished"
+    assert set(statuses) <= {"running", "finished"}
+    print(f"polls {len(snapshots)}, distinct sizes {len(sizes)}, polls with an unfinished last line {partial_tails}")
+
+
+def _watch_rows(path: Path, stop: threading.Event, seen: list) -> None:
+    """Record (monotonic time, last complete time value) whenever the file grows."""
+    last = None
+    while not stop.is_set():
+        try:
+            data = complete_part(path.read_bytes())
+        except FileNotFoundError:
+            data = b""
+        if data != last and data.count(b"\n") > 1:
+            last = data
+            tail = data[: -1].rsplit(b"\n", 1)[-1]
+            seen.append((time.monotonic(), float(tail.split(b",")[0])))
+        time.sleep(0.001)
+
+
+@pytest.mark.parametrize("factor, stop", [(1.0, 1.0), (4.0, 4.0)])
+def test_realtime_pacing(factor, stop, fourbar_fmu, tmp_path):
+    """1 s of wall time for `stop` simulated seconds at `factor`; no block released early."""
+    case = load_case(shipped_case("case1_normal", fourbar_fmu, tmp_path))
+    case = dataclasses.replace(case, exchange=ExchangeSettings(flush_interval=0.1, realtime_factor=factor))
+    out = tmp_path / "out"
+    out.mkdir()
+    seen: list = []
+    stop_event = threading.Event()
+    watcher = threading.Thread(target=_watch_rows, args=(out / "exchange.csv", stop_event, seen))
+    watcher.start()
+    try:
+        result = run_case(case, out, stop=stop)
+    finally:
+        stop_event.set()
+        watcher.join()
+    assert result.ok and result.rows_written == round(stop / 0.01) + 1
+    # Acceptance: 1.0-1.3 s of wall time, from the first row (t = 0) to the last (t = stop).
+    assert 1.0 <= result.sim_wall_time_s <= 1.3, result.sim_wall_time_s
+    # The same seen from outside by a reader polling every 1 ms (first row at t = 0 s).
+    (w0, t0), (w1, t1) = seen[0], seen[-1]
+    assert t0 == 0.0 and t1 == stop
+    assert 1.0 - 0.005 <= w1 - w0 <= 1.3, w1 - w0       # 5 ms: poll period plus scheduling jitter
+    for wall, t in seen:
+        # A block is never visible before its simulated time is due (5 ms: the reader's
+        # clock reading happens after the file read) and is not held much longer than
+        # one block (0.1 s) plus jitter.
+        assert t / factor <= (wall - w0) + 0.005
+        assert (wall - w0) - t / factor <= 0.1 / factor + 0.1
+    print(f"factor {factor}: loop {result.sim_wall_time_s:.4f} s, seen by reader {w1 - w0:.4f} s "
+          f"(whole run_case {result.wall_time_s:.3f} s including FMU loading)")
+
+
+def test_ctrl_c_keeps_rows_and_exits_130(fourbar_fmu, tmp_path):
+    path = shipped_case("case2_fault_L2", fourbar_fmu, tmp_path)
+    out = tmp_path / "out"
+    proc = subprocess.Popen([*FOURBAR_RUN, str(path), "--out", str(out), "--realtime", "2"], cwd=REPO,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:           # wait until some blocks are out (t >= 1 s)
+            path_csv = out / "exchange.csv"
+            if path_csv.exists() and path_csv.read_bytes().count(b"\n") >= 1 + 101:
+                break
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, stderr
+    assert "interrupted after" in stderr and "Traceback" not in stderr
+    data = (out / "exchange.csv").read_bytes()
+    assert data.endswith(b"\n")
+    rows = check_rows(data)
+    record = json.loads((out / "run.json").read_text())
+    assert record["status"] == "interrupted"
+    assert record["error"].startswith("interrupted by Ctrl-C at t = ")
+    assert record["rows_written"] == rows and 101 <= rows < 10_001
+    assert record["last_time"] == 0.0 + (rows - 1) * 0.01
+    assert record["finished_at"] is not None
+
+
+@pytest.mark.skipif(not hasattr(os, "getpgid"), reason="POSIX only")
+def test_interrupt_via_api_raises_keyboardinterrupt(fourbar_fmu, tmp_path):
+    """run_case records `interrupted` and raises RunInterrupted (a KeyboardInterrupt) with the result."""
+    out = tmp_path / "api"
+    code = f"""
+import os, pathlib, signal, sys, threading, time
+from orchestrator import run_case, RunInterrupted
+
+def interrupt_once_rows_appear():
+    csv = pathlib.Path({str(out / 'exchange.csv')!r})
+    while not (csv.exists() and csv.read_bytes().count(b"\\n") > 2):
+        time.sleep(0.01)
+    os.kill(os.getpid(), signal.SIGINT)
+
+threading.Thread(target=interrupt_once_rows_appear, daemon=True).start()
+try:
+    run_case({str(shipped_case('case1_normal', fourbar_fmu, tmp_path))!r}, {str(out)!r}, realtime=5.0)
+except RunInterrupted as exc:
+    assert isinstance(exc, KeyboardInterrupt)
+    print(exc.result.status, exc.result.rows_written)
+    sys.exit(0)
+sys.exit(3)
+"""
+    result = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    status, rows = result.stdout.split()
+    assert status == "interrupted" and 0 < int(rows) < 10_001
