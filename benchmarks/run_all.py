@@ -1,0 +1,85 @@
+#!/usr/bin/env python3
+"""Run every benchmark and print (or write) docs/benchmarks.md.
+
+Usage: python benchmarks/run_all.py [--write docs/benchmarks.md] [--only NAME ...]
+
+Each section shows the command that produced it; run that command alone to reproduce one
+table.  Timings depend on load: run on an otherwise idle machine.
+"""
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import os
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+SECTIONS = [
+    ("fmu_speed", "FMU speed against the pythonfmu/FMPy floor (issue 2)", ["benchmarks/fmu_speed.py"]),
+    ("fmu_accuracy", "FMU accuracy: independent formulation, energy, constraints (issue 2)",
+     ["benchmarks/fmu_accuracy.py"]),
+    ("orchestrator_overhead", "Orchestrator overhead against plain simulate_fmu (issue 3)",
+     ["benchmarks/orchestrator_overhead.py"]),
+    ("monitor_replay", "Monitor replay speed and detection against the paper (issue 4)",
+     ["benchmarks/monitor_replay.py"]),
+    ("sweep_scaling", "Sweep throughput on Dask, 1 and 2 workers (issue 6)", ["benchmarks/sweep_scaling.py"]),
+]
+
+
+def machine() -> str:
+    try:
+        model = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo")
+                     if line.startswith("model name"))
+    except (OSError, StopIteration):
+        model = platform.processor() or platform.machine()
+    mem = ""
+    try:
+        kb = int(next(line.split()[1] for line in open("/proc/meminfo") if line.startswith("MemTotal")))
+        mem = f", {kb / 2**20:.0f} GiB RAM"
+    except (OSError, StopIteration):
+        pass
+    return (f"{model}, {os.cpu_count()} cores{mem}, {platform.system()} {platform.release()}, "
+            f"CPython {platform.python_version()}")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--write", metavar="PATH", help="also write the report to PATH")
+    parser.add_argument("--only", nargs="*", choices=[s[0] for s in SECTIONS], help="run only these")
+    args = parser.parse_args(argv)
+    parts = [
+        "# Benchmarks",
+        "",
+        f"Measured {dt.date.today().isoformat()} on: {machine()}.",
+        "Produced by `python benchmarks/run_all.py --write docs/benchmarks.md` (`make benchmarks`); "
+        "each section names the script that prints its table.",
+        "",
+    ]
+    failed = False
+    for name, title, command in SECTIONS:
+        if args.only and name not in args.only:
+            continue
+        print(f"== {title}: python {' '.join(command)}", file=sys.stderr, flush=True)
+        t0 = time.perf_counter()
+        proc = subprocess.run([sys.executable, *command], cwd=REPO, capture_output=True, text=True)
+        took = time.perf_counter() - t0
+        parts += [f"## {title}", "", f"`python {' '.join(command)}` ({took:.0f} s)", ""]
+        if proc.returncode != 0:
+            failed = True
+            parts += ["```", f"FAILED (exit {proc.returncode})", proc.stderr.strip()[-2000:], "```", ""]
+        else:
+            parts += [proc.stdout.strip(), ""]
+    report = "\n".join(parts)
+    print(report)
+    if args.write:
+        Path(args.write).write_text(report + "\n")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
