@@ -1,0 +1,34 @@
+"""Exceptions raised by the monitor.
+
+Every message names the file (or option), the field, the value and what was expected, so
+the CLI can print it as is (exit code 2) instead of a traceback.
+"""
+from __future__ import annotations
+
+__all__ = [
+    "MonitorError",
+    "ExchangeFormatError",
+    "ExchangeMissingError",
+    "OptionError",
+    "TrainingError",
+]
+
+
+class MonitorError(Exception):
+    """Base class of every error the monitor raises for bad input or options."""
+
+
+class ExchangeFormatError(MonitorError, ValueError):
+    """The exchange file cannot be used: empty, header only, missing column, bad encoding."""
+
+
+class ExchangeMissingError(MonitorError, FileNotFoundError):
+    """The exchange file does not exist (replay), or did not appear in time (follow)."""
+
+
+class OptionError(MonitorError, ValueError):
+    """An option of the monitor has an invalid value; the message names the option."""
+
+
+class TrainingError(MonitorError, ValueError):
+    """The training window cannot give a model: too few samples, constant signal, no period."""

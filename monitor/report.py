@@ -1,0 +1,282 @@
+"""Output files of the monitor, in ``--out DIR`` (default ``<exchange dir>/monitor``).
+
+``events.jsonl``
+    One JSON object per line, written as it happens: ``time`` (simulated s), ``event``
+    (``trained`` | ``stable`` | ``refit`` | ``alarm`` | ``clear``), ``state``, ``mae``,
+    ``threshold``, ``message`` (the paper's sentence for an alarm), and for ``trained`` the
+    period, model and threshold settings; ``wall`` is the wall-clock time (ISO 8601).
+``evaluations.csv``
+    ``time,mae,threshold,state``: every evaluation, written as it happens.
+``summary.json``
+    Written at the end (atomically): periods (FFT and refined), model settings, fit time,
+    validation MAE, threshold rule, first alarm, fault time from run.json, detection latency,
+    false alarms before the fault, skipped-row counts, timings.
+``history.png``, ``mae.png``, ``spectrum.png``
+    The paper's Fig. 9-13 views: data and forecast with the training window shaded (full
+    run and a zoom on the alarm), MAE against the threshold with the alarm marked, and the
+    spectrum of the training window with the FFT and refined periods.
+
+When the exchange file is replaced while following, ``events.jsonl`` and
+``evaluations.csv`` start again with the new file.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .detector import ALARM_MESSAGE, Event, State
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .engine import MonitorResult
+
+__all__ = ["OutputWriters", "jsonable", "write_json_atomic", "write_plots", "PLOT_FILES"]
+
+PLOT_FILES = ("history.png", "mae.png", "spectrum.png")
+
+
+def jsonable(value: Any) -> Any:
+    """Convert numpy scalars/arrays, Paths and non-finite floats (→ None) for JSON."""
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [jsonable(v) for v in value.tolist()]
+    if isinstance(value, (np.floating, float)):
+        v = float(value)
+        return v if math.isfinite(v) else None
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (np.bool_,)):
+        return bool(value)
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, State):
+        return value.value
+    return value
+
+
+def write_json_atomic(path: Path, data: Any) -> None:
+    """Write JSON to a temporary file beside ``path`` and rename it over ``path``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            json.dump(jsonable(data), fh, indent=2, allow_nan=False)
+            fh.write("\n")
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+class OutputWriters:
+    """The files of one monitor session; events and evaluations are streamed."""
+
+    def __init__(self, out_dir: Path):
+        self.out_dir = Path(out_dir)
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self._events = open(self.out_dir / "events.jsonl", "w", encoding="utf-8")
+        try:
+            self._evals = open(self.out_dir / "evaluations.csv", "w", encoding="utf-8")
+        except BaseException:
+            self._events.close()
+            raise
+        self._evals.write("time,mae,threshold,state\n")
+        self._evals.flush()
+
+    def event(self, e: Event) -> None:
+        d = e.as_dict()
+        d["wall"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds")
+        self._events.write(json.dumps(jsonable(d), allow_nan=False) + "\n")
+        self._events.flush()
+
+    def evaluation(self, t: float, mae: float, threshold: float, state: State) -> None:
+        self._evals.write(f"{t!r},{mae!r},{threshold!r},{state.value}\n")
+        self._evals.flush()
+
+    def restart(self) -> None:
+        for fh in (self._events, self._evals):
+            fh.seek(0)
+            fh.truncate()
+        self._evals.write("time,mae,threshold,state\n")
+        self._evals.flush()
+        self._events.flush()
+
+    def finish(self, result: "MonitorResult", plots: bool = True) -> None:
+        self._events.flush()
+        self._evals.flush()
+        summary = dict(result.summary)
+        summary["outputs"] = {"events": "events.jsonl", "evaluations": "evaluations.csv",
+                              "plots": list(PLOT_FILES) if plots and result.fits else []}
+        write_json_atomic(self.out_dir / "summary.json", summary)
+        if plots and result.fits:
+            write_plots(result, self.out_dir)
+
+    def close(self) -> None:
+        self._events.close()
+        self._evals.close()
+
+
+def write_plots(result: "MonitorResult", out_dir: str | os.PathLike[str]) -> list[Path]:
+    """Write history.png, mae.png and spectrum.png for ``result``; return their paths."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    from matplotlib.figure import Figure
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, fn in zip(PLOT_FILES, (_plot_history, _plot_mae, _plot_spectrum)):
+        fig = Figure(figsize=(10, 6.2), dpi=100)
+        fn(fig, result)
+        path = out / name
+        fig.savefig(path)
+        paths.append(path)
+    return paths
+
+
+def _marks(ax: Any, result: "MonitorResult", label: bool = True) -> None:
+    s = result.summary
+    if s.get("fault_time") is not None:
+        ax.axvline(s["fault_time"], color="0.3", ls="--", lw=1.0,
+                   label=f"fault (run.json) {s['fault_time']:g} s" if label else None)
+    times = s.get("alarm_times") or []
+    for i, t in enumerate(times[:50]):
+        ax.axvline(t, color="red", lw=1.2 if i == 0 else 0.6, alpha=1.0 if i == 0 else 0.4,
+                   label=(f"first alarm {t:g} s" if i == 0 else None) if label else None)
+
+
+def _plot_history(fig: Any, result: "MonitorResult") -> None:
+    h = result.history
+    sig = result.options.signal
+    fit = result.fits[0]
+    axes = fig.subplots(2, 1)
+    t = h["time"].to_numpy()
+    x = h[sig].to_numpy()
+    f = h["forecast"].to_numpy()
+    s = result.summary
+    first = s.get("first_alarm_time")
+    fault = s.get("fault_time")
+    if first is not None:
+        lo = fit.start
+        hi = max(first, fault or first) + 4.0
+    else:
+        lo, hi = fit.start, fit.end + 11.0
+    # in-sample fit over the training window, for the paper's Fig. 9 view
+    train = (t >= fit.start) & (t <= fit.end)
+    fitted = np.full(t.size, np.nan)
+    if train.any():
+        fitted[train] = fit.forecaster.predict(t[train])
+    for ax, (a, b), title in ((axes[0], (t[0] if t.size else 0, t[-1] if t.size else 1), "whole run"),
+                              (axes[1], (lo, hi), "zoom")):
+        m = (t >= a) & (t <= b)
+        ax.plot(t[m], x[m], color="tab:blue", lw=0.9, zorder=3, label=f"{sig} (exchange file)")
+        ax.plot(t[m], fitted[m], color="tab:green", lw=1.2, ls="--", zorder=4, label="model on training data")
+        ax.plot(t[m], f[m], color="tab:orange", lw=1.2, ls="--", zorder=4, label=f"forecast ({fit.forecaster.kind})")
+        for i, ft in enumerate(result.fits):
+            ax.axvspan(ft.start, ft.end, color="tab:green", alpha=0.12,
+                       label=f"training {ft.start:g}–{ft.end:g} s" if i == 0 else None)
+        _marks(ax, result)
+        ax.set_xlim(a, b)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel(sig)
+        ax.grid(alpha=0.3)
+        ax.set_title(f"{sig}: data and forecast — {title}", fontsize=10)
+    handles, labels = axes[1].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", fontsize=8, ncol=4, frameon=False)
+    fig.subplots_adjust(left=0.08, right=0.98, top=0.9, bottom=0.15, hspace=0.45)
+    fig.suptitle(f"{result.exchange_path.name}: {fit.forecaster.kind} model, period {fit.estimate.period:.6g} s, "
+                 f"Fourier order {fit.forecaster.order}", fontsize=11)
+
+
+def _plot_mae(fig: Any, result: "MonitorResult") -> None:
+    ev = result.evaluations
+    s = result.summary
+    axes = fig.subplots(2, 1, height_ratios=[1.4, 1])
+    first = s.get("first_alarm_time")
+    t = ev["time"].to_numpy()
+    mae = ev["mae"].to_numpy()
+    thr = ev["threshold"].to_numpy()
+    if first is not None:
+        zoom = (first - 3.0, first + 2.0)
+    else:
+        zoom = (t[0] - 0.5, t[0] + 10.0) if t.size else (0.0, 1.0)
+    for ax, span, title in ((axes[0], None, "whole run"), (axes[1], zoom, "zoom")):
+        m = np.ones(t.size, bool) if span is None else (t >= span[0]) & (t <= span[1])
+        ax.semilogy(t[m], np.maximum(mae[m], 1e-12), color="tab:blue", lw=1.0, marker="." if span else None,
+                    ms=3, label=f"MAE over the newest {result.options.window:g} s (every {result.options.every:g} s)")
+        ax.semilogy(t[m], thr[m], color="red", ls="--", lw=1.2,
+                    label=f"threshold ({(s.get('threshold') or {}).get('mode', '')})")
+        above = m & (mae > thr)
+        ax.semilogy(t[above], mae[above], "o", ms=2.5, color="red", label="above threshold")
+        _marks(ax, result)
+        if span is not None:
+            ax.set_xlim(*span)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel(f"MAE of {result.options.signal}")
+        ax.grid(alpha=0.3, which="both")
+        ax.set_title(f"forecast error against the threshold — {title}", fontsize=10)
+    if first is not None:
+        txt = (f"t = {first:g} s    MAE: {s['first_alarm_mae']:.4g} > threshold {s['first_alarm_threshold']:.4g}\n"
+               f"{ALARM_MESSAGE}")
+        if s.get("detection_latency_s") is not None:
+            txt += f"\ndetection latency {s['detection_latency_s']:.3g} s after the fault"
+        box = {"facecolor": "white", "edgecolor": "red", "alpha": 0.9}
+    else:
+        txt = f"no alarm; largest MAE/threshold {s.get('max_mae_over_threshold') or 0:.3g}"
+        box = {"facecolor": "white", "edgecolor": "green", "alpha": 0.9}
+    axes[1].text(0.01, 0.96, txt, transform=axes[1].transAxes, fontsize=8, va="top", bbox=box)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", fontsize=8, ncol=3, frameon=False)
+    fig.subplots_adjust(left=0.08, right=0.98, top=0.9, bottom=0.15, hspace=0.45)
+    fig.suptitle(f"{result.exchange_path.name}: {result.options.signal}, {result.fits[0].forecaster.kind} model",
+                 fontsize=11)
+
+
+def _plot_spectrum(fig: Any, result: "MonitorResult") -> None:
+    est = result.fits[0].estimate
+    fit = result.fits[0]
+    ax, ax2 = fig.subplots(1, 2, width_ratios=[1.6, 1])
+    f = est.frequencies
+    m = f <= min(f[-1], 12.0 / est.period)
+    ax.semilogy(f[m], np.maximum(est.spectrum[m], 1e-12), color="tab:blue", lw=1.0,
+                label="|FFT| (mean removed, Hann, zero-padded)")
+    ax.axvline(est.fft_frequency, color="tab:orange", ls="--",
+               label=f"FFT peak {est.fft_frequency:.4f} Hz → {est.fft_period:.4f} s")
+    ax.axvline(est.frequency, color="red", lw=1.0,
+               label=f"refined {est.frequency:.6f} Hz → {est.period:.6f} s ± {est.period_stderr:.1g}")
+    ax.axvspan(est.fft_frequency - est.fft_bin_width / 2, est.fft_frequency + est.fft_bin_width / 2,
+               color="tab:orange", alpha=0.12, label=f"FFT bin width 1/T = {est.fft_bin_width:.3f} Hz")
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("amplitude")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7, loc="upper right")
+    ax.set_title(f"spectrum of {result.options.signal}, training {fit.start:g}–{fit.end:g} s", fontsize=10)
+    # one period of the training data folded on the refined period, with the model
+    h = result.history
+    t = h["time"].to_numpy()
+    x = h[result.options.signal].to_numpy()
+    sel = (t >= fit.start) & (t <= fit.end)
+    phase = np.mod(t[sel] - fit.start, est.period)
+    ax2.plot(phase, x[sel], ".", ms=2, color="tab:blue", label="training data, folded")
+    grid = fit.start + np.linspace(0, est.period, 400)
+    ax2.plot(grid - fit.start, fit.forecaster.predict(grid), color="red", lw=1.0,
+             label=f"{fit.forecaster.kind}, order {fit.forecaster.order}")
+    ax2.set_xlabel(f"time modulo {est.period:.5f} s")
+    ax2.set_ylabel(result.options.signal)
+    ax2.grid(alpha=0.3)
+    ax2.legend(fontsize=7)
+    ax2.set_title("one period", fontsize=10)
+    fig.subplots_adjust(left=0.08, right=0.98, top=0.93, bottom=0.09, wspace=0.25)

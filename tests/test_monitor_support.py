@@ -1,0 +1,133 @@
+"""Exchange files for the monitor tests, produced by the orchestrator (``fourbar-run``).
+
+The four runs (Case 1, Case 2, and both with σ = 5 mm sensor noise on x2) are started
+together, once per test session, the first time a monitor test asks for one; the other
+``test_monitor_*`` modules import :func:`orchestrated` from here.  The test in this module
+checks the parts of the exchange contract the monitor relies on.
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+FOURBAR_RUN = str(BIN / "fourbar-run")
+FOURBAR_MONITOR = str(BIN / "fourbar-monitor")
+NOISE_STD = 0.005   # m, σ of the x2 sensor noise in the acceptance criteria
+
+_TABLE1 = """\
+[experiment]
+start = 0.0
+stop = 100.0
+step = 0.01
+tolerance = 1e-9
+
+[parameters]          # Table 1
+L1 = 3.0
+L2 = 1.0
+L3 = 4.0
+L4 = 2.5
+m2 = 1.0
+m3 = 1.0
+m4 = 1.0
+g = 9.81
+theta2_start = 0.5235987755982988
+omega2_start = 0.0
+rtol = 1e-9
+atol = 1e-6
+
+[outputs]
+variables = ["x2", "y2", "x3", "y3", "x4", "y4"]
+
+[exchange]
+flush_interval = 1.0
+realtime_factor = 0.0
+"""
+_STEP = """
+[[events]]            # Table 1, Case 2
+type = "step"
+time = 10.0
+variable = "L2"
+value = 1.1
+"""
+_NOISE = """
+[noise]
+seed = 7
+std = { x2 = %r }
+""" % NOISE_STD
+
+_lock = threading.Lock()
+_runs: dict[str, Path] = {}
+
+
+def case_with_fmu(src: Path, fmu: Path, dest: Path) -> Path:
+    """Copy a case file with its ``fmu`` set to the absolute path of the FMU under test."""
+    text = src.read_text(encoding="utf-8")
+    text = re.sub(r'(?m)^fmu\s*=.*$', f'fmu = "{fmu.as_posix()}"', text)
+    dest.write_text(text, encoding="utf-8")
+    return dest
+
+
+def noise_case(name: str, fmu: Path, dest: Path, fault: bool) -> Path:
+    text = f'name = "{name}"\nfmu = "{fmu.as_posix()}"\n\n' + _TABLE1 + (_STEP if fault else "") + _NOISE
+    dest.write_text(text, encoding="utf-8")
+    return dest
+
+
+def orchestrated(tmp_path_factory: pytest.TempPathFactory, fmu: Path, name: str) -> Path:
+    """Path of the exchange.csv of run ``name`` (case1, case2, noise1, noise2); runs them once."""
+    with _lock:
+        if not _runs:
+            base = tmp_path_factory.mktemp("orchestrated")
+            cases = {
+                "case1": case_with_fmu(REPO / "cases" / "case1_normal.toml", fmu, base / "case1.toml"),
+                "case2": case_with_fmu(REPO / "cases" / "case2_fault_L2.toml", fmu, base / "case2.toml"),
+                "noise1": noise_case("noise1", fmu, base / "noise1.toml", fault=False),
+                "noise2": noise_case("noise2", fmu, base / "noise2.toml", fault=True),
+            }
+            procs = {}
+            for key, case in cases.items():
+                procs[key] = subprocess.Popen([FOURBAR_RUN, str(case), "--out", str(base / key), "--quiet"],
+                                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            failures = []
+            for key, proc in procs.items():
+                out, err = proc.communicate(timeout=300)
+                if proc.returncode != 0:
+                    failures.append(f"{key}: exit {proc.returncode}\n{out}\n{err}")
+            if failures:
+                raise RuntimeError("fourbar-run failed:\n" + "\n".join(failures))
+            _runs.update({key: base / key / "exchange.csv" for key in cases})
+    return _runs[name]
+
+
+def copy_run(src_exchange: Path, dest_dir: Path, *, run_json: bool = True) -> Path:
+    """Copy an orchestrated exchange.csv (and its run.json) into ``dest_dir``."""
+    dest_dir.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(src_exchange, dest_dir / "exchange.csv")
+    if run_json:
+        shutil.copyfile(src_exchange.parent / "run.json", dest_dir / "run.json")
+    return dest_dir / "exchange.csv"
+
+
+def test_orchestrated_files_follow_the_exchange_contract(tmp_path_factory, fourbar_fmu):
+    for name, fault in (("case1", None), ("case2", 10.0), ("noise1", None), ("noise2", 10.0)):
+        path = orchestrated(tmp_path_factory, fourbar_fmu, name)
+        data = path.read_bytes()
+        lines = data.split(b"\n")
+        assert lines[0] == b"time,x2,y2,x3,y3,x4,y4"
+        assert data.endswith(b"\n") and len(lines) == 10001 + 2        # header + rows + final ''
+        assert lines[1001].startswith(b"10.0,")
+        run = json.loads((path.parent / "run.json").read_text())
+        assert run["status"] == "finished" and run["rows_written"] == 10001
+        assert run["fault_time"] == fault
+        assert (run["noise"] is not None) == name.startswith("noise")
+    assert os.access(FOURBAR_MONITOR, os.X_OK)
