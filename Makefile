@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 FMU    := build/FourBar.fmu
 REALTIME ?= 0
-SPEEDUP  ?= 5
+SPEEDUP  ?= 10
 # REALTIME=1 runs the demo at wall-clock pace (the paper's live setting).
 DEMO_SPEED := $(if $(filter 1,$(REALTIME)),1,$(SPEEDUP))
 FMU_SOURCES := build_fmu.py $(wildcard fmu_src/*.py fmu_src/fourbar_model/*.py)
@@ -38,7 +38,7 @@ test: $(FMU)
 	$(BIN)/python -m pytest -q
 
 benchmarks: $(FMU)
-	$(BIN)/python benchmarks/run_all.py
+	$(BIN)/python benchmarks/run_all.py --write docs/benchmarks.md
 
 clean:
 	rm -rf build out .pytest_cache

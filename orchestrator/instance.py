@@ -16,6 +16,7 @@ from typing import Any, Callable, Iterable, Sequence
 __all__ = ["FmuError", "FmuInstance"]
 
 _STATUS = ("ok", "warning", "discard", "error", "fatal", "pending")
+_FATAL = 4
 
 # FMPy's logger proxy (fmpy.logging.addLoggerProxy, needed to format the FMU's printf-style
 # messages) keeps the Python logger in ONE process-wide C variable, which FMPy's default
@@ -134,7 +135,13 @@ class FmuInstance:
                             slave.terminate()
                         except Exception:   # a failing terminate must not hide the run's result
                             pass
-                    slave.freeInstance()    # frees the instance and unloads the library
+                    if self._failed_status == _FATAL:
+                        # FMI 2.0 allows no call after fmi2Fatal, fmi2FreeInstance included, and
+                        # pythonfmu's slaves corrupt the interpreter's heap if freed then (a later
+                        # segfault in the garbage collector).  The instance is left allocated.
+                        pass
+                    else:
+                        slave.freeInstance()    # frees the instance and unloads the library
                 else:
                     slave.freeLibrary()
         finally:

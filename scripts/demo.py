@@ -6,7 +6,7 @@
 watches the rest.  They share nothing but the files.  The verdict comes from the
 monitor's summary.json.
 
-Usage: python scripts/demo.py [--speedup 5] [--case cases/case2_fault_L2.toml] [--model prophet]
+Usage: python scripts/demo.py [--speedup 10] [--case cases/case2_fault_L2.toml] [--model prophet]
        (--speedup 1 runs at wall-clock pace, as in the paper)
 """
 from __future__ import annotations
@@ -26,7 +26,7 @@ BIN = Path(sys.executable).parent
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--case", default=str(REPO / "cases" / "case2_fault_L2.toml"))
-    parser.add_argument("--speedup", type=float, default=5.0,
+    parser.add_argument("--speedup", type=float, default=10.0,
                         help="simulated seconds per wall-clock second (default %(default)s; 1 = real time)")
     parser.add_argument("--model", default="prophet", choices=["prophet", "harmonic"])
     parser.add_argument("--out", default=None, help="output folder (default out/<case name>)")
@@ -71,12 +71,12 @@ def main(argv=None) -> int:
     print("== verdict ==")
     fault = summary.get("fault_time")
     alarm = summary.get("first_alarm_time")
-    latency = summary.get("detection_latency")
+    latency = summary.get("detection_latency_s")
     print(f"fault injected at      : {fault if fault is not None else 'none'} s (from run.json)")
     print(f"first alarm at         : {alarm if alarm is not None else 'none'} s")
     if latency is not None:
         print(f"detection latency      : {latency:.2f} s   (paper: fault at 10 s, detected at 14 s -> 4 s)")
-    print(f"false alarms before it : {summary.get('false_alarms', 'n/a')}")
+    print(f"false alarms before it : {summary.get('false_alarms_before_fault', 'n/a')}")
     plots = sorted(monitor_out.glob("*.png"))
     print(f"plots                  : {', '.join(str(p.relative_to(REPO)) if p.is_relative_to(REPO) else str(p) for p in plots)}")
     return 0 if alarm is not None else 1

@@ -8,10 +8,7 @@ geometry and the one at 10.01 s the new).  libcosim runs it as in examples/libco
 t = 10.00 s, set L2 with an override manipulator, step on; libcosim applies it before the
 next doStep, the same one.  x2, y2, x3, y3, x4, y4 are compared at all 10,001 points.
 
-Both masters run in this process.  That works (checked repeatedly, FMPy and libcosim
-alternating in one interpreter): pythonfmu's binary sees an initialised interpreter, takes
-the GIL around every call from libcosim's worker thread and never finalises Python; each
-master extracts its own copy of the FMU.  No subprocess is needed.
+libcosim runs in a child process (see ``_CHILD`` below); FMPy in this one.
 
 The two masters do not hand the FMU the same doubles: FMPy passes t_n = n * 0.01 and
 h = t_(n+1) - t_n, libcosim counts integer nanoseconds and passes t_n = (n * 10^7 ns) / 1e9
@@ -24,7 +21,8 @@ not depend on one-ulp differences of the communication times.
 """
 from __future__ import annotations
 
-import importlib.util
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -45,22 +43,34 @@ N_CHANGE = 1_000                # L2 changes at t = 10.00 s
 TOL = 1e-12
 
 
-def _example(repo_root):
-    spec = importlib.util.spec_from_file_location("libcosim_case2", repo_root / "examples" / "libcosim_case2.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def _matrix(result) -> np.ndarray:
     return np.column_stack([np.asarray(result[name], dtype=float) for name in OUTPUTS])
 
 
+# libcosim runs in a child process, as a user runs examples/libcosim_case2.py: the comparison
+# does not depend on what FMPy has loaded in this process, and the child's exit status also
+# checks that libcosim and pythonfmu shut down cleanly.
+_CHILD = """
+import sys, importlib.util
+import numpy as np
+from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+log_output_level(CosimLogLevel.WARNING)      # libcosim logs every FMI call by default
+spec = importlib.util.spec_from_file_location("libcosim_case2", sys.argv[1])
+example = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(example)
+result = example.run_case2(sys.argv[2])
+np.savez(sys.argv[3], **result)
+"""
+
+
 @pytest.fixture(scope="module")
-def libcosim_case2(fourbar_fmu, repo_root):
-    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
-    log_output_level(CosimLogLevel.WARNING)      # libcosim logs every FMI call by default
-    return _example(repo_root).run_case2(fourbar_fmu)
+def libcosim_case2(fourbar_fmu, repo_root, tmp_path_factory):
+    out = tmp_path_factory.mktemp("libcosim") / "case2.npz"
+    proc = subprocess.run([sys.executable, "-c", _CHILD, str(repo_root / "examples" / "libcosim_case2.py"),
+                           str(fourbar_fmu), str(out)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0 and out.exists(), f"libcosim run failed ({proc.returncode}):\n{proc.stderr[-3000:]}"
+    with np.load(out) as data:
+        return {name: data[name] for name in data.files}
 
 
 @pytest.fixture(scope="module")

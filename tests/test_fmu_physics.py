@@ -17,6 +17,7 @@ import pytest
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi2 import (FMU2Slave, calloc, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, free)
+from fmpy.fmi1 import FMICallException
 from fmpy.logging import addLoggerProxy
 from numpy.testing import assert_allclose
 
@@ -48,10 +49,17 @@ def run(fmu, stop=100.0, start_values=None, l2_step=None, output=ALL, capture_lo
     unzipdir = extract(str(fmu))
     instance = _logged_instance(md, unzipdir)
     try:
-        return simulate_fmu(unzipdir, model_description=md, fmu_instance=instance, debug_logging=True, **kwargs)
+        result = simulate_fmu(unzipdir, model_description=md, fmu_instance=instance, debug_logging=True, **kwargs)
+    except FMICallException as exc:
+        # FMI 2.0 allows no call after fmi2Fatal, freeInstance included (and a pythonfmu slave
+        # freed after fatal corrupts the heap): free only after a non-fatal failure.
+        if exc.status != 4:
+            instance.freeInstance()
+        raise
     finally:
-        instance.freeInstance()
         shutil.rmtree(unzipdir, ignore_errors=True)
+    instance.freeInstance()
+    return result
 
 
 # FMPy's logger proxy keeps a pointer to the last registered ctypes logger in one
