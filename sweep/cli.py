@@ -1,0 +1,204 @@
+"""``fourbar-sweep``: run a sweep file's fault scenarios on Dask and report detection figures.
+
+Exit codes: 0 every scenario of the sweep has a row and none failed, 1 some scenario
+failed (its row says why) or the cluster could not be used, 2 usage or sweep-file error,
+130 interrupted (Ctrl-C; finished rows are kept, re-run to resume).  Heavy imports (Dask,
+FMPy, pandas) happen inside the handler, so ``--help`` and ``--version`` answer at once.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+__all__ = ["main"]
+
+_DESCRIPTION = """\
+Run a sweep of fault scenarios: each scenario is one co-simulation of the sweep's base case
+with one injected fault (orchestrator) followed by a replay of its exchange file by the
+monitor.  Scenarios run in parallel on Dask -- a local cluster of worker processes (one per
+core) unless --scheduler names an existing one.  The results table (one row per scenario:
+inputs, detected or not, latency, false alarms, MAE statistics, run time) is written to
+DIR/results.csv (appended as scenarios finish) and DIR/results.parquet, the plots to
+DIR/plots/ (detection probability and latency against fault size; ROC), the headline
+figures to DIR/summary.json.  Running the same command again skips the scenarios already
+in the table, so an interrupted sweep resumes where it stopped.
+"""
+
+_EPILOG = """\
+examples:
+  fourbar-sweep sweeps/smoke.toml                       # 8 short scenarios, a first try
+  fourbar-sweep sweeps/l2_step.toml --workers 2
+  fourbar-sweep sweeps/l2_step.toml --dry-run           # count the scenarios, run nothing
+  fourbar-sweep sweeps/l2_step.toml --scheduler tcp://10.0.0.5:8786 --out /shared/sweeps/l2
+
+Sweep-file keys, cluster set-up and the meaning of every column: docs/sweep.md.
+exit status: 0 all scenarios done and none failed, 1 a scenario failed or no cluster,
+2 usage or sweep-file error, 130 interrupted (re-run the same command to resume).
+"""
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("fourbar-cosim")
+    except Exception:   # not installed (run from a source tree)
+        return "unknown"
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a number >= 1, got {value}")
+    return value
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="fourbar-sweep", description=_DESCRIPTION, epilog=_EPILOG,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("sweep", metavar="SWEEP.toml", help="the sweep file (format: docs/sweep.md)")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="address of a running Dask scheduler, e.g. tcp://host:8786 (default: start a "
+                             "local cluster); its workers need this package, the FMU and DIR at the same paths")
+    parser.add_argument("--workers", metavar="N", type=_positive_int,
+                        help="worker processes of the local cluster (default: one per core)")
+    parser.add_argument("--out", metavar="DIR", help="output directory (default: out/sweeps/<sweep name>)")
+    parser.add_argument("--limit", metavar="N", type=_positive_int,
+                        help="run at most N of the scenarios not yet done (the rest on a later run)")
+    parser.add_argument("--retry-failed", action="store_true",
+                        help="run the scenarios whose row says 'failed' again (their old rows go to stale.csv)")
+    parser.add_argument("--dry-run", action="store_true",
+                        help="check the sweep file and count the scenarios (done / to run); run nothing")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no summary")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = _parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:   # --help, --version (0) or a usage error (2, message printed)
+        return int(exc.code or 0)
+    if args.scheduler and args.workers:
+        print("fourbar-sweep: error: --workers sets the size of the local cluster; with --scheduler the "
+              "cluster's own workers are used (start them with `dask worker`)", file=sys.stderr)
+        return 2
+    return _sweep(args.sweep, scheduler=args.scheduler, workers=args.workers, out=args.out, limit=args.limit,
+                  retry_failed=args.retry_failed, dry_run=args.dry_run, quiet=args.quiet)
+
+
+def _err(message: str) -> None:
+    print(f"fourbar-sweep: {message}", file=sys.stderr)
+
+
+def _percent(x: float | None) -> str:
+    return "none" if x is None else f"{100 * x:.3g} %"
+
+
+def _sweep(path: str, *, scheduler, workers, out, limit, retry_failed: bool, dry_run: bool, quiet: bool) -> int:
+    from .config import SweepError, load_sweep
+    from .results import ResultsError
+
+    try:
+        sweep = load_sweep(path)
+    except SweepError as exc:
+        _err(f"error: {exc}")
+        return 2
+    if not quiet:
+        for note in sweep.notes:
+            _err(f"note: {note}")
+    if dry_run:
+        return _dry_run(sweep, out)
+
+    from .runner import ClusterError, SweepInterrupted, default_workers, run_sweep
+
+    def started(to_run: int, done: int, directory) -> None:
+        if quiet:
+            return
+        where = f"the Dask scheduler at {scheduler}" if scheduler else \
+            f"a local cluster of {workers or default_workers()} worker process(es)"
+        text = f"{sweep.name}: {done} scenario(s) already in {directory / 'results.csv'}, {to_run} to run"
+        _err(text + (f" on {where}" if to_run else ""))
+
+    try:
+        result = run_sweep(sweep, out, scheduler=scheduler, workers=workers, limit=limit, retry_failed=retry_failed,
+                           progress=not quiet and sys.stderr.isatty(), on_start=started)
+    except ResultsError as exc:
+        _err(f"error: {exc}")
+        return 2
+    except ClusterError as exc:
+        _err(f"error: {exc}")
+        return 1
+    except SweepInterrupted as exc:
+        r = exc.result
+        _err(f"{sweep.name}: interrupted: {len(r.table)} of {r.planned} scenarios in {r.files['csv']}; "
+             f"run the same command again to resume")
+        return 130
+    except KeyboardInterrupt:
+        _err(f"{sweep.name}: interrupted before any scenario ran")
+        return 130
+    if not quiet:
+        _report(result)
+    failed = result.failed
+    if failed:
+        _err(f"{sweep.name}: {failed} scenario(s) failed; see the 'error' column of {result.files['csv']}")
+        return 1
+    return 0
+
+
+def _dry_run(sweep, out) -> int:
+    from pathlib import Path
+
+    from .plan import plan_scenarios
+    from .results import ResultsError, ResultsStore
+
+    plan = plan_scenarios(sweep)
+    directory = Path(out) if out else Path("out") / "sweeps" / sweep.name
+    try:
+        rows = ResultsStore(directory).load()
+    except ResultsError as exc:
+        _err(f"error: {exc}")
+        return 2
+    ids = {s.id for s in plan}
+    done = {r["scenario_id"] for r in rows if r.get("scenario_id") in ids and r.get("fmu_guid") == sweep.fmu_guid}
+    kinds = {}
+    for s in plan:
+        kinds[s.kind] = kinds.get(s.kind, 0) + 1
+    detail = ", ".join(f"{n} {k}" for k, n in kinds.items())
+    print(f"{sweep.name}: {len(plan)} scenarios ({detail}); {len(done)} already in {directory / 'results.csv'}, "
+          f"{len(plan) - len(done)} to run")
+    return 0
+
+
+def _report(result) -> None:
+    s = result.summary
+    r = result
+    print(f"{r.sweep.name}: {len(r.table)} of {r.planned} scenarios in the table ({r.ran} run now, "
+          f"{r.skipped} already done), {r.failed} failed, {r.wall_seconds:.1f} s")
+    for note in r.notes:
+        if note not in r.sweep.notes:
+            print(f"  note: {note}")
+    failed = r.table[r.table["status"] != "ok"]
+    for _, row in failed.head(5).iterrows():
+        print(f"  failed {row['scenario_id']} ({row['kind']} {row['variable']} {_percent(row['relative_change'])}"
+              f"): {row['error']}")
+    if len(failed) > 5:
+        print(f"  ... {len(failed) - 5} more failed rows")
+    variable, limit = s.get("variable") or "fault", s["latency_limit"]
+    print(f"smallest |Δ{variable}|/{variable} detected within {limit:g} s with no false alarm "
+          f"(in every scenario of that size and above):")
+    for g in s["series"]:
+        nf = g["no_fault"]
+        clean = f"; fault-free runs with an alarm: {nf['runs_with_alarms']}/{nf['n']}" if nf["n"] else ""
+        print(f"  {g['series']}: {_percent(g['smallest_reliable_change'])}{clean}")
+    for key in ("csv", "parquet", "detection_plot", "roc_plot", "summary"):
+        if key in r.files:
+            print(f"  {key.replace('_', ' ')}: {r.files[key]}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

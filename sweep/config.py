@@ -1,0 +1,666 @@
+"""Sweep files: the typed, validated description of a set of fault scenarios.
+
+A sweep file is TOML (every key in docs/sweep.md).  It names a base case file and the
+axes of the scenarios: the fault (variable, kind, size, time, ramp duration), the noise on
+the monitored signal (standard deviation, seed) and the monitor (model, threshold, and any
+other :class:`monitor.engine.MonitorOptions` field, fixed for the whole sweep).
+
+Each axis is a value, an array of values (a grid axis: every combination is run) or a
+range table ``{min = .., max = .., scale = "linear" | "log"}`` (a sampled axis: ``n``
+random draws from ``[sample]``, crossed with the grid).  :func:`load_sweep` checks every
+key -- against the schema, against the base case (loaded with
+:func:`orchestrator.load_case`) and against the monitor's options -- and either returns a
+frozen :class:`Sweep` or raises one :class:`SweepError` listing every problem, each naming
+the file, the key, the value and what was expected.
+
+Heavy imports (FMPy through the orchestrator, numpy through the monitor) happen inside
+:func:`load_sweep`, not at import time.
+"""
+from __future__ import annotations
+
+import difflib
+import json
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Mapping, Union
+
+__all__ = [
+    "FaultSpec",
+    "MonitorSpec",
+    "NoiseSpec",
+    "Range",
+    "SampleSpec",
+    "Sweep",
+    "SweepError",
+    "load_sweep",
+]
+
+_TOP_KEYS = ("name", "description", "case", "stop", "fault", "noise", "monitor", "sample", "report", "output")
+_FAULT_KEYS = ("variable", "kind", "relative", "value", "time", "ramp_duration", "no_fault")
+_NOISE_KEYS = ("std", "seed")
+_SAMPLE_KEYS = ("n", "seed")
+_REPORT_KEYS = ("latency_limit",)
+_OUTPUT_KEYS = ("keep_exchange", "monitor_plots")
+_RANGE_KEYS = ("min", "max", "scale")
+_KINDS = ("step", "ramp")
+_NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+#: A sampled fault time or ramp duration is rounded to the case's communication grid.
+_GRID_TOLERANCE = 1e-6
+
+
+class SweepError(ValueError):
+    """A sweep file is invalid; ``problems`` lists every problem (``str`` is the full report)."""
+
+    def __init__(self, source: str | None, problems: list[str] | tuple[str, ...]):
+        self.source = source
+        self.problems = tuple(problems)
+        prefix = f"{source}: " if source else ""
+        count = len(self.problems)
+        head = f"invalid sweep {source or '(no file)'}: {count} problem{'s' if count != 1 else ''}"
+        super().__init__("\n".join([head] + [f"  {prefix}{p}" for p in self.problems]))
+
+
+@dataclass(frozen=True)
+class Range:
+    """A sampled axis: uniform in ``[min, max]`` (``scale="log"``: uniform in log)."""
+
+    min: float
+    max: float
+    scale: str = "linear"
+    integer: bool = False      # draw whole numbers (seeds)
+
+    def draw(self, rng) -> float | int:
+        """One draw from ``rng`` (a ``numpy.random.Generator``); always one call to it."""
+        if self.integer:
+            return int(rng.integers(int(self.min), int(self.max) + 1))
+        u = float(rng.random())
+        if self.scale == "log":
+            return math.exp(math.log(self.min) + u * (math.log(self.max) - math.log(self.min)))
+        return self.min + u * (self.max - self.min)
+
+    def as_dict(self) -> dict:
+        return {"min": self.min, "max": self.max, "scale": self.scale}
+
+
+Axis = Union[tuple, Range]
+
+
+@dataclass(frozen=True)
+class FaultSpec:
+    """The injected fault.  ``size`` holds relative changes (``0.01`` = +1 %) when
+    ``size_mode == "relative"``, else absolute values in the variable's unit."""
+
+    variable: str
+    base_value: float           # the variable's value in the base case (or the FMU's start value)
+    unit: str
+    kind: tuple[str, ...]
+    size_mode: str              # "relative" | "value"
+    size: Axis
+    time: Axis                  # s, on the case's communication grid
+    ramp_duration: Axis         # s, ramps only
+    no_fault: bool              # also run scenarios without any fault
+
+
+@dataclass(frozen=True)
+class NoiseSpec:
+    """Gaussian noise added to the monitored signal in the exchange file (the FMU sees none)."""
+
+    std: Axis                   # in the signal's unit; 0 = no noise
+    seed: Axis                  # integers >= 0
+
+
+@dataclass(frozen=True)
+class MonitorSpec:
+    """Monitor settings: ``model`` and ``threshold`` are axes, ``options`` fixed."""
+
+    signal: str
+    model: tuple[str, ...]
+    threshold: Axis             # numbers (signal units) and/or "auto"
+    options: Mapping[str, Any]  # other MonitorOptions fields, as given in the file
+    unit: str = ""              # the signal's unit (from the FMU)
+
+    def replay_options(self, model: str, threshold: float | str) -> dict[str, Any]:
+        """Keyword arguments of :func:`monitor.replay` for one scenario."""
+        opts = dict(self.options)
+        if "train" in opts:
+            opts["train"] = tuple(opts["train"])
+        opts.update(signal=self.signal, model=model, threshold=threshold)
+        return opts
+
+
+@dataclass(frozen=True)
+class SampleSpec:
+    n: int
+    seed: int
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """One validated sweep file."""
+
+    name: str
+    source: Path                # the sweep file (absolute)
+    case_path: Path             # the base case file (absolute)
+    case: Any                   # orchestrator.Case: the base case with ``stop`` applied
+    stop: float                 # s
+    fault: FaultSpec
+    noise: NoiseSpec
+    monitor: MonitorSpec
+    sample: SampleSpec | None = None
+    latency_limit: float = 2.0  # s: "detected within" for the headline figure
+    keep_exchange: bool = True
+    monitor_plots: bool = False
+    fmu_guid: str = ""
+    description: str = ""
+    notes: tuple[str, ...] = field(default=())   # things the CLI should tell the user
+
+    def as_dict(self) -> dict:
+        """JSON-shaped description (written to ``sweep.json`` in the output directory)."""
+
+        def axis(a: Axis) -> Any:
+            return a.as_dict() if isinstance(a, Range) else list(a)
+
+        return {
+            "name": self.name, "description": self.description, "sweep_file": str(self.source),
+            "case_file": str(self.case_path), "fmu": str(self.case.fmu), "fmu_guid": self.fmu_guid,
+            "stop": self.stop,
+            "fault": {"variable": self.fault.variable, "base_value": self.fault.base_value,
+                      "unit": self.fault.unit, "kind": list(self.fault.kind),
+                      self.fault.size_mode: axis(self.fault.size), "time": axis(self.fault.time),
+                      "ramp_duration": axis(self.fault.ramp_duration), "no_fault": self.fault.no_fault},
+            "noise": {"std": axis(self.noise.std), "seed": axis(self.noise.seed)},
+            "monitor": {"signal": self.monitor.signal, "model": list(self.monitor.model),
+                        "threshold": axis(self.monitor.threshold), **dict(self.monitor.options)},
+            "sample": None if self.sample is None else {"n": self.sample.n, "seed": self.sample.seed},
+            "report": {"latency_limit": self.latency_limit},
+            "output": {"keep_exchange": self.keep_exchange, "monitor_plots": self.monitor_plots},
+        }
+
+
+# ---------------------------------------------------------------------------- helpers
+
+def _show(value: Any) -> str:
+    """A value as it would be written in TOML."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, (dict, list, tuple)):
+        text = json.dumps(value, default=str)
+        return text if len(text) <= 60 else text[:57] + "..."
+    return repr(value)
+
+
+def _kind(value: Any) -> str:
+    return {bool: "a boolean", int: "an integer", float: "a float", str: "a string",
+            dict: "a table", list: "an array"}.get(type(value), type(value).__name__)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+class _Validator:
+    """Collects every problem of one raw sweep dict, then builds the Sweep or raises."""
+
+    def __init__(self, raw: dict, path: Path):
+        self.raw = raw
+        self.path = path
+        self.problems: list[str] = []
+        self.notes: list[str] = []
+        self.ranges: list[str] = []        # keys given as range tables
+
+    # -- reporting ----------------------------------------------------------------------
+    def problem(self, key: str, value: Any, expected: str) -> None:
+        self.problems.append(f"{key} = {_show(value)}: {expected}")
+
+    def missing(self, key: str, expected: str) -> None:
+        self.problems.append(f"{key}: missing; expected {expected}")
+
+    def unknown_keys(self, table: dict, allowed: tuple[str, ...], where: str) -> None:
+        for key in table:
+            if key not in allowed:
+                close = difflib.get_close_matches(key, allowed, n=1)
+                hint = f"did you mean {close[0]!r}? " if close else ""
+                place = f"{where}.{key}" if where else key
+                self.problems.append(f"{place}: unknown key; {hint}expected one of: {', '.join(allowed)}")
+
+    def table(self, key: str, required: bool = False) -> dict:
+        value = self.raw.get(key)
+        if value is None:
+            if required:
+                self.missing(key, f"a [{key}] table")
+            return {}
+        if not isinstance(value, dict):
+            self.problem(key, value, f"expected a [{key}] table, got {_kind(value)}")
+            return {}
+        return value
+
+    # -- values -------------------------------------------------------------------------
+    def number(self, key: str, value: Any, unit: str = "", *, minimum: float | None = None,
+               positive: bool = False, nonzero: bool = False) -> float | None:
+        u = f" {unit}" if unit else ""
+        if not _is_number(value):
+            what = _kind(value) if not isinstance(value, (int, float)) or isinstance(value, bool) else "a non-finite number"
+            self.problem(key, value, f"expected a finite number{u and ' in' + u}, got {what}")
+            return None
+        value = float(value)
+        if positive and value <= 0:
+            self.problem(key, value, f"expected a number > 0{u}")
+            return None
+        if minimum is not None and value < minimum:
+            self.problem(key, value, f"expected a number >= {minimum:g}{u}")
+            return None
+        if nonzero and value == 0:
+            self.problem(key, value, "expected a non-zero change (use fault.no_fault = true for runs "
+                                     "without a fault)")
+            return None
+        return value
+
+    def integer(self, key: str, value: Any, *, minimum: int = 0) -> int | None:
+        if isinstance(value, bool) or not isinstance(value, int):
+            self.problem(key, value, f"expected an integer >= {minimum}, got {_kind(value)}")
+            return None
+        if value < minimum:
+            self.problem(key, value, f"expected an integer >= {minimum}")
+            return None
+        return value
+
+    def boolean(self, key: str, value: Any) -> bool | None:
+        if not isinstance(value, bool):
+            self.problem(key, value, f"expected true or false, got {_kind(value)}")
+            return None
+        return value
+
+    def axis(self, key: str, value: Any, check, *, allow_range: bool = True, integer: bool = False,
+             unit: str = "") -> Axis | None:
+        """A scalar, an array (grid) or a range table (sampled); ``check(key, item)`` validates
+        one value and returns it (or None after reporting)."""
+        if isinstance(value, dict):
+            if not allow_range:
+                self.problem(key, value, "expected a value or an array of values (this axis cannot be sampled)")
+                return None
+            return self.range(key, value, integer=integer, unit=unit, check=check)
+        items = value if isinstance(value, list) else [value]
+        if not items:
+            self.problem(key, value, "expected a non-empty array")
+            return None
+        out = []
+        ok = True
+        for i, item in enumerate(items):
+            where = f"{key}[{i}]" if isinstance(value, list) else key
+            checked = check(where, item)
+            if checked is None:
+                ok = False
+            else:
+                out.append(checked)
+        return tuple(out) if ok else None
+
+    def range(self, key: str, table: dict, *, integer: bool, unit: str, check) -> Range | None:
+        self.ranges.append(key)        # given as a range (valid or not): [sample] is expected
+        self.unknown_keys(table, _RANGE_KEYS, key)
+        lo, hi = table.get("min"), table.get("max")
+        if lo is None:
+            self.missing(f"{key}.min", "the lower end of the sampled range")
+        if hi is None:
+            self.missing(f"{key}.max", "the upper end of the sampled range")
+        scale = table.get("scale", "linear")
+        if scale not in ("linear", "log"):
+            self.problem(f"{key}.scale", scale, 'expected "linear" or "log"')
+            scale = None
+        if integer and scale == "log":
+            self.problem(f"{key}.scale", scale, 'expected "linear" for an integer axis')
+            scale = None
+        lo = check(f"{key}.min", lo) if lo is not None else None
+        hi = check(f"{key}.max", hi) if hi is not None else None
+        if lo is None or hi is None or scale is None:
+            return None
+        if not (_is_number(lo) and _is_number(hi)):
+            self.problem(key, table, "expected numbers for min and max of a sampled range")
+            return None
+        if not lo < hi:
+            self.problem(f"{key}.max", hi, f"expected a value above {key}.min = {_show(lo)}")
+            return None
+        if scale == "log" and not (lo > 0):
+            self.problem(f"{key}.min", lo, 'expected a number > 0 with scale = "log"')
+            return None
+        return Range(float(lo), float(hi), scale, integer)
+
+    # -- the sweep ----------------------------------------------------------------------
+    def sweep(self) -> Sweep:
+        raw = self.raw
+        self.unknown_keys(raw, _TOP_KEYS, "")
+        name = raw.get("name", self.path.stem)
+        if not isinstance(name, str) or not _NAME_PATTERN.match(name):
+            self.problem("name", name, "expected letters, digits, '_', '-', '.' (it names out/sweeps/<name>)")
+        description = raw.get("description", "")
+        if not isinstance(description, str):
+            self.problem("description", description, f"expected a string, got {_kind(description)}")
+            description = ""
+
+        case, md = self.base_case()
+        stop = self.stop(case)
+        experiment = None
+        if case is not None and stop is not None:
+            experiment = replace(case.experiment, stop=stop)
+        monitor = self.monitor(case, md)
+        train_end = self.train_end()
+        fault = self.fault(case, md, experiment, train_end)
+        noise = self.noise()
+        sample = self.sample()
+        report = self.table("report")
+        self.unknown_keys(report, _REPORT_KEYS, "report")
+        latency_limit = self.number("report.latency_limit", report.get("latency_limit", 2.0), "s", positive=True)
+        output = self.table("output")
+        self.unknown_keys(output, _OUTPUT_KEYS, "output")
+        keep_exchange = self.boolean("output.keep_exchange", output.get("keep_exchange", True))
+        monitor_plots = self.boolean("output.monitor_plots", output.get("monitor_plots", False))
+
+        if stop is not None and train_end is not None and stop <= train_end:
+            self.problem("stop", stop, f"expected a time after the monitor's training window, which ends at "
+                                       f"{train_end!r} s (monitor.train)")
+        if self.ranges and sample is None and "sample" not in raw:
+            self.missing("sample", f"a [sample] table with n and seed: {', '.join(self.ranges)} "
+                                   f"{'is a range' if len(self.ranges) == 1 else 'are ranges'} to sample")
+        if sample is not None and not self.ranges:
+            self.problem("sample", raw.get("sample"), "nothing to sample: give some axis as a range table "
+                                                      "{min = .., max = .., scale = ..}, or remove [sample]")
+        if self.problems:
+            raise SweepError(str(self.path), self.problems)
+        if case.events or case.noise is not None:
+            self.notes.append(f"the base case's [[events]] ({len(case.events)}) and [noise] are replaced by "
+                              f"each scenario's fault and noise")
+        case = replace(case, experiment=experiment, events=(), noise=None)
+        return Sweep(name=name, source=self.path, case_path=case.source, case=case, stop=stop, fault=fault,
+                     noise=noise, monitor=monitor, sample=sample, latency_limit=latency_limit,
+                     keep_exchange=keep_exchange, monitor_plots=monitor_plots, fmu_guid=md.guid,
+                     description=description, notes=tuple(self.notes))
+
+    def base_case(self):
+        value = self.raw.get("case")
+        if value is None:
+            self.missing("case", "the path of the base case file, relative to the sweep file")
+            return None, None
+        if not isinstance(value, str) or not value:
+            self.problem("case", value, f"expected a path string, got {_kind(value)}")
+            return None, None
+        from orchestrator import ConfigError, load_case
+
+        path = (self.path.parent / value).resolve()
+        try:
+            case = load_case(path)
+        except ConfigError as exc:
+            for p in exc.problems:
+                self.problems.append(f"case = {_show(value)}: {path.name}: {p}")
+            return None, None
+        from fmpy import read_model_description
+
+        return case, read_model_description(str(case.fmu))
+
+    def stop(self, case) -> float | None:
+        if "stop" not in self.raw:
+            return case.experiment.stop if case is not None else None
+        stop = self.number("stop", self.raw["stop"], "s", positive=True)
+        if stop is None or case is None:
+            return stop
+        exp = case.experiment
+        if stop <= exp.start:
+            self.problem("stop", stop, f"expected a time after the case's experiment.start = {exp.start!r} s")
+            return None
+        count = (stop - exp.start) / exp.step
+        if abs(count - round(count)) > _GRID_TOLERANCE:
+            self.problem("stop", stop, f"not on the case's communication grid: (stop - start)/step = {count:.9g} "
+                                       f"is not a whole number of steps of {exp.step!r} s")
+            return None
+        return stop
+
+    def train_end(self) -> float | None:
+        """End of the monitor's training window (s): monitor.train[1], else the monitor's default."""
+        from monitor import MonitorOptions
+
+        table = self.raw.get("monitor")
+        train = table.get("train") if isinstance(table, dict) else None
+        if train is None:
+            return float(MonitorOptions.train[1])
+        if isinstance(train, list) and len(train) == 2 and all(_is_number(v) for v in train):
+            return float(train[1])
+        return None      # reported by the monitor's own check
+
+    def monitor(self, case, md) -> MonitorSpec | None:
+        from monitor import MonitorOptions
+        from monitor import OptionError
+        from monitor.forecasters import MODELS
+
+        table = self.table("monitor")
+        fields = tuple(MonitorOptions.__dataclass_fields__)
+        self.unknown_keys(table, fields, "monitor")
+        ok = True
+        signal = table.get("signal", MonitorOptions.signal)
+        if not isinstance(signal, str) or not signal:
+            self.problem("monitor.signal", signal, "expected the name of an output column, e.g. \"x2\"")
+            ok = False
+        elif case is not None and signal not in case.outputs:
+            self.problem("monitor.signal", signal, f"not an output of the base case; expected one of "
+                                                   f"{', '.join(case.outputs)} ([outputs] of {case.source.name})")
+            ok = False
+
+        def model_check(key, item):
+            if item not in MODELS:
+                self.problem(key, item, f"expected one of {', '.join(MODELS)}")
+                return None
+            return item
+
+        def threshold_check(key, item):
+            if item == "auto":
+                return item
+            if not _is_number(item) or item <= 0:
+                self.problem(key, item, "expected a positive number in the signal's unit, or \"auto\"")
+                return None
+            return float(item)
+
+        models = self.axis("monitor.model", table.get("model", MonitorOptions.model), model_check,
+                           allow_range=False)
+        thresholds = self.axis("monitor.threshold", table.get("threshold", MonitorOptions.threshold),
+                               threshold_check)
+        options = {k: v for k, v in table.items() if k not in ("signal", "model", "threshold") and k in fields}
+        # the remaining options are checked by the monitor itself, all problems at once
+        try:
+            trial = dict(options)
+            if isinstance(trial.get("train"), list):
+                trial["train"] = tuple(trial["train"])
+            MonitorOptions(**trial).validated()
+        except OptionError as exc:
+            lines = str(exc).splitlines()[1:] or [str(exc)]
+            for line in lines:
+                line = line.strip()
+                key, _, rest = line.partition(":")
+                shown = _show(options.get(key)) if key in options else "(default)"
+                self.problems.append(f"monitor.{key} = {shown}:{rest}")
+            ok = False
+        except TypeError as exc:       # a wrong type the dataclass could not even take
+            self.problems.append(f"monitor: {exc}")
+            ok = False
+        if not ok or models is None or thresholds is None:
+            return None
+        unit = ""
+        if md is not None:
+            unit = next((v.unit or "" for v in md.modelVariables if v.name == signal), "")
+        return MonitorSpec(signal=signal, model=models, threshold=thresholds, options=options, unit=unit)
+
+    def fault(self, case, md, experiment, train_end) -> FaultSpec | None:
+        table = self.table("fault", required=True)
+        if not table and "fault" not in self.raw:
+            return None
+        self.unknown_keys(table, _FAULT_KEYS, "fault")
+        ok = True
+        variable = table.get("variable")
+        base_value = None
+        unit = ""
+        if variable is None:
+            self.missing("fault.variable", "the name of a tunable parameter of the FMU, e.g. \"L2\"")
+            ok = False
+        elif not isinstance(variable, str):
+            self.problem("fault.variable", variable, f"expected a variable name (string), got {_kind(variable)}")
+            ok = False
+        elif md is not None:
+            tunable = {v.name: v for v in md.modelVariables
+                       if v.type == "Real" and (v.causality == "input"
+                                                or (v.causality == "parameter" and v.variability == "tunable"))}
+            var = tunable.get(variable)
+            if var is None:
+                close = difflib.get_close_matches(variable, tunable, n=1)
+                hint = f"did you mean {close[0]!r}? " if close else ""
+                self.problem("fault.variable", variable, f"not a tunable Real parameter of {case.fmu.name}; "
+                                                         f"{hint}expected one of {', '.join(tunable)}")
+                ok = False
+            else:
+                unit = var.unit or ""
+                start = case.parameters.get(variable, var.start)
+                try:
+                    base_value = float(start)
+                except (TypeError, ValueError):
+                    self.problem("fault.variable", variable, f"has no numeric value in the base case or the FMU "
+                                                             f"(start {start!r}); set it in [parameters]")
+                    ok = False
+
+        def kind_check(key, item):
+            if item not in _KINDS:
+                self.problem(key, item, 'expected "step" or "ramp"')
+                return None
+            return item
+
+        kinds = self.axis("fault.kind", table.get("kind", "step"), kind_check, allow_range=False)
+
+        if "relative" in table and "value" in table:
+            self.problems.append("fault.relative and fault.value: both given; expected exactly one "
+                                 "(relative changes, or absolute values)")
+            ok = False
+            size_mode, size = "relative", None
+        elif "relative" in table:
+            size_mode = "relative"
+            size = self.axis("fault.relative", table["relative"], self.relative_change)
+        elif "value" in table:
+            size_mode = "value"
+            size = self.axis("fault.value", table["value"], lambda k, v: self.number(k, v, unit))
+        else:
+            self.missing("fault.relative", "the fault sizes: relative changes (0.01 = +1 %) in fault.relative, "
+                                           "or absolute values in fault.value")
+            size_mode, size = "relative", None
+
+        grid = experiment if experiment is not None else (case.experiment if case is not None else None)
+        stop = experiment.stop if experiment is not None else None    # None: stop itself is invalid
+
+        def time_check(key, item):
+            t = self.number(key, item, "s")
+            if t is None:
+                return None
+            if grid is not None:
+                if t < grid.start or (stop is not None and t >= stop):
+                    self.problem(key, t, f"expected a time in [{grid.start!r}, {stop!r}) s (from the case's "
+                                         f"experiment.start to the sweep's stop)")
+                    return None
+                if train_end is not None and t < train_end:
+                    self.problem(key, t, f"expected a time at or after the end of the monitor's training window "
+                                         f"{train_end!r} s (monitor.train), so the model learns the healthy motion")
+                    return None
+                if not key.endswith((".min", ".max")) and grid.index(t) is None:
+                    self.problem(key, t, f"not on the communication grid start + k*step (step {grid.step!r} s)")
+                    return None
+            return t
+
+        times = self.axis("fault.time", table.get("time"), time_check) if "time" in table else None
+        if "time" not in table:
+            self.missing("fault.time", "the fault time(s) in s")
+
+        def duration_check(key, item):
+            d = self.number(key, item, "s", positive=True)
+            if d is None:
+                return None
+            if grid is not None and not key.endswith((".min", ".max")):
+                count = d / grid.step
+                if abs(count - round(count)) > _GRID_TOLERANCE:
+                    self.problem(key, d, f"expected a whole number of communication steps of {grid.step!r} s")
+                    return None
+            return d
+
+        durations: Axis | None = ()
+        if "ramp_duration" in table:
+            durations = self.axis("fault.ramp_duration", table["ramp_duration"], duration_check)
+        elif kinds is not None and "ramp" in kinds:
+            self.missing("fault.ramp_duration", "the ramp duration(s) in s (fault.kind includes \"ramp\")")
+            durations = None
+        if kinds is not None and "ramp" in kinds and stop is not None and times is not None and durations:
+            t_max = times.max if isinstance(times, Range) else max(times)
+            d_max = durations.max if isinstance(durations, Range) else max(durations)
+            if t_max + d_max > stop + _GRID_TOLERANCE * grid.step:
+                self.problem("fault.ramp_duration", table.get("ramp_duration"),
+                             f"a ramp starting at {t_max!r} s and lasting {d_max!r} s ends after stop = "
+                             f"{stop!r} s")
+                ok = False
+        no_fault = self.boolean("fault.no_fault", table.get("no_fault", False))
+        if not ok or None in (kinds, size, times, durations, no_fault):
+            return None
+        return FaultSpec(variable=variable, base_value=base_value, unit=unit, kind=kinds, size_mode=size_mode,
+                         size=size, time=times, ramp_duration=durations, no_fault=no_fault)
+
+    def relative_change(self, key: str, value: Any) -> float | None:
+        """A relative change: finite, non-zero (no_fault = true gives fault-free runs), > -1."""
+        change = self.number(key, value, nonzero=True)
+        if change is not None and change <= -1.0:
+            self.problem(key, change, "expected a change > -1 (-100 %)")
+            return None
+        return change
+
+    def noise(self) -> NoiseSpec | None:
+        table = self.table("noise")
+        self.unknown_keys(table, _NOISE_KEYS, "noise")
+        std = self.axis("noise.std", table.get("std", 0.0), lambda k, v: self.number(k, v, minimum=0.0))
+        seed = self.axis("noise.seed", table.get("seed", 1), lambda k, v: self.integer(k, v, minimum=0),
+                         integer=True)
+        if std is None or seed is None:
+            return None
+        return NoiseSpec(std=std, seed=seed)
+
+    def sample(self) -> SampleSpec | None:
+        if "sample" not in self.raw:
+            return None
+        table = self.table("sample")
+        if not isinstance(self.raw["sample"], dict):
+            return None
+        self.unknown_keys(table, _SAMPLE_KEYS, "sample")
+        n = seed = None
+        if "n" not in table:
+            self.missing("sample.n", "the number of random draws")
+        else:
+            n = self.integer("sample.n", table["n"], minimum=1)
+        if "seed" not in table:
+            self.missing("sample.seed", "an integer seed (the draws are reproducible)")
+        else:
+            seed = self.integer("sample.seed", table["seed"], minimum=0)
+        if n is None or seed is None:
+            return None
+        return SampleSpec(n=n, seed=seed)
+
+
+def load_sweep(path: str | Path) -> Sweep:
+    """Read and validate a sweep file; raise :class:`SweepError` listing every problem."""
+    path = Path(path)
+    label = str(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SweepError(label, ["sweep file not found"]) from None
+    except IsADirectoryError:
+        raise SweepError(label, ["is a directory; expected a sweep file (TOML)"]) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SweepError(label, [f"cannot read the sweep file: {exc}"]) from None
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SweepError(label, [f"not valid TOML: {exc}"]) from None
+    return _Validator(raw, path.resolve()).sweep()

@@ -1,0 +1,322 @@
+"""What a sweep found: per-group detection figures, the headline, and the plots.
+
+Groups ("series") are the settings a reader compares: noise level, monitor model and
+threshold -- and the fault kind (and ramp duration) when the sweep has more than one.
+Fault sizes are the absolute relative change ``|relative_change|``; when a sweep samples
+more than ``MAX_EXACT_SIZES`` distinct sizes they are pooled into log-spaced bins.
+
+Headline (per group): the smallest fault size ``s`` such that *every* finished scenario of
+the group with a size ``>= s`` was detected within ``latency_limit`` seconds and raised no
+false alarm.  Failed scenarios are not counted (their number is reported).
+
+ROC (per group, scikit-learn ``roc_curve``): a scenario's ``score_pre`` / ``score_early``
+(:mod:`sweep.scenario`) is the largest factor ``c`` by which its threshold could be
+multiplied and the detector's rule (``persistence`` consecutive windows above) would
+still fire before the fault / within ``latency_limit`` after it.  Negatives: every
+finished scenario's pre-fault span (``score_pre``; for a fault-free scenario the whole
+run); positives: every fault scenario's first ``latency_limit`` seconds after the fault
+(``score_early``; 0 when no evaluation fell in them).  Sweeping ``c`` traces the curve;
+the marked point is ``c = 1``, the threshold actually used.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+__all__ = ["MAX_EXACT_SIZES", "plot_detection", "plot_roc", "series_of", "summarize"]
+
+MAX_EXACT_SIZES = 12
+_GROUP = ("noise_std", "model", "threshold")
+_FAULT_EXTRA = ("kind", "ramp_duration")
+
+
+def _label_parts(key: dict[str, Any], unit: str = "") -> str:
+    parts = []
+    if "kind" in key and key["kind"] is not None:
+        kind = key["kind"]
+        if kind == "ramp" and key.get("ramp_duration") is not None:
+            kind = f"ramp {key['ramp_duration']:g} s"
+        parts.append(kind)
+    std = key["noise_std"]
+    if std == 0:
+        parts.append("no noise")
+    elif unit == "m":
+        parts.append(f"noise σ = {std * 1000:g} mm")
+    else:
+        parts.append(f"noise σ = {std:g}{' ' + unit if unit else ''}")
+    parts.append(f"{key['model']}, threshold {key['threshold']}")
+    return ", ".join(parts)
+
+
+def series_of(table) -> tuple[list[str], list[str]]:
+    """(group columns that vary, fault-only columns that vary) of the finished rows."""
+    ok = table[table["status"] == "ok"]
+    faults = ok[ok["has_fault"].astype(bool)]
+    group = list(_GROUP)
+    extra = [c for c in _FAULT_EXTRA if faults[c].nunique(dropna=False) > 1]
+    return group, extra
+
+
+def _size_bins(sizes) -> tuple[Any, Any]:
+    """(bin index per size, representative size per bin)."""
+    import numpy as np
+
+    sizes = np.asarray(sizes, dtype=float)
+    unique = np.unique(sizes)
+    if unique.size <= MAX_EXACT_SIZES:
+        return np.searchsorted(unique, sizes), unique
+    lo, hi = float(unique[0]), float(unique[-1])
+    edges = np.geomspace(lo, hi * (1 + 1e-12), 9) if lo > 0 else np.linspace(lo, hi * (1 + 1e-12), 9)
+    idx = np.clip(np.searchsorted(edges, sizes, side="right") - 1, 0, len(edges) - 2)
+    centers = np.sqrt(edges[:-1] * edges[1:]) if lo > 0 else 0.5 * (edges[:-1] + edges[1:])
+    return idx, centers
+
+
+def _groups(table):
+    """Yield (key dict, fault rows, fault-free rows, failed count) per series."""
+    group, extra = series_of(table)
+    ok = table[table["status"] == "ok"]
+    failed = table[table["status"] != "ok"]
+    has_fault = ok["has_fault"].astype(bool)
+    faults, clean = ok[has_fault], ok[~has_fault]
+    keys = faults[group + extra].drop_duplicates(ignore_index=True)
+    if keys.empty:            # fault-free sweep: one group per setting
+        keys = clean[group].drop_duplicates(ignore_index=True)
+    for _, key in keys.iterrows():
+        k = {c: (None if _isna(key[c]) else key[c]) for c in key.index}
+        fmask = _match(faults, k)
+        cmask = _match(clean, {c: k[c] for c in group})
+        nfail = int(_match(failed, k).sum())
+        yield k, faults[fmask], clean[cmask], nfail
+
+
+def _isna(v) -> bool:
+    import pandas as pd
+
+    return v is None or v is pd.NA or (isinstance(v, float) and math.isnan(v))
+
+
+def _match(df, key: dict[str, Any]):
+    import numpy as np
+
+    mask = np.ones(len(df), dtype=bool)
+    for c, v in key.items():
+        col = df[c]
+        if v is None:
+            mask &= col.isna().to_numpy()
+        else:
+            mask &= (col == v).fillna(False).to_numpy(dtype=bool)
+    return mask
+
+
+def summarize(table, latency_limit: float, *, unit: str = "") -> dict[str, Any]:
+    """Per-series detection figures and the headline (definitions in the module docstring).
+
+    ``unit`` is the monitored signal's unit (for the series labels).
+    """
+    import numpy as np
+
+    variable = table["variable"].dropna().iloc[0] if len(table) else ""
+    groups = []
+    for key, faults, clean, nfail in _groups(table):
+        entry: dict[str, Any] = {"series": _label_parts(key, unit), **{k: _py(v) for k, v in key.items()},
+                                 "failed": nfail}
+        sizes = np.abs(faults["relative_change"].to_numpy(dtype=float))
+        per_size = []
+        reliable_from = None
+        if sizes.size:
+            idx, centers = _size_bins(sizes)
+            ok_flags = []
+            for b, center in enumerate(centers):
+                sel = faults[idx == b]
+                if sel.empty:
+                    continue
+                detected = sel["detected"].fillna(False).to_numpy(dtype=bool)
+                latency = sel["latency"].to_numpy(dtype=float)
+                within = detected & (latency <= latency_limit + 1e-9)
+                false = sel["false_alarms"].fillna(0).to_numpy(dtype=int)
+                good = within & (false == 0)
+                per_size.append({
+                    "relative_change": float(center), "n": int(len(sel)),
+                    "p_detected": float(detected.mean()), "p_within_limit": float(within.mean()),
+                    "median_latency": float(np.median(latency[detected])) if detected.any() else None,
+                    "max_latency": float(np.max(latency[detected])) if detected.any() else None,
+                    "runs_with_false_alarms": int((false > 0).sum()),
+                    "all_within_limit_no_false_alarm": bool(good.all()),
+                })
+                ok_flags.append((float(center), bool(good.all())))
+            for center, good in reversed(ok_flags):
+                if not good:
+                    break
+                reliable_from = center
+        entry["sizes"] = per_size
+        entry["smallest_reliable_change"] = reliable_from
+        alarms = clean["alarms"].fillna(0).to_numpy(dtype=int)
+        entry["no_fault"] = {"n": int(len(clean)), "runs_with_alarms": int((alarms > 0).sum()),
+                             "alarms": int(alarms.sum())}
+        groups.append(entry)
+    counts = table["status"].value_counts().to_dict()
+    return {"variable": _py(variable), "unit": unit, "latency_limit": latency_limit, "scenarios": int(len(table)),
+            "ok": int(counts.get("ok", 0)), "failed": int(len(table) - counts.get("ok", 0)), "series": groups}
+
+
+def _py(v):
+    if _isna(v):
+        return None
+    return v.item() if hasattr(v, "item") else v
+
+
+# --------------------------------------------------------------------------------- plots
+
+def _figure(ncols: int, width: float = 6.0):
+    """A figure drawn with the Agg canvas, without pyplot (no global backend, nothing to close)."""
+    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width * ncols, 4.6))
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, ncols, squeeze=False)
+    return matplotlib.rcParams, fig, axes[0]
+
+
+_MARKERS = ("o", "x", "s", "^", "D", "v", "P", "*")
+_DASHES = ("-", "--", ":", "-.")
+
+
+class _Styles:
+    """Colour by noise level; marker (detection plot) and line style (ROC) by the rest of the
+    series key (model, threshold, fault kind), so curves that coincide stay visible."""
+
+    def __init__(self, rc, keys: list[dict[str, Any]]):
+        self.colors = rc["axes.prop_cycle"].by_key()["color"]
+        self.noise = sorted({k["noise_std"] for k in keys})
+        rest = []
+        for k in keys:
+            r = self._rest(k)
+            if r not in rest:
+                rest.append(r)
+        self.rest = rest
+
+    @staticmethod
+    def _rest(key: dict[str, Any]) -> tuple:
+        return tuple((c, key.get(c)) for c in ("model", "threshold", "kind", "ramp_duration"))
+
+    def color(self, key):
+        return self.colors[self.noise.index(key["noise_std"]) % len(self.colors)]
+
+    def marker(self, key):
+        return _MARKERS[self.rest.index(self._rest(key)) % len(_MARKERS)]
+
+    def dash(self, key):
+        return _DASHES[self.rest.index(self._rest(key)) % len(_DASHES)]
+
+
+def _key(series: dict[str, Any]) -> dict[str, Any]:
+    return {c: series.get(c) for c in ("noise_std", "model", "threshold", "kind", "ramp_duration")}
+
+
+def plot_detection(summary: dict[str, Any], path, *, title: str = "") -> Any:
+    """Detection probability (left) and median latency (right) against the fault size."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    rc, fig, (ax_p, ax_l) = _figure(2)
+    limit = summary["latency_limit"]
+    variable = summary.get("variable") or "fault"
+    series = [s for s in summary["series"] if s["sizes"]]
+    styles = _Styles(rc, [_key(s) for s in series])
+    any_latency = False
+    for s in series:
+        key = _key(s)
+        color, marker = styles.color(key), styles.marker(key)
+        hollow = {"markerfacecolor": "none"} if marker in ("o", "s", "^", "D", "v") else {}
+        x = [100 * e["relative_change"] for e in s["sizes"]]
+        nf = s["no_fault"]
+        note = f" (fault-free runs with an alarm: {nf['runs_with_alarms']}/{nf['n']})" if nf["n"] else ""
+        ax_p.plot(x, [e["p_detected"] for e in s["sizes"]], "-", marker=marker, color=color, markersize=7,
+                  label=s["series"] + note, **hollow)
+        ax_p.plot(x, [e["p_within_limit"] for e in s["sizes"]], "--", marker=marker, color=color, alpha=0.6,
+                  markersize=5, **hollow)
+        lat = [(xi, e["median_latency"]) for xi, e in zip(x, s["sizes"]) if e["median_latency"] is not None]
+        if lat:
+            any_latency = True
+            ax_l.plot(*zip(*lat), "-", marker=marker, color=color, markersize=7, **hollow)
+    plain = FuncFormatter(lambda v, _: f"{v:g}")
+    for ax in (ax_p, ax_l):
+        ax.set_xscale("log")
+        ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+        ax.xaxis.set_major_formatter(plain)
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xlabel(f"fault size |Δ{variable}| / {variable} (%)")
+        ax.grid(True, which="both", alpha=0.3)
+    ax_p.set_ylim(-0.03, 1.03)
+    ax_p.set_ylabel("fraction of runs")
+    ax_p.set_title(f"detected at all (solid), detected within {limit:g} s (dashed)", fontsize=10)
+    ax_l.set_ylabel("median detection latency (s)")
+    ax_l.set_title(f"latency of the detected runs (dotted: {limit:g} s)", fontsize=10)
+    ax_l.axhline(limit, color="grey", lw=1, ls=":")
+    if any_latency:
+        ax_l.set_yscale("log")
+        ax_l.yaxis.set_major_formatter(plain)
+        ax_l.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+        ax_l.yaxis.set_minor_formatter(NullFormatter())
+    if title:
+        fig.suptitle(title, fontsize=11)
+    fig.tight_layout()
+    handles, labels = ax_p.get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=1, fontsize=8,
+                   frameon=False)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    return path
+
+
+def roc_points(table, unit: str = "") -> list[dict[str, Any]]:
+    """Per series: (fpr, tpr, auc, operating point at c = 1, counts) from sklearn's roc_curve."""
+    import numpy as np
+    from sklearn.metrics import auc, roc_curve
+
+    out = []
+    for key, faults, clean, _ in _groups(table):
+        neg = np.concatenate([faults["score_pre"].to_numpy(dtype=float), clean["score_pre"].to_numpy(dtype=float)])
+        pos = faults["score_early"].to_numpy(dtype=float)
+        neg = neg[np.isfinite(neg)]
+        pos = np.where(np.isfinite(pos), pos, 0.0)     # no evaluation within the limit: never detected in time
+        if neg.size == 0 or pos.size == 0:
+            continue
+        y = np.concatenate([np.zeros(neg.size), np.ones(pos.size)])
+        scores = np.concatenate([neg, pos])
+        fpr, tpr, thr = roc_curve(y, scores)
+        out.append({"series": _label_parts(key, unit), "key": key, "fpr": fpr, "tpr": tpr, "c": thr,
+                    "auc": float(auc(fpr, tpr)), "n_neg": int(neg.size), "n_pos": int(pos.size),
+                    "operating": (float((neg > 1).mean()), float((pos > 1).mean()))})
+    return out
+
+
+def plot_roc(table, path, *, title: str = "", unit: str = "", latency_limit: float | None = None) -> Any:
+    """ROC curves over threshold multipliers (construction in the module docstring)."""
+    rc, fig, (ax,) = _figure(1, width=7.0)
+    curves = roc_points(table, unit)
+    styles = _Styles(rc, [dict(r["key"]) for r in curves])
+    for r in curves:
+        key = dict(r["key"])
+        color = styles.color(key)
+        ax.step(r["fpr"], r["tpr"], where="post", color=color, ls=styles.dash(key), lw=1.8,
+                label=f"{r['series']}: AUC {r['auc']:.3f} ({r['n_pos']} faulty / {r['n_neg']} healthy spans)")
+        ax.plot(*r["operating"], marker=styles.marker(key), color=color, markersize=9, markerfacecolor="none",
+                markeredgewidth=2, ls="none")
+    ax.plot([0, 1], [0, 1], color="grey", lw=1, ls=":")
+    ax.set_xlim(-0.02, 1.02)
+    ax.set_ylim(-0.02, 1.02)
+    within = f" within {latency_limit:g} s" if latency_limit else " within the latency limit"
+    ax.set_xlabel("false-alarm rate (healthy spans with an alarm)")
+    ax.set_ylabel(f"detection rate (faults detected{within})")
+    ax.set_title(title or "ROC over threshold multipliers c (markers: c = 1, the threshold used)", fontsize=10)
+    ax.grid(True, alpha=0.3)
+    if curves:
+        ax.legend(loc="lower right", fontsize=7)
+    else:
+        ax.text(0.5, 0.5, "no ROC: needs finished runs with and without a fault", ha="center", va="center")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    return path

@@ -1,0 +1,233 @@
+"""The results table: one row per scenario, appended as scenarios finish, kept when interrupted.
+
+Files in the sweep's output directory:
+
+``results.csv``      the journal: a header, then one line per finished scenario, appended
+                     (and flushed) as each one finishes -- in completion order while the
+                     sweep runs, rewritten in plan order when it ends.  Floats are written
+                     with ``repr`` (17 significant digits at most) and read back exactly.
+``results.parquet``  the same table in plan order, rewritten (atomically) while the sweep
+                     runs (every 30 s) and at the end.
+``stale.csv``        rows moved out of the table: scenarios no longer in the sweep file,
+                     rows made with another build of the FMU (GUID), failed rows given
+                     again with ``--retry-failed``.  Nothing is deleted.
+
+A last line without ``\\n`` (the sweep was killed while writing it) is dropped on reading.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+from .scenario import RESULT_FIELDS
+
+__all__ = ["COLUMNS", "RUNTIME_COLUMNS", "ResultsError", "ResultsStore", "table_from_rows"]
+
+#: Every column of the table and its type: str, float, int (nullable), bool (nullable).
+COLUMNS: dict[str, str] = {
+    # inputs
+    "scenario_id": "str", "index": "int", "variable": "str", "kind": "str", "relative_change": "float",
+    "fault_value": "float", "base_value": "float", "fault_time": "float", "ramp_duration": "float",
+    "noise_std": "float", "noise_seed": "int", "signal": "str", "model": "str", "threshold": "str",
+    "stop": "float", "has_fault": "bool",
+    # results
+    "status": "str", "error": "str", "detected": "bool", "detection_time": "float", "latency": "float",
+    "first_alarm_time": "float", "alarms": "int", "false_alarms": "int", "threshold_base": "float",
+    "period": "float", "evaluations": "int", "mae_max_pre": "float", "mae_mean_pre": "float",
+    "mae_max_post": "float", "mae_mean_post": "float", "score_pre": "float", "score_post": "float",
+    "score_early": "float", "latency_limit": "float", "rows_written": "int", "fmu_guid": "str",
+    # how it ran (differ between otherwise identical runs)
+    "run_seconds": "float", "monitor_seconds": "float", "wall_seconds": "float", "cpu_seconds": "float",
+    "worker": "str",
+}
+#: Columns that describe how a row was computed (time, place), not what it found.
+RUNTIME_COLUMNS = ("run_seconds", "monitor_seconds", "wall_seconds", "cpu_seconds", "worker")
+_DTYPES = {"str": "str", "float": "float64", "int": "Int64", "bool": "boolean"}
+
+assert set(RESULT_FIELDS) <= set(COLUMNS), "scenario fields missing from the table schema"
+
+
+class ResultsError(RuntimeError):
+    """An existing results file cannot be used (other columns, unreadable)."""
+
+
+def _cell(value: Any) -> str:
+    """One CSV field: '' for missing, repr for floats, True/False for booleans."""
+    if value is None or value is _NA():
+        return ""
+    if isinstance(value, bool) or type(value).__name__ == "bool_":
+        return "True" if value else "False"
+    if isinstance(value, float) or type(value).__name__.startswith("float"):
+        v = float(value)
+        return "" if math.isnan(v) else repr(v)
+    if isinstance(value, int) or type(value).__name__.startswith(("int", "uint")):
+        return str(int(value))
+    return str(value)
+
+
+def _NA():
+    import pandas as pd
+
+    return pd.NA
+
+
+def _line(row: dict[str, Any]) -> str:
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow([_cell(row.get(name)) for name in COLUMNS])
+    return buf.getvalue()
+
+
+def table_from_rows(rows: Iterable[dict[str, Any]]) -> "Any":
+    """A DataFrame with the table's columns and types (missing values: NaN / <NA>)."""
+    import pandas as pd
+
+    rows = list(rows)
+    data = {}
+    for name, kind in COLUMNS.items():
+        values = [r.get(name) for r in rows]
+        values = [None if (v is None or v is pd.NA or (isinstance(v, float) and math.isnan(v))) else v
+                  for v in values]
+        if kind == "float":
+            values = [math.nan if v is None else float(v) for v in values]
+        data[name] = pd.array(values, dtype=_DTYPES[kind])
+    return pd.DataFrame(data)
+
+
+class ResultsStore:
+    """The results files of one sweep output directory."""
+
+    def __init__(self, out_dir: str | Path):
+        self.out_dir = Path(out_dir)
+        self.csv_path = self.out_dir / "results.csv"
+        self.parquet_path = self.out_dir / "results.parquet"
+        self.stale_path = self.out_dir / "stale.csv"
+        self._fh = None
+
+    # -- reading --------------------------------------------------------------------------
+    def load(self) -> list[dict[str, Any]]:
+        """Rows already in ``results.csv`` (none if it does not exist)."""
+        import pandas as pd
+
+        if not self.csv_path.exists():
+            return []
+        data = self.csv_path.read_bytes()
+        if not data.strip():
+            return []
+        complete = data[:data.rfind(b"\n") + 1] if not data.endswith(b"\n") else data
+        header = complete.split(b"\n", 1)[0].decode("utf-8", "replace").strip()
+        if header.split(",") != list(COLUMNS):
+            raise ResultsError(f"{self.csv_path}: its columns are not those of this version of fourbar-sweep "
+                               f"(header {header[:80]!r}...); move it away or choose another --out")
+        # pandas >= 3 parses floats exactly by default (and deprecates float_precision)
+        exact = {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
+        try:
+            df = pd.read_csv(io.BytesIO(complete), dtype={k: _DTYPES[v] for k, v in COLUMNS.items()},
+                             keep_default_na=False, na_values={k: [""] for k in COLUMNS}, **exact)
+        except (ValueError, pd.errors.ParserError) as exc:
+            raise ResultsError(f"{self.csv_path}: cannot be read back ({exc}); move it away or choose "
+                               f"another --out") from None
+        return [_plain(r) for r in df.to_dict("records")]
+
+    # -- writing --------------------------------------------------------------------------
+    def rewrite(self, rows: Sequence[dict[str, Any]]) -> None:
+        """Replace ``results.csv`` with ``rows`` (atomically), then keep it open for appends."""
+        self.close()
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        tmp = self.csv_path.with_name(self.csv_path.name + ".tmp")
+        with open(tmp, "w", encoding="utf-8", newline="") as fh:
+            fh.write(",".join(COLUMNS) + "\n")
+            fh.writelines(_line(r) for r in rows)
+        os.replace(tmp, self.csv_path)
+
+    def append(self, row: dict[str, Any]) -> None:
+        """Append one row to ``results.csv`` and flush it to the OS."""
+        if self._fh is None:
+            self._fh = open(self.csv_path, "a", encoding="utf-8", newline="")
+        self._fh.write(_line(row))
+        self._fh.flush()
+
+    def move_to_stale(self, rows: Sequence[dict[str, Any]], reason: str) -> None:
+        """Append ``rows`` to ``stale.csv`` with a ``reason`` column."""
+        if not rows:
+            return
+        new = not self.stale_path.exists()
+        with open(self.stale_path, "a", encoding="utf-8", newline="") as fh:
+            if new:
+                fh.write(",".join(COLUMNS) + ",stale_reason\n")
+            for r in rows:
+                fh.write(_line(r)[:-1] + "," + _cell(reason) + "\n")
+
+    def write_parquet(self, table) -> None:
+        tmp = self.parquet_path.with_name(self.parquet_path.name + ".tmp")
+        table.to_parquet(tmp, index=False)
+        os.replace(tmp, self.parquet_path)
+
+    def close(self) -> None:
+        if self._fh is not None:
+            self._fh.close()
+            self._fh = None
+
+    def lock(self) -> None:
+        """Claim the directory (``.lock`` with this process id); ResultsError if another live
+        process on this host holds it.  A lock left by a dead process is taken over."""
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        path = self.out_dir / ".lock"
+        for _ in range(2):
+            try:
+                fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+            except FileExistsError:
+                try:
+                    pid = int(path.read_text().strip() or 0)
+                except (OSError, ValueError):
+                    pid = 0
+                if pid and pid != os.getpid() and _alive(pid):
+                    raise ResultsError(f"{self.out_dir}: another fourbar-sweep (pid {pid}) is writing here; "
+                                       f"wait for it, or choose another --out") from None
+                path.unlink(missing_ok=True)      # stale: its process is gone
+                continue
+            with os.fdopen(fd, "w") as fh:
+                fh.write(str(os.getpid()))
+            self._locked = True
+            return
+        raise ResultsError(f"{path}: cannot create the lock file")
+
+    def unlock(self) -> None:
+        if getattr(self, "_locked", False):
+            (self.out_dir / ".lock").unlink(missing_ok=True)
+            self._locked = False
+
+    def __enter__(self) -> "ResultsStore":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+        self.unlock()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _plain(record: dict[str, Any]) -> dict[str, Any]:
+    """pandas scalars -> Python values (None for missing)."""
+    import pandas as pd
+
+    out = {}
+    for k, v in record.items():
+        if v is pd.NA or v is None or (isinstance(v, float) and math.isnan(v)):
+            out[k] = None
+        elif hasattr(v, "item"):
+            out[k] = v.item()
+        else:
+            out[k] = v
+    return out

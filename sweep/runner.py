@@ -1,0 +1,344 @@
+"""Running a sweep on Dask: plan, skip what is done, run the rest, write the table and plots.
+
+``run_sweep`` plans the scenarios (:mod:`sweep.plan`), reads the results already in the
+output directory (:mod:`sweep.results`) and submits only the scenarios without a row.
+Each one is a task :func:`sweep.scenario.run_scenario` on a Dask worker: by default a
+``LocalCluster`` of worker *processes*, one per core, one thread each (the FMU and the
+monitor run Python code, so threads would only contend for the GIL); with ``scheduler``
+an existing cluster.  The tasks receive the scenario, the base case (the FMU's path) and
+an absolute output directory -- workers load the FMU themselves, so they need the same
+environment and the same paths (docs/sweep.md).
+
+Rows are appended to ``results.csv`` as the tasks finish (in completion order), so an
+interrupted sweep keeps every finished scenario; ``results.parquet`` is rewritten from them
+every ``PARQUET_INTERVAL`` seconds.  At the end the table is rewritten in plan order
+(``results.csv`` and ``results.parquet``), summarised (``summary.json``) and
+plotted (``plots/detection.png``, ``plots/roc.png``).  Ctrl-C cancels the pending tasks,
+writes the same files from the rows so far and raises :class:`SweepInterrupted`.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import os
+import sys
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+from .config import Sweep, load_sweep
+from .plan import Scenario, plan_scenarios
+from .results import ResultsStore, table_from_rows
+from .scenario import failed_row, run_scenario
+
+__all__ = ["ClusterError", "SweepInterrupted", "SweepResult", "default_workers", "open_client", "run_sweep"]
+
+
+class ClusterError(RuntimeError):
+    """The Dask scheduler could not be reached or the local cluster could not start."""
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """What a sweep produced (``table`` is the whole results table, in plan order)."""
+
+    sweep: Sweep
+    out_dir: Path
+    table: Any                     # pandas.DataFrame, columns sweep.results.COLUMNS
+    summary: dict
+    planned: int                   # scenarios in the sweep file
+    skipped: int                   # already in the results: not run again
+    ran: int                       # run by this call
+    interrupted: bool
+    wall_seconds: float
+    files: dict = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+
+    @property
+    def failed(self) -> int:
+        return int((self.table["status"] != "ok").sum()) if len(self.table) else 0
+
+    @property
+    def complete(self) -> bool:
+        return len(self.table) == self.planned
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped a sweep; ``result`` holds the rows kept (re-run to resume)."""
+
+    def __init__(self, result: SweepResult):
+        super().__init__(f"interrupted after {len(result.table)} of {result.planned} scenarios")
+        self.result = result
+
+
+def default_workers() -> int:
+    """One worker per core this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:       # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+@contextmanager
+def open_client(scheduler: str | None = None, workers: int | None = None, *,
+                timeout: float = 20.0) -> Iterator[Any]:
+    """A Dask client: on ``scheduler`` (an address), else on a new ``LocalCluster`` of
+    ``workers`` processes (default :func:`default_workers`) with one thread each.
+    Client and cluster are closed on exit."""
+    from dask.distributed import Client, LocalCluster
+
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=f"{timeout}s")
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise ClusterError(f"cannot connect to the Dask scheduler at {scheduler!r}: {exc}") from None
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    n = workers or default_workers()
+    try:
+        with _children_ignore_sigint():
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                                   silence_logs=logging.CRITICAL)
+    except (OSError, TimeoutError) as exc:
+        raise ClusterError(f"cannot start a local Dask cluster of {n} worker processes: {exc}") from None
+    try:
+        with Client(cluster) as client:
+            yield client
+    finally:
+        cluster.close()
+
+
+@contextmanager
+def _children_ignore_sigint() -> Iterator[None]:
+    """Ignore SIGINT while the local workers are spawned, so they inherit SIG_IGN.
+
+    Ctrl-C in a terminal reaches the whole process group: the sweep (this process) turns it
+    into an orderly stop -- cancel, keep the finished rows, close the cluster, which ends
+    the workers -- while workers that took it themselves would die printing tracebacks.
+    (Python keeps an inherited SIG_IGN for SIGINT.)  Main thread only; no-op elsewhere.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+def _write_json(path: Path, data: dict) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2, default=str) + "\n", encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def run_sweep(sweep: Sweep | str | Path, out_dir: str | Path | None = None, *, scheduler: str | None = None,
+              workers: int | None = None, client: Any = None, progress: bool = False, limit: int | None = None,
+              retry_failed: bool = False, on_start: Callable[[int, int, Path], None] | None = None) -> SweepResult:
+    """Run the scenarios of ``sweep`` that have no row yet in ``out_dir``; return the table.
+
+    ``out_dir`` defaults to ``out/sweeps/<sweep name>``.  The cluster is ``client`` (an
+    existing ``dask.distributed.Client``, left open), else ``scheduler`` (an address),
+    else a new LocalCluster of ``workers`` processes.  ``limit`` runs at most that many of
+    the pending scenarios (the rest stay for the next call); ``retry_failed`` runs failed
+    scenarios again.  ``progress`` shows a tqdm bar on stderr; ``on_start(to_run, done,
+    out_dir)`` is called once the results already there have been read.
+
+    Raises :class:`~sweep.config.SweepError` (invalid sweep file),
+    :class:`~sweep.results.ResultsError` (an unusable results.csv), :class:`ClusterError`
+    and :class:`SweepInterrupted` (Ctrl-C; the finished rows are written first).
+    """
+    wall0 = time.perf_counter()
+    if not isinstance(sweep, Sweep):
+        sweep = load_sweep(sweep)
+    out = Path(out_dir) if out_dir is not None else Path("out") / "sweeps" / sweep.name
+    out = out.resolve()
+    plan = plan_scenarios(sweep)
+    by_id = {s.id: s for s in plan}
+    notes = list(sweep.notes)
+
+    store = ResultsStore(out)
+    store.lock()
+    try:
+        return _sweep_locked(sweep, out, store, plan, by_id, notes, wall0, scheduler=scheduler, workers=workers,
+                             client=client, progress=progress, limit=limit, retry_failed=retry_failed,
+                             on_start=on_start)
+    finally:
+        store.unlock()
+
+
+def _sweep_locked(sweep: Sweep, out: Path, store: ResultsStore, plan, by_id, notes, wall0, *, scheduler, workers,
+                  client, progress, limit, retry_failed, on_start) -> SweepResult:
+    existing = store.load()
+    kept: dict[str, dict] = {}
+    stale: dict[str, list[dict]] = {}
+    for row in existing:
+        sid = row.get("scenario_id")
+        if sid not in by_id:
+            reason = "not in the sweep file"
+        elif row.get("fmu_guid") != sweep.fmu_guid:
+            reason = f"made with another FMU build (GUID {row.get('fmu_guid')})"
+        elif retry_failed and row.get("status") != "ok":
+            reason = "failed; retried (--retry-failed)"
+        elif sid in kept:
+            reason = "duplicate row"
+        elif not _limit_ok(row, sweep, out):
+            reason = "report.latency_limit changed and the run's evaluations.csv is gone"
+        else:
+            row["index"] = by_id[sid].index
+            kept[sid] = row
+            continue
+        stale.setdefault(reason, []).append(row)
+    out.mkdir(parents=True, exist_ok=True)
+    for reason, rows in stale.items():
+        store.move_to_stale(rows, reason)
+        notes.append(f"{len(rows)} row(s) moved to {store.stale_path.name}: {reason}")
+    store.rewrite(sorted(kept.values(), key=lambda r: r["index"]))
+
+    pending = [s for s in plan if s.id not in kept]
+    if limit is not None:
+        pending = pending[:max(0, int(limit))]
+    _write_json(out / "sweep.json", {**sweep.as_dict(), "scenarios": len(plan), "out_dir": str(out),
+                                     "cluster": scheduler or ("client" if client is not None else
+                                                              f"LocalCluster({workers or default_workers()})"),
+                                     "started_at": _now()})
+    if on_start is not None:
+        on_start(len(pending), len(kept), out)
+    new_rows: list[dict] = []
+    interrupted = False
+    try:
+        if pending:
+            def snapshot() -> None:     # results.parquet while the sweep runs
+                store.write_parquet(table_from_rows(sorted([*kept.values(), *new_rows], key=lambda r: r["index"])))
+
+            if client is not None:
+                _run_on(client, sweep, pending, out, store, new_rows, progress, snapshot)
+            else:
+                with open_client(scheduler, workers) as own:
+                    _run_on(own, sweep, pending, out, store, new_rows, progress, snapshot)
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        store.close()
+    rows = sorted([*kept.values(), *new_rows], key=lambda r: r["index"])
+    result = _finish(sweep, out, store, rows, plan, skipped=len(kept), ran=len(new_rows), interrupted=interrupted,
+                     wall0=wall0, notes=notes)
+    if interrupted:
+        raise SweepInterrupted(result)
+    return result
+
+
+def _persistence(sweep: Sweep) -> int:
+    from monitor import MonitorOptions
+
+    opts = dict(sweep.monitor.options)
+    return int(opts.get("persistence", MonitorOptions.persistence))
+
+
+def _limit_ok(row: dict, sweep: Sweep, out: Path) -> bool:
+    """Make ``score_early`` of a stored row use the sweep's latency limit.
+
+    It is the only result that depends on ``report.latency_limit`` (not part of the id): a
+    row scored with another limit is scored again from its ``evaluations.csv``; False if
+    that file is missing (the scenario is then run again)."""
+    if row.get("status") != "ok" or row.get("latency_limit") == sweep.latency_limit:
+        return True
+    import pandas as pd
+
+    from .scenario import early_score
+
+    path = out / "runs" / str(row["scenario_id"]) / "monitor" / "evaluations.csv"
+    try:
+        ev = pd.read_csv(path)
+        row["score_early"] = early_score(ev["time"].to_numpy(), ev["mae"].to_numpy(), ev["threshold"].to_numpy(),
+                                         row.get("fault_time"), _persistence(sweep), sweep.latency_limit)
+    except (OSError, ValueError, KeyError):
+        return False
+    row["latency_limit"] = sweep.latency_limit
+    return True
+
+
+#: s of wall time between two rewrites of results.parquet while a sweep runs
+PARQUET_INTERVAL = 30.0
+
+
+def _run_on(client, sweep: Sweep, pending: list[Scenario], out: Path, store: ResultsStore,
+            new_rows: list[dict], progress: bool, snapshot) -> None:
+    from dask.distributed import as_completed
+    from tqdm import tqdm
+
+    runs = out / "runs"
+    options = dict(sweep.monitor.options)
+    futures = {}
+    for i, s in enumerate(pending):
+        fut = client.submit(run_scenario, s, sweep.case, str(runs / s.id), options, fmu_guid=sweep.fmu_guid,
+                            keep_exchange=sweep.keep_exchange, monitor_plots=sweep.monitor_plots,
+                            latency_limit=sweep.latency_limit,
+                            pure=False, priority=len(pending) - i, key=f"scenario-{s.id}-{os.urandom(4).hex()}")
+        futures[fut] = s
+    failed = 0
+    last_snapshot = time.monotonic()
+    bar = tqdm(total=len(pending), desc=sweep.name, unit="scenario", file=sys.stderr, dynamic_ncols=True,
+               disable=not progress)
+    try:
+        for fut in as_completed(list(futures)):
+            s = futures.pop(fut)
+            try:
+                row = fut.result()
+            except Exception as exc:      # the worker died (KilledWorker), was cancelled, ...
+                row = failed_row(s, f"worker: {type(exc).__name__}: {exc}", fmu_guid=sweep.fmu_guid)
+            row["index"] = s.index
+            new_rows.append(row)          # first: a Ctrl-C between the two still keeps the row
+            store.append(row)
+            if row["status"] != "ok":
+                failed += 1
+                bar.set_postfix(failed=failed, refresh=False)
+            bar.update(1)
+            fut.release()
+            if time.monotonic() - last_snapshot > PARQUET_INTERVAL:
+                snapshot()
+                last_snapshot = time.monotonic()
+    finally:
+        bar.close()
+        if futures:
+            client.cancel(list(futures))
+
+
+def _finish(sweep: Sweep, out: Path, store: ResultsStore, rows: list[dict], plan, *, skipped: int, ran: int,
+            interrupted: bool, wall0: float, notes: list[str]) -> SweepResult:
+    from .report import plot_detection, plot_roc, summarize
+
+    store.rewrite(rows)
+    store.close()
+    table = table_from_rows(rows)
+    store.write_parquet(table)
+    unit = sweep.monitor.unit
+    summary = summarize(table, sweep.latency_limit, unit=unit)
+    files = {"csv": store.csv_path, "parquet": store.parquet_path}
+    plots = out / "plots"
+    plots.mkdir(exist_ok=True)
+    title = f"{sweep.name}: {sweep.fault.variable} faults, {sweep.monitor.signal} monitored, stop {sweep.stop:g} s"
+    if summary["ok"]:
+        files["detection_plot"] = plot_detection(summary, plots / "detection.png", title=title)
+        files["roc_plot"] = plot_roc(table, plots / "roc.png", unit=unit, latency_limit=sweep.latency_limit)
+    summary.update(name=sweep.name, planned=len(plan), skipped=skipped, ran=ran, interrupted=interrupted,
+                   wall_seconds=time.perf_counter() - wall0, finished_at=_now())
+    files["summary"] = out / "summary.json"
+    _write_json(files["summary"], summary)
+    return SweepResult(sweep=sweep, out_dir=out, table=table, summary=summary, planned=len(plan), skipped=skipped,
+                       ran=ran, interrupted=interrupted, wall_seconds=time.perf_counter() - wall0, files=files,
+                       notes=tuple(notes))

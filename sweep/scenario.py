@@ -1,0 +1,192 @@
+"""One scenario, run where it is scheduled (a Dask worker): the orchestrator, then the monitor.
+
+:func:`run_scenario` receives plain data -- the :class:`~sweep.plan.Scenario`, the base
+:class:`orchestrator.Case` (a description: the FMU's *path*, never a loaded FMU) and the
+scenario's directory -- and returns one row of the results table as a dict.  The FMU is
+extracted, instantiated and freed inside :func:`orchestrator.run_case` in the worker's
+process.  Any failure (a case the orchestrator rejects, an FMU that cannot apply the
+fault, a monitor that cannot train, an unexpected exception) becomes a row with status
+``"failed"`` and the message, so one bad scenario never stops a sweep.
+
+Scoring (times are evaluation times ``t_k``; an evaluation covers the samples in
+``(t_k - window, t_k]``; the row written at the fault time still shows the healthy state):
+
+``false_alarms``      alarms raised at ``t_k <= t_fault`` (every alarm without a fault);
+``detected``          an alarm is raised at some ``t_k > t_fault``;
+``detection_time``    the first such ``t_k``; ``latency = detection_time - t_fault``;
+``mae_*_pre/post``    max and mean windowed MAE over ``t_k <= t_fault`` / ``t_k > t_fault``;
+``score_pre/post``    the largest threshold multiplier ``c`` the detector's rule would still
+                      exceed: ``max_k min(r_k, .., r_{k+p-1})`` over runs of ``p``
+                      (``persistence``) consecutive evaluations ending before / after the
+                      fault, with ``r = MAE / threshold`` (so the detector alarms when the
+                      score is above 1; with ``refit = "paper"`` this ignores refits);
+``score_early``       the same over the runs ending in ``(t_fault, t_fault + latency_limit]``:
+                      above 1 means "detected within the latency limit" at that threshold.
+"""
+from __future__ import annotations
+
+import math
+import os
+import socket
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, Mapping
+
+from .plan import Scenario
+
+__all__ = ["RESULT_FIELDS", "early_score", "failed_row", "run_scenario", "scenario_case", "score"]
+
+#: Result columns added to a scenario's inputs (types in :mod:`sweep.results`).
+RESULT_FIELDS = ("status", "error", "detected", "detection_time", "latency", "first_alarm_time", "alarms",
+                 "false_alarms", "threshold_base", "period", "evaluations", "mae_max_pre", "mae_mean_pre",
+                 "mae_max_post", "mae_mean_post", "score_pre", "score_post", "score_early", "latency_limit",
+                 "rows_written", "fmu_guid",
+                 "run_seconds", "monitor_seconds", "wall_seconds", "cpu_seconds", "worker")
+
+
+def scenario_case(base, scenario: Scenario):
+    """The base case with the scenario's fault and noise (validated when it is run)."""
+    from orchestrator import Noise, RampEvent, StepEvent
+
+    events = ()
+    if scenario.kind == "step":
+        events = (StepEvent(time=scenario.fault_time, variable=scenario.variable, value=scenario.fault_value),)
+    elif scenario.kind == "ramp":
+        events = (RampEvent(variable=scenario.variable, from_=scenario.base_value, to=scenario.fault_value,
+                            start=scenario.fault_time, end=scenario.fault_time + scenario.ramp_duration),)
+    noise = None
+    if scenario.noise_std > 0:
+        noise = Noise(seed=scenario.noise_seed, std={scenario.signal: scenario.noise_std})
+    exchange = replace(base.exchange, realtime_factor=0.0)
+    return replace(base, name=f"scenario-{scenario.id}", events=events, noise=noise, exchange=exchange)
+
+
+def _empty_result() -> dict[str, Any]:
+    return {name: None for name in RESULT_FIELDS}
+
+
+def failed_row(scenario: Scenario, message: str, **extra: Any) -> dict[str, Any]:
+    """A result row with status ``failed`` and ``message``."""
+    row = scenario.inputs()
+    row.update(_empty_result())
+    row.update(status="failed", error=message)
+    row.update(extra)
+    return row
+
+
+def score(times, mae, threshold, alarm_times, fault_time: float | None, persistence: int,
+          latency_limit: float | None = None) -> dict[str, Any]:
+    """Detection figures of one monitored run (definitions in the module docstring)."""
+    import numpy as np
+
+    t = np.asarray(times, dtype=float)
+    mae = np.asarray(mae, dtype=float)
+    thr = np.asarray(threshold, dtype=float)
+    alarms = sorted(float(a) for a in alarm_times)
+    ratio = mae / thr
+    p = max(1, int(persistence))
+    if ratio.size >= p:
+        runs = np.lib.stride_tricks.sliding_window_view(ratio, p).min(axis=1)
+        run_end = t[p - 1:]
+    else:
+        runs = run_end = np.empty(0)
+    fault = math.inf if fault_time is None else float(fault_time)
+    pre = t <= fault + 1e-9
+    post = ~pre
+    run_pre = run_end <= fault + 1e-9
+
+    def stat(fn, values):
+        return float(fn(values)) if values.size else None
+
+    detections = [a for a in alarms if a > fault + 1e-9]
+    first_detection = detections[0] if detections else None
+    return {
+        "detected": (first_detection is not None) if fault_time is not None else False,
+        "detection_time": first_detection,
+        "latency": (first_detection - fault) if first_detection is not None else None,
+        "first_alarm_time": alarms[0] if alarms else None,
+        "alarms": len(alarms),
+        "false_alarms": sum(1 for a in alarms if a <= fault + 1e-9),
+        "evaluations": int(t.size),
+        "mae_max_pre": stat(np.max, mae[pre]), "mae_mean_pre": stat(np.mean, mae[pre]),
+        "mae_max_post": stat(np.max, mae[post]), "mae_mean_post": stat(np.mean, mae[post]),
+        "score_pre": stat(np.max, runs[run_pre]), "score_post": stat(np.max, runs[~run_pre]),
+        "score_early": early_score(t, mae, thr, fault_time, p, latency_limit),
+        "latency_limit": latency_limit,
+    }
+
+
+def early_score(times, mae, threshold, fault_time: float | None, persistence: int,
+                latency_limit: float | None) -> float | None:
+    """``score_early``: the post-fault score over runs ending within ``latency_limit`` s of the fault."""
+    import numpy as np
+
+    if fault_time is None or latency_limit is None:
+        return None
+    t = np.asarray(times, dtype=float)
+    ratio = np.asarray(mae, dtype=float) / np.asarray(threshold, dtype=float)
+    p = max(1, int(persistence))
+    if ratio.size < p:
+        return None
+    runs = np.lib.stride_tricks.sliding_window_view(ratio, p).min(axis=1)
+    end = t[p - 1:]
+    sel = (end > fault_time + 1e-9) & (end <= fault_time + latency_limit + 1e-9)
+    return float(runs[sel].max()) if sel.any() else None
+
+
+def run_scenario(scenario: Scenario, base_case, run_dir: str, monitor_options: Mapping[str, Any], *,
+                 fmu_guid: str = "", keep_exchange: bool = True, monitor_plots: bool = False,
+                 latency_limit: float | None = None) -> dict[str, Any]:
+    """Run one scenario (orchestrator run + monitor replay) and return its result row."""
+    wall0 = time.perf_counter()
+    cpu0 = time.process_time()
+    worker = f"{socket.gethostname()}:{os.getpid()}"
+    row = scenario.inputs()
+    row.update(_empty_result())
+    row.update(fmu_guid=fmu_guid, worker=worker)
+
+    def finish(**values: Any) -> dict[str, Any]:
+        row.update(values)
+        row["wall_seconds"] = time.perf_counter() - wall0
+        row["cpu_seconds"] = time.process_time() - cpu0     # of the worker process: < wall when CPUs are shared
+        return row
+
+    try:
+        from monitor import MonitorError
+        from orchestrator import ConfigError, run_case
+
+        out = Path(run_dir)
+        try:
+            result = run_case(scenario_case(base_case, scenario), out)
+        except ConfigError as exc:
+            return finish(status="failed", error=f"case rejected: {' '.join(str(exc).split())}")
+        row.update(rows_written=result.rows_written, run_seconds=result.wall_time_s)
+        if not result.ok:
+            return finish(status="failed", error=f"run {result.status} at t = {result.last_time!r} s: {result.error}")
+        options = dict(monitor_options)
+        options.update(model=scenario.model, threshold=scenario.threshold_value, signal=scenario.signal)
+        every = float(options.get("every", 0.1))
+        options.setdefault("evaluation_points", max(20000, int(scenario.stop / every) + 100))
+        m0 = time.perf_counter()
+        try:
+            from monitor import replay
+
+            monitored = replay(result.exchange_path, out_dir=out / "monitor", plots=monitor_plots, **options)
+        except MonitorError as exc:
+            return finish(status="failed", error=f"monitor: {' '.join(str(exc).split())}",
+                          monitor_seconds=time.perf_counter() - m0)
+        monitor_seconds = time.perf_counter() - m0
+        ev = monitored.evaluations
+        alarm_times = [e["time"] for e in monitored.events if e.get("event") == "alarm"]
+        figures = score(ev["time"].to_numpy(), ev["mae"].to_numpy(), ev["threshold"].to_numpy(), alarm_times,
+                        scenario.fault_time, monitored.options.persistence, latency_limit)
+        threshold = monitored.summary.get("threshold") or {}
+        period = monitored.period
+        if not keep_exchange:
+            result.exchange_path.unlink(missing_ok=True)
+        return finish(status="ok", error=None, threshold_base=threshold.get("base"),
+                      period=period.period if period is not None else None,
+                      monitor_seconds=monitor_seconds, **figures)
+    except Exception as exc:    # a bug or an unexpected environment problem: keep the sweep going
+        return finish(status="failed", error=f"internal error: {type(exc).__name__}: {exc}")

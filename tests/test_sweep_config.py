@@ -1,0 +1,257 @@
+"""Sweep files, scenario plans and scoring -- no cluster, no FMU run (fast).
+
+Covers: every problem of a malformed sweep file reported at once with its key (library and
+CLI, exit 2); the plan of sweeps/smoke.toml (8 scenarios, stable ids, canonical duplicates
+removed); reproducible random sampling on the communication grid; the detection figures
+of :func:`sweep.score` on hand-made evaluations; the headline rule of the summary; and an
+exact round trip of the results CSV, including a torn last line.
+"""
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import pytest
+
+from sweep import SweepError, load_sweep, plan_scenarios, score
+from sweep.cli import main
+from sweep.results import COLUMNS, ResultsStore, table_from_rows
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def write_case(tmp_path: Path, fmu: Path) -> Path:
+    """cases/case1_normal.toml pointing at the FMU under test."""
+    text = (REPO / "cases" / "case1_normal.toml").read_text()
+    text = text.replace('fmu = "../build/FourBar.fmu"', f'fmu = "{fmu}"')
+    path = tmp_path / "case1_normal.toml"
+    path.write_text(text)
+    return path
+
+
+def write_sweep(tmp_path: Path, fmu: Path, body: str, name: str = "s.toml") -> Path:
+    case = write_case(tmp_path, fmu)
+    path = tmp_path / name
+    path.write_text(f'case = "{case}"\n' + body)
+    return path
+
+
+def smoke(tmp_path: Path, fmu: Path) -> Path:
+    """sweeps/smoke.toml with its base case pointing at the FMU under test."""
+    case = write_case(tmp_path, fmu)
+    text = (REPO / "sweeps" / "smoke.toml").read_text()
+    text = text.replace('case = "../cases/case1_normal.toml"', f'case = "{case}"')
+    path = tmp_path / "smoke.toml"
+    path.write_text(text)
+    return path
+
+
+MALFORMED = """
+stop = 20.005
+colour = "red"
+[fault]
+variable = "L7"
+kind = ["step", "jump"]
+relative = [0.0, 0.01]
+time = [5.0, 10.005]
+[noise]
+std = -1.0
+seed = 1.5
+[monitor]
+model = "arima"
+threshold = [0, "auto"]
+window = -1
+persistance = 2
+"""
+
+
+def test_malformed_sweep_reports_every_problem_with_its_key(tmp_path, fourbar_fmu):
+    path = write_sweep(tmp_path, fourbar_fmu, MALFORMED)
+    with pytest.raises(SweepError) as info:
+        load_sweep(path)
+    text = str(info.value)
+    expected = ["colour: unknown key", "stop = 20.005", "fault.variable = \"L7\"", "fault.kind[1] = \"jump\"",
+                "fault.relative[0] = 0.0", "fault.time[0] = 5.0", "fault.time[1] = 10.005",
+                "noise.std = -1.0", "noise.seed = 1.5", "monitor.model = \"arima\"", "monitor.threshold[0] = 0",
+                "monitor.window = -1", "did you mean 'persistence'"]
+    for fragment in expected:
+        assert fragment in text, f"{fragment!r} not reported:\n{text}"
+    assert len(info.value.problems) == len(expected)
+    assert all(line.startswith(f"  {path}: ") for line in text.splitlines()[1:])
+
+
+def test_cli_exit_2_names_the_key_without_traceback(tmp_path, fourbar_fmu, capsys):
+    path = write_sweep(tmp_path, fourbar_fmu, '[fault]\nvariable = "L2"\nrelative = 0.01\ntime = 10.0\n'
+                                              '[monitor]\nthreshold = "high"\n')
+    assert main([str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert 'monitor.threshold = "high"' in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["--workers", "0"], "--workers"),
+    (["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "--scheduler"),
+])
+def test_cli_usage_errors_exit_2(tmp_path, fourbar_fmu, capsys, argv, fragment):
+    path = smoke(tmp_path, fourbar_fmu)
+    assert main([str(path), *argv]) == 2
+    assert fragment in capsys.readouterr().err
+
+
+def test_missing_sweep_file_and_bad_toml(tmp_path, capsys):
+    assert main([str(tmp_path / "none.toml")]) == 2
+    assert "sweep file not found" in capsys.readouterr().err
+    bad = tmp_path / "bad.toml"
+    bad.write_text("case = \n")
+    with pytest.raises(SweepError, match="not valid TOML"):
+        load_sweep(bad)
+
+
+def test_smoke_plan_has_8_stable_canonical_scenarios(tmp_path, fourbar_fmu):
+    path = smoke(tmp_path, fourbar_fmu)
+    plan = plan_scenarios(load_sweep(path))
+    assert len(plan) == 8
+    assert [s.index for s in plan] == list(range(8))
+    assert len({s.id for s in plan}) == 8
+    assert sum(not s.has_fault for s in plan) == 2
+    for s in plan:
+        if s.noise_std == 0:
+            assert s.noise_seed is None           # noise-free runs do not depend on the seed
+        if not s.has_fault:
+            assert s.fault_time is None and s.fault_value is None and s.kind == "none"
+    again = plan_scenarios(load_sweep(path))
+    assert [s.id for s in again] == [s.id for s in plan]
+    # the id is a function of the inputs: another noise seed changes only the noisy scenarios
+    other = tmp_path / "other.toml"
+    other.write_text(path.read_text().replace("seed = 1", "seed = 2"))
+    changed = {s.id for s in plan_scenarios(load_sweep(other))} ^ {s.id for s in plan}
+    assert len(changed) == 2 * 4                  # 4 noisy scenarios out, 4 in
+
+
+def test_sampling_is_reproducible_and_on_the_grid(tmp_path, fourbar_fmu):
+    body = """stop = 20.0
+[fault]
+variable = "L2"
+kind = ["step", "ramp"]
+relative = {min = 0.002, max = 0.1, scale = "log"}
+time = {min = 10.0, max = 12.0}
+ramp_duration = 2.0
+no_fault = true
+[noise]
+std = [0.0, 0.005]
+seed = {min = 0, max = 1000}
+[monitor]
+model = "harmonic"
+[sample]
+n = 5
+seed = 3
+"""
+    path = write_sweep(tmp_path, fourbar_fmu, body)
+    sweep = load_sweep(path)
+    plan = plan_scenarios(sweep)
+    assert plan == plan_scenarios(load_sweep(path))
+    faults = [s for s in plan if s.has_fault]
+    assert len(faults) == 2 * 5 * 2               # kinds x draws x noise levels
+    for s in faults:
+        assert 0.002 <= s.relative_change <= 0.1
+        assert 10.0 <= s.fault_time <= 12.0
+        assert sweep.case.experiment.index(s.fault_time) is not None
+        assert (s.ramp_duration == 2.0) == (s.kind == "ramp")
+    reseeded = tmp_path / "reseeded.toml"
+    reseeded.write_text(path.read_text().replace("seed = 3", "seed = 4"))
+    assert {s.id for s in plan_scenarios(load_sweep(reseeded))}.isdisjoint(s.id for s in faults)
+
+
+def test_range_without_sample_table_is_reported(tmp_path, fourbar_fmu):
+    path = write_sweep(tmp_path, fourbar_fmu, '[fault]\nvariable = "L2"\nrelative = {min = 0.01, max = 0.1}\n'
+                                              'time = 10.0\n')
+    with pytest.raises(SweepError, match=r"sample: missing.*fault.relative is a range"):
+        load_sweep(path)
+
+
+def test_score_definitions():
+    # evaluations every 0.1 s; threshold 1; fault at 10.0 s; persistence 2
+    t = [9.8, 9.9, 10.0, 10.1, 10.2, 10.3, 10.4]
+    mae = [0.5, 3.0, 0.5, 0.5, 2.0, 4.0, 5.0]
+    thr = [1.0] * len(t)
+    s = score(t, mae, thr, alarm_times=[9.6, 10.3], fault_time=10.0, persistence=2)
+    assert s["false_alarms"] == 1 and s["alarms"] == 2
+    assert s["detected"] and s["detection_time"] == 10.3
+    assert s["latency"] == pytest.approx(0.3, abs=1e-12)
+    assert s["mae_max_pre"] == 3.0 and s["mae_mean_pre"] == pytest.approx(4.0 / 3)
+    assert s["mae_max_post"] == 5.0
+    assert s["score_pre"] == 0.5                  # no two consecutive pre-fault windows above 0.5
+    assert s["score_post"] == 4.0                 # min(4, 5) over the last pair
+    clean = score(t, mae, thr, alarm_times=[10.3], fault_time=None, persistence=1)
+    assert clean["false_alarms"] == 1 and clean["detected"] is False and clean["latency"] is None
+    assert clean["score_pre"] == 5.0 and clean["score_post"] is None
+
+
+def _row(i, rel, std, latency, false_alarms=0, has_fault=True):
+    detected = latency is not None
+    return {"scenario_id": f"s{i}", "index": i, "variable": "L2", "kind": "step" if has_fault else "none",
+            "relative_change": rel, "noise_std": std, "model": "harmonic", "threshold": "auto",
+            "has_fault": has_fault, "status": "ok", "detected": detected if has_fault else False,
+            "latency": latency, "false_alarms": false_alarms, "alarms": false_alarms + detected,
+            "score_pre": 0.1, "score_post": 3.0 if detected else 0.5, "fault_time": 10.0 if has_fault else None}
+
+
+def test_headline_is_the_smallest_size_from_which_every_run_is_good():
+    from sweep.report import summarize
+
+    rows = [_row(0, 0.002, 0.0, None), _row(1, 0.005, 0.0, 1.5), _row(2, 0.01, 0.0, 2.5),
+            _row(3, 0.02, 0.0, 0.6), _row(4, 0.05, 0.0, 0.3), _row(5, 0.0, 0.0, None, has_fault=False),
+            _row(6, 0.05, 0.005, 0.4, false_alarms=1), _row(7, 0.1, 0.005, 0.3)]
+    summary = summarize(table_from_rows(rows), 2.0, unit="m")
+    series = {g["noise_std"]: g for g in summary["series"]}
+    # 0.5 % is good but 1 % takes 2.5 s: reliable only from 2 % up
+    assert series[0.0]["smallest_reliable_change"] == 0.02
+    assert series[0.0]["no_fault"] == {"n": 1, "runs_with_alarms": 0, "alarms": 0}
+    assert series[0.005]["smallest_reliable_change"] == 0.1     # 5 % had a false alarm
+    assert series[0.005]["series"].startswith("noise σ = 5 mm")
+
+
+def test_results_csv_round_trip_is_exact(tmp_path):
+    rows = [{"scenario_id": "a", "index": 0, "relative_change": 0.1 + 0.2, "latency": 1 / 3, "detected": True,
+             "false_alarms": 0, "error": None, "noise_seed": None, "status": "ok"},
+            {"scenario_id": "b", "index": 1, "relative_change": 9.0, "latency": None, "detected": None,
+             "false_alarms": None, "error": 'run failed: "quoted", with commas\nand a newline', "noise_seed": 7,
+             "status": "failed"}]
+    store = ResultsStore(tmp_path)
+    store.rewrite(rows[:1])
+    store.append(rows[1])
+    store.close()
+    with open(store.csv_path, "a") as fh:         # a row torn by a kill: no newline at the end
+        fh.write("c,2,L2,step,0.1")
+    back = store.load()
+    assert len(back) == 2
+    assert back[0]["relative_change"] == 0.1 + 0.2 and back[0]["latency"] == 1 / 3
+    assert back[1]["error"] == rows[1]["error"] and back[1]["detected"] is None and back[1]["noise_seed"] == 7
+    import pandas.testing as pdt
+
+    pdt.assert_frame_equal(table_from_rows(back), table_from_rows(rows))
+    assert list(table_from_rows(back).columns) == list(COLUMNS)
+    assert math.isnan(table_from_rows(back)["latency"][1])
+
+
+def test_dry_run_counts_without_running(tmp_path, fourbar_fmu, capsys):
+    path = smoke(tmp_path, fourbar_fmu)
+    assert main([str(path), "--dry-run", "--out", str(tmp_path / "out")]) == 0
+    out = capsys.readouterr().out
+    assert "8 scenarios (6 step, 2 none); 0 already in" in out and "8 to run" in out
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_directory_in_use_by_a_live_sweep_is_refused(tmp_path, fourbar_fmu):
+    from sweep import ResultsError, run_sweep
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / ".lock").write_text(str(os.getppid()))          # a live process that is not us
+    with pytest.raises(ResultsError, match=r"another fourbar-sweep \(pid"):
+        run_sweep(smoke(tmp_path, fourbar_fmu), out)
+    (out / ".lock").write_text("999999999")                 # no such process: a stale lock is taken over
+    result = run_sweep(smoke(tmp_path, fourbar_fmu), out, limit=0)
+    assert result.ran == 0 and not (out / ".lock").exists()

@@ -1,0 +1,192 @@
+"""Sweeps on a real 2-worker Dask LocalCluster (worker processes), with the real FMU and monitor.
+
+One run of sweeps/smoke.toml (8 scenarios of 20 s, harmonic model) is shared by the tests
+through a module fixture, and one cluster serves every run of the module.  Checked: one row
+per scenario with plausible figures (larger faults detected at least as often and no
+later; no false alarm without noise); the same sweep run again -- through the scheduler's
+address, as ``--scheduler`` does -- gives an identical table; a sweep stopped after a few
+scenarios (``limit``) or by Ctrl-C on the command line, then resumed, gives the same table
+as the uninterrupted one; a scenario whose fault cannot be assembled (L2 -> 10 m) is a
+failed row carrying the FMU's message while the sweep goes on (CLI exit 1).
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pandas.testing as pdt
+import pytest
+
+from sweep import RUNTIME_COLUMNS, load_sweep, plan_scenarios, run_sweep
+from sweep.cli import main
+
+REPO = Path(__file__).resolve().parents[1]
+pytestmark = pytest.mark.slow
+
+
+def write_case(directory: Path, fmu: Path) -> Path:
+    text = (REPO / "cases" / "case1_normal.toml").read_text()
+    path = directory / "case1_normal.toml"
+    path.write_text(text.replace('fmu = "../build/FourBar.fmu"', f'fmu = "{fmu}"'))
+    return path
+
+
+def comparable(table: pd.DataFrame) -> pd.DataFrame:
+    """The table without the columns that record how long and where a scenario ran."""
+    return table.drop(columns=list(RUNTIME_COLUMNS)).reset_index(drop=True)
+
+
+@pytest.fixture(scope="module")
+def smoke_file(tmp_path_factory, fourbar_fmu) -> Path:
+    directory = tmp_path_factory.mktemp("sweep_files")
+    case = write_case(directory, fourbar_fmu)
+    text = (REPO / "sweeps" / "smoke.toml").read_text()
+    path = directory / "smoke.toml"
+    path.write_text(text.replace('case = "../cases/case1_normal.toml"', f'case = "{case}"'))
+    return path
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A LocalCluster of 2 worker processes, one thread each (what fourbar-sweep starts)."""
+    from dask.distributed import Client, LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as lc, \
+            Client(lc) as client:
+        yield client
+
+
+@pytest.fixture(scope="module")
+def first_run(smoke_file, cluster, tmp_path_factory):
+    return run_sweep(smoke_file, tmp_path_factory.mktemp("first"), client=cluster)
+
+
+def test_one_row_per_scenario_with_plausible_results(first_run, smoke_file):
+    result, table = first_run, first_run.table
+    plan = plan_scenarios(load_sweep(smoke_file))
+    assert result.planned == len(plan) == 8 and result.ran == 8 and result.complete
+    assert list(table["scenario_id"]) == [s.id for s in plan]
+    assert (table["status"] == "ok").all(), table[["scenario_id", "error"]]
+    for std, group in table.groupby("noise_std"):
+        faults = group[group["has_fault"]].sort_values("relative_change")
+        detected = faults["detected"].astype(bool).to_numpy()
+        # larger faults are detected at least as often ...
+        assert all(a <= b for a, b in zip(detected, detected[1:])), faults
+        # ... and no later
+        latency = faults["latency"].to_numpy()
+        seen = latency[detected]
+        assert all(a >= b for a, b in zip(seen, seen[1:])), faults
+        assert detected[-1] and latency[-1] <= 1.0        # +10 % of L2 is seen within a second
+    noise_free = table[table["noise_std"] == 0]
+    assert (noise_free["false_alarms"] == 0).all()
+    clean = noise_free[~noise_free["has_fault"]]
+    assert len(clean) == 1 and clean["alarms"].iloc[0] == 0 and not clean["detected"].iloc[0]
+    # every file a user is told about exists, and the Parquet table is the CSV table
+    for key in ("csv", "parquet", "detection_plot", "roc_plot", "summary"):
+        assert Path(result.files[key]).stat().st_size > 0
+    pdt.assert_frame_equal(pd.read_parquet(result.files["parquet"]), table)
+    for sid in table["scenario_id"]:
+        run_dir = result.out_dir / "runs" / sid
+        assert (run_dir / "exchange.csv").exists() and (run_dir / "run.json").exists()
+        assert (run_dir / "monitor" / "events.jsonl").exists()
+
+
+def test_same_sweep_twice_gives_identical_results(first_run, smoke_file, cluster, tmp_path):
+    # through the scheduler's address, as `fourbar-sweep --scheduler ADDRESS` connects
+    again = run_sweep(smoke_file, tmp_path / "again", scheduler=cluster.scheduler.address)
+    assert again.ran == 8
+    pdt.assert_frame_equal(comparable(again.table), comparable(first_run.table), check_exact=True)
+
+
+def test_stopped_after_k_scenarios_then_resumed_equals_uninterrupted(first_run, smoke_file, cluster, tmp_path,
+                                                                     monkeypatch):
+    import sweep.runner
+
+    monkeypatch.setattr(sweep.runner, "PARQUET_INTERVAL", 0.0)    # results.parquet after every row too
+    out = tmp_path / "resumed"
+    part = run_sweep(smoke_file, out, client=cluster, limit=3)
+    assert part.ran == 3 and len(part.table) == 3 and not part.complete
+    pdt.assert_frame_equal(pd.read_parquet(out / "results.parquet"), part.table)
+    rest = run_sweep(smoke_file, out, client=cluster)
+    assert rest.skipped == 3 and rest.ran == 5 and rest.complete
+    pdt.assert_frame_equal(comparable(rest.table), comparable(first_run.table), check_exact=True)
+    nothing = run_sweep(smoke_file, out, client=cluster)
+    assert nothing.ran == 0 and nothing.skipped == 8
+
+
+def test_ctrl_c_on_the_command_line_keeps_rows_and_resumes(first_run, smoke_file, cluster, tmp_path):
+    out = tmp_path / "interrupted"
+    csv = out / "results.csv"
+    # its own process group, so SIGINT reaches the sweep and its workers, as Ctrl-C in a terminal does
+    proc = subprocess.Popen([sys.executable, "-m", "sweep.cli", str(smoke_file), "--workers", "2", "--out", str(out),
+                             "--quiet"], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    try:
+        deadline = time.monotonic() + 90
+        rows = 0
+        while time.monotonic() < deadline and proc.poll() is None:
+            rows = csv.read_text().count("\n") - 1 if csv.exists() else 0
+            if rows >= 2:
+                break
+            time.sleep(0.05)
+        assert proc.poll() is None, f"the sweep ended before it could be interrupted: {proc.communicate()}"
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 130, err
+    assert "run the same command again to resume" in err and "Traceback" not in err, err
+    kept = pd.read_parquet(out / "results.parquet")
+    assert 2 <= len(kept) < 8, err
+    resumed = run_sweep(smoke_file, out, client=cluster)
+    assert resumed.skipped == len(kept) and resumed.ran == 8 - len(kept)
+    pdt.assert_frame_equal(comparable(resumed.table), comparable(first_run.table), check_exact=True)
+
+
+def test_a_failing_scenario_is_a_failed_row_and_the_sweep_goes_on(smoke_file, cluster, tmp_path, capsys):
+    case = smoke_file.parent / "case1_normal.toml"
+    path = tmp_path / "fail.toml"
+    path.write_text(f'case = "{case}"\nstop = 12.0\n[fault]\nvariable = "L2"\nvalue = [10.0, 1.05]\ntime = 10.0\n'
+                    '[monitor]\nmodel = "harmonic"\n')
+    out = tmp_path / "fail"
+    # the command line, on the module's cluster (--scheduler): exit 1 because a scenario failed
+    assert main([str(path), "--scheduler", cluster.scheduler.address, "--out", str(out), "--quiet"]) == 1
+    assert "1 scenario(s) failed" in capsys.readouterr().err
+    table = pd.read_parquet(out / "results.parquet")
+    assert len(table) == 2
+    bad = table[table["fault_value"] == 10.0].iloc[0]
+    good = table[table["fault_value"] == 1.05].iloc[0]
+    assert bad["status"] == "failed" and "cannot apply L2" in bad["error"] and "loop cannot be closed" in bad["error"]
+    assert pd.isna(bad["detected"]) and bad["rows_written"] > 0
+    assert good["status"] == "ok" and good["detected"]
+    # a failed row counts as done; --retry-failed runs it again and keeps the old row in stale.csv
+    assert run_sweep(path, out, client=cluster).ran == 0
+    again = run_sweep(path, out, client=cluster, retry_failed=True)
+    assert again.ran == 1 and again.failed == 1
+    stale = pd.read_csv(out / "stale.csv")
+    assert list(stale["scenario_id"]) == [bad["scenario_id"]] and "retry" in stale["stale_reason"][0]
+
+
+def test_new_latency_limit_rescores_without_running(first_run, smoke_file, cluster, tmp_path):
+    import shutil
+
+    out = tmp_path / "rescored"
+    shutil.copytree(first_run.out_dir, out)
+    path = smoke_file.parent / "smoke_limit1.toml"
+    path.write_text(smoke_file.read_text().replace("latency_limit = 2.0", "latency_limit = 1.0"))
+    result = run_sweep(path, out, client=cluster)
+    assert result.ran == 0 and result.skipped == 8
+    table, before = result.table, first_run.table
+    assert (table["latency_limit"][table["status"] == "ok"] == 1.0).all()
+    faults = table["has_fault"].to_numpy(dtype=bool)
+    # a shorter horizon can only lower the early score; everything else is unchanged
+    assert (table["score_early"][faults] <= before["score_early"][faults]).all()
+    same = [c for c in table.columns if c not in ("score_early", "latency_limit")]
+    pdt.assert_frame_equal(table[same], before[same])
