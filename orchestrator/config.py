@@ -62,12 +62,15 @@ class ConfigError(ValueError):
     case file's name.
     """
 
+    #: What kind of file the report is about ("invalid case <file>: ...").
+    subject = "case"
+
     def __init__(self, source: str | None, problems: list[str] | tuple[str, ...]):
         self.source = source
         self.problems = tuple(problems)
         prefix = f"{source}: " if source else ""
         count = len(self.problems)
-        head = f"invalid case {source or '(no file)'}: {count} problem{'s' if count != 1 else ''}"
+        head = f"invalid {self.subject} {source or '(no file)'}: {count} problem{'s' if count != 1 else ''}"
         super().__init__("\n".join([head] + [f"  {prefix}{p}" for p in self.problems]))
 
 

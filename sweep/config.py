@@ -27,6 +27,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping, Union
 
+from orchestrator.config import ConfigError
+
 __all__ = [
     "FaultSpec",
     "MonitorSpec",
@@ -51,16 +53,10 @@ _NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _GRID_TOLERANCE = 1e-6
 
 
-class SweepError(ValueError):
+class SweepError(ConfigError):
     """A sweep file is invalid; ``problems`` lists every problem (``str`` is the full report)."""
 
-    def __init__(self, source: str | None, problems: list[str] | tuple[str, ...]):
-        self.source = source
-        self.problems = tuple(problems)
-        prefix = f"{source}: " if source else ""
-        count = len(self.problems)
-        head = f"invalid sweep {source or '(no file)'}: {count} problem{'s' if count != 1 else ''}"
-        super().__init__("\n".join([head] + [f"  {prefix}{p}" for p in self.problems]))
+    subject = "sweep"
 
 
 @dataclass(frozen=True)

@@ -12,18 +12,10 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from orchestrator import run_case
+from orchestrator_support import shipped_case
 
 REPO = Path(__file__).resolve().parents[1]
 COLUMNS = ["x2", "y2", "x3", "y3", "x4", "y4"]
-
-
-def shipped_case(name: str, fmu: Path, dest: Path) -> Path:
-    text = (REPO / "cases" / f"{name}.toml").read_text()
-    text, count = re.subn(r"^fmu = .*$", f"fmu = {json.dumps(str(fmu))}", text, flags=re.M)
-    assert count == 1
-    path = dest / f"{name}.toml"
-    path.write_text(text)
-    return path
 
 
 @pytest.fixture(scope="module")

@@ -15,20 +15,11 @@ import pytest
 
 from orchestrator import (Case, ConfigError, RampEvent, StepEvent, apply_overrides, load_case)
 from orchestrator.cli import main
+from orchestrator_support import shipped_case
 
 REPO = Path(__file__).resolve().parents[1]
 TABLE1 = {"L1": 3.0, "L2": 1.0, "L3": 4.0, "L4": 2.5, "m2": 1.0, "m3": 1.0, "m4": 1.0, "g": 9.81,
           "theta2_start": 0.5235987755982988, "omega2_start": 0.0, "rtol": 1e-9, "atol": 1e-6}
-
-
-def shipped_case(name: str, fmu: Path, dest: Path) -> Path:
-    """cases/<name>.toml with its `fmu` pointing at the test's FMU (the file is otherwise unchanged)."""
-    text = (REPO / "cases" / f"{name}.toml").read_text()
-    text, count = re.subn(r"^fmu = .*$", f"fmu = {json.dumps(str(fmu))}", text, flags=re.M)
-    assert count == 1
-    path = dest / f"{name}.toml"
-    path.write_text(text)
-    return path
 
 
 # --------------------------------------------------------------------------- shipped cases

@@ -17,17 +17,9 @@ import pytest
 from orchestrator import run_case
 from orchestrator.cli import main
 from orchestrator.exchange import ExchangeWriter
+from orchestrator_support import shipped_case
 
 REPO = Path(__file__).resolve().parents[1]
-
-
-def shipped_case(name: str, fmu: Path, dest: Path, extra: str = "") -> Path:
-    text = (REPO / "cases" / f"{name}.toml").read_text()
-    text, count = re.subn(r"^fmu = .*$", f"fmu = {json.dumps(str(fmu))}", text, flags=re.M)
-    assert count == 1
-    path = dest / f"{name}.toml"
-    path.write_text(text + extra)
-    return path
 
 
 @pytest.fixture

@@ -15,20 +15,12 @@ from numpy.testing import assert_allclose, assert_array_equal
 from scipy import stats
 
 from orchestrator import ExchangeSettings, Noise, load_case, run_case
+from orchestrator_support import shipped_case
 
 REPO = Path(__file__).resolve().parents[1]
 COLUMNS = ["x2", "y2", "x3", "y3", "x4", "y4"]
 STOP = 40.0          # s: covers before (0-20 s), during (20-30 s) and after the ramp; 100 s adds nothing here
 STD = 0.005          # m, cases/case3_ramp_noise.toml
-
-
-def shipped_case(name: str, fmu: Path, dest: Path) -> Path:
-    text = (REPO / "cases" / f"{name}.toml").read_text()
-    text, count = re.subn(r"^fmu = .*$", f"fmu = {json.dumps(str(fmu))}", text, flags=re.M)
-    assert count == 1
-    path = dest / f"{name}.toml"
-    path.write_text(text)
-    return path
 
 
 def _table(path: Path) -> np.ndarray:

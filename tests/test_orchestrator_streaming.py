@@ -19,21 +19,10 @@ from pathlib import Path
 import pytest
 
 from orchestrator import ExchangeSettings, load_case, run_case
+from orchestrator_support import shipped_case
 
 REPO = Path(__file__).resolve().parents[1]
 FOURBAR_RUN = [sys.executable, "-m", "orchestrator.cli"]
-
-
-def shipped_case(name: str, fmu: Path, dest: Path, **exchange) -> Path:
-    text = (REPO / "cases" / f"{name}.toml").read_text()
-    text, count = re.subn(r"^fmu = .*$", f"fmu = {json.dumps(str(fmu))}", text, flags=re.M)
-    assert count == 1
-    for key, value in exchange.items():
-        text, count = re.subn(rf"^{key} = \S+", f"{key} = {value!r}", text, flags=re.M)
-        assert count == 1
-    path = dest / f"{name}.toml"
-    path.write_text(text)
-    return path
 
 
 def complete_part(data: bytes) -> bytes:
