@@ -28,6 +28,8 @@ from typing import Any, Mapping, Union
 __all__ = [
     "Case",
     "ConfigError",
+    "ProblemReporter",
+    "show_value",
     "DEFAULT_OUTPUTS",
     "Experiment",
     "ExchangeSettings",
@@ -271,7 +273,7 @@ def _merge_overrides(raw: dict, overrides, stop, realtime) -> tuple[dict, dict[s
     return raw, origins
 
 
-def _show(value: Any) -> str:
+def show_value(value: Any) -> str:
     """A value as it would be written in TOML."""
     if isinstance(value, bool):
         return "true" if value else "false"
@@ -279,10 +281,37 @@ def _show(value: Any) -> str:
         return json.dumps(value)
     if isinstance(value, float):
         return repr(value)
-    if isinstance(value, (dict, list)):
+    if isinstance(value, (dict, list, tuple)):
         text = json.dumps(value, default=str)
         return text if len(text) <= 60 else text[:57] + "..."
     return repr(value)
+
+
+class ProblemReporter:
+    """Collects validation problems as ``field = value: what was expected`` lines.
+
+    Shared by the case loader here and the sweep loader (``sweep.config``); a subclass
+    sets ``self.problems = []`` and may override :meth:`field` to say where a key came from.
+    """
+
+    problems: list[str]
+
+    def field(self, name: str) -> str:
+        return name
+
+    def problem(self, name: str, value: Any, expected: str) -> None:
+        self.problems.append(f"{self.field(name)} = {show_value(value)}: {expected}")
+
+    def missing(self, name: str, expected: str) -> None:
+        self.problems.append(f"{self.field(name)}: missing; expected {expected}")
+
+    def unknown_keys(self, table: dict, allowed: tuple[str, ...], where: str) -> None:
+        for key in table:
+            if key not in allowed:
+                close = difflib.get_close_matches(key, allowed, n=1)
+                hint = f"did you mean {close[0]!r}? " if close else ""
+                place = f"{where}.{key}" if where else key
+                self.problems.append(f"{place}: unknown key; {hint}expected one of: {', '.join(allowed)}")
 
 
 def _kind(value: Any) -> str:
@@ -296,7 +325,7 @@ def _role(var) -> str:
     return f"{article} {var.causality} ({var.variability})"
 
 
-class _Validator:
+class _Validator(ProblemReporter):
     """Collects every problem of one raw case dict, then builds the Case or raises."""
 
     def __init__(self, raw: dict, label: str, base_dir: Path, origins: dict[str, str], source: Path | None):
@@ -314,20 +343,6 @@ class _Validator:
     def field(self, name: str) -> str:
         origin = self.origins.get(name)
         return f"{name} (from {origin})" if origin else name
-
-    def problem(self, name: str, value: Any, expected: str) -> None:
-        self.problems.append(f"{self.field(name)} = {_show(value)}: {expected}")
-
-    def missing(self, name: str, expected: str) -> None:
-        self.problems.append(f"{self.field(name)}: missing; expected {expected}")
-
-    def unknown_keys(self, table: dict, allowed: tuple[str, ...], where: str) -> None:
-        for key in table:
-            if key not in allowed:
-                close = difflib.get_close_matches(key, allowed, n=1)
-                hint = f"did you mean {close[0]!r}? " if close else ""
-                place = f"{where}.{key}" if where else key
-                self.problems.append(f"{place}: unknown key; {hint}expected one of: {', '.join(allowed)}")
 
     def table(self, name: str, required: bool = False) -> dict | None:
         value = self.raw.get(name)

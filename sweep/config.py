@@ -19,7 +19,6 @@ Heavy imports (FMPy through the orchestrator, numpy through the monitor) happen 
 from __future__ import annotations
 
 import difflib
-import json
 import math
 import re
 import tomllib
@@ -27,7 +26,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping, Union
 
-from orchestrator.config import ConfigError
+from orchestrator.config import ConfigError, ProblemReporter, show_value as _show
 
 __all__ = [
     "FaultSpec",
@@ -178,20 +177,6 @@ class Sweep:
 
 # ---------------------------------------------------------------------------- helpers
 
-def _show(value: Any) -> str:
-    """A value as it would be written in TOML."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, float):
-        return repr(value)
-    if isinstance(value, (dict, list, tuple)):
-        text = json.dumps(value, default=str)
-        return text if len(text) <= 60 else text[:57] + "..."
-    return repr(value)
-
-
 def _kind(value: Any) -> str:
     return {bool: "a boolean", int: "an integer", float: "a float", str: "a string",
             dict: "a table", list: "an array"}.get(type(value), type(value).__name__)
@@ -201,7 +186,7 @@ def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
-class _Validator:
+class _Validator(ProblemReporter):
     """Collects every problem of one raw sweep dict, then builds the Sweep or raises."""
 
     def __init__(self, raw: dict, path: Path):
@@ -210,21 +195,6 @@ class _Validator:
         self.problems: list[str] = []
         self.notes: list[str] = []
         self.ranges: list[str] = []        # keys given as range tables
-
-    # -- reporting ----------------------------------------------------------------------
-    def problem(self, key: str, value: Any, expected: str) -> None:
-        self.problems.append(f"{key} = {_show(value)}: {expected}")
-
-    def missing(self, key: str, expected: str) -> None:
-        self.problems.append(f"{key}: missing; expected {expected}")
-
-    def unknown_keys(self, table: dict, allowed: tuple[str, ...], where: str) -> None:
-        for key in table:
-            if key not in allowed:
-                close = difflib.get_close_matches(key, allowed, n=1)
-                hint = f"did you mean {close[0]!r}? " if close else ""
-                place = f"{where}.{key}" if where else key
-                self.problems.append(f"{place}: unknown key; {hint}expected one of: {', '.join(allowed)}")
 
     def table(self, key: str, required: bool = False) -> dict:
         value = self.raw.get(key)
