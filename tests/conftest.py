@@ -6,6 +6,7 @@ by hand on a fresh clone) the fixture builds a private copy, in a child process.
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -13,6 +14,14 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
+
+# A job started in the background by a non-interactive shell (as CI or `make test &` may
+# be) inherits SIGINT *ignored*, and so does every child; Python then installs no
+# KeyboardInterrupt handler, and the Ctrl-C tests of fourbar-run and fourbar-sweep would see
+# no Ctrl-C at all.  Restore the terminal's disposition: a handler here (unlike SIG_IGN)
+# is reset to the default across exec, so the children start as from a terminal.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope="session")
