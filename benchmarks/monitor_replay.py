@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import re
 import statistics
 import subprocess
 import sys
@@ -39,37 +40,13 @@ PAPER_LATENCY_S = 4.0      # the paper: fault at 10 s, "definitive defect at t =
 NOISE_STD = 0.005          # m
 MODELS = ("prophet", "harmonic")
 
-TABLE1 = """\
-[experiment]
-start = 0.0
-stop = 100.0
-step = 0.01
-tolerance = 1e-9
 
-[parameters]
-L1 = 3.0
-L2 = 1.0
-L3 = 4.0
-L4 = 2.5
-m2 = 1.0
-m3 = 1.0
-m4 = 1.0
-g = 9.81
-theta2_start = 0.5235987755982988
-omega2_start = 0.0
-rtol = 1e-9
-atol = 1e-6
 
-[outputs]
-variables = ["x2", "y2", "x3", "y3", "x4", "y4"]
-"""
-STEP = """
-[[events]]
-type = "step"
-time = 10.0
-variable = "L2"
-value = 1.1
-"""
+def case_text(name: str, fmu: Path, fault: bool) -> str:
+    """Table 1's Case 1 or 2 from the shipped case file, renamed and pointed at ``fmu``."""
+    text = (REPO / "cases" / ("case2_fault_L2.toml" if fault else "case1_normal.toml")).read_text()
+    text = re.sub(r"(?m)^fmu\s*=.*$", f'fmu = "{fmu.as_posix()}"', text)
+    return re.sub(r"(?m)^name\s*=.*$", f'name = "{name}"', text)
 
 
 def make_runs(base: Path, fmu: Path, seeds: int) -> dict[str, Path]:
@@ -87,7 +64,7 @@ def make_runs(base: Path, fmu: Path, seeds: int) -> dict[str, Path]:
         paths[name] = exchange
         if exchange.exists() and (exchange.parent / "run.json").exists():
             continue
-        text = f'name = "{name}"\nfmu = "{fmu.as_posix()}"\n\n' + TABLE1 + (STEP if fault else "")
+        text = case_text(name, fmu, fault)
         if noisy:
             text += f"\n[noise]\nseed = {seed}\nstd = {{ x2 = {NOISE_STD!r} }}\n"
         case = base / f"{name}.toml"

@@ -29,6 +29,7 @@ __all__ = [
     "Case",
     "ConfigError",
     "ProblemReporter",
+    "read_toml",
     "show_value",
     "DEFAULT_OUTPUTS",
     "Experiment",
@@ -221,16 +222,7 @@ def load_case(path: str | Path, *, overrides: Mapping[str, Value] | None = None,
     """
     path = Path(path)
     label = str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(label, ["case file not found"]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(label, [f"cannot read the case file: {exc}"]) from None
-    try:
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(label, [f"not valid TOML: {exc}"]) from None
+    raw = read_toml(path, "case file")
     raw.setdefault("name", path.stem)
     raw, origins = _merge_overrides(raw, overrides, stop, realtime)
     return _Validator(raw, label, path.resolve().parent, origins, source=path.resolve()).case()
@@ -285,6 +277,24 @@ def show_value(value: Any) -> str:
         text = json.dumps(value, default=str)
         return text if len(text) <= 60 else text[:57] + "..."
     return repr(value)
+
+
+def read_toml(path: Path, what: str, error: type[ConfigError] = ConfigError) -> dict:
+    """Parse the TOML file ``path`` (a ``what``, e.g. "case file"); raise ``error`` naming the
+    file when it is missing, unreadable or not TOML."""
+    label = str(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise error(label, [f"{what} not found"]) from None
+    except IsADirectoryError:
+        raise error(label, [f"is a directory; expected a {what} (TOML)"]) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise error(label, [f"cannot read the {what}: {exc}"]) from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(label, [f"not valid TOML: {exc}"]) from None
 
 
 class ProblemReporter:

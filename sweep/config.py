@@ -21,12 +21,11 @@ from __future__ import annotations
 import difflib
 import math
 import re
-import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping, Union
 
-from orchestrator.config import ConfigError, ProblemReporter, show_value as _show
+from orchestrator.config import ConfigError, ProblemReporter, read_toml, show_value as _show
 
 __all__ = [
     "FaultSpec",
@@ -616,17 +615,5 @@ class _Validator(ProblemReporter):
 def load_sweep(path: str | Path) -> Sweep:
     """Read and validate a sweep file; raise :class:`SweepError` listing every problem."""
     path = Path(path)
-    label = str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise SweepError(label, ["sweep file not found"]) from None
-    except IsADirectoryError:
-        raise SweepError(label, ["is a directory; expected a sweep file (TOML)"]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SweepError(label, [f"cannot read the sweep file: {exc}"]) from None
-    try:
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SweepError(label, [f"not valid TOML: {exc}"]) from None
+    raw = read_toml(path, "sweep file", SweepError)
     return _Validator(raw, path.resolve()).sweep()

@@ -24,63 +24,28 @@ FOURBAR_RUN = str(BIN / "fourbar-run")
 FOURBAR_MONITOR = str(BIN / "fourbar-monitor")
 NOISE_STD = 0.005   # m, σ of the x2 sensor noise in the acceptance criteria
 
-_TABLE1 = """\
-[experiment]
-start = 0.0
-stop = 100.0
-step = 0.01
-tolerance = 1e-9
-
-[parameters]          # Table 1
-L1 = 3.0
-L2 = 1.0
-L3 = 4.0
-L4 = 2.5
-m2 = 1.0
-m3 = 1.0
-m4 = 1.0
-g = 9.81
-theta2_start = 0.5235987755982988
-omega2_start = 0.0
-rtol = 1e-9
-atol = 1e-6
-
-[outputs]
-variables = ["x2", "y2", "x3", "y3", "x4", "y4"]
-
-[exchange]
-flush_interval = 1.0
-realtime_factor = 0.0
-"""
-_STEP = """
-[[events]]            # Table 1, Case 2
-type = "step"
-time = 10.0
-variable = "L2"
-value = 1.1
-"""
-_NOISE = """
-[noise]
-seed = 7
-std = { x2 = %r }
-""" % NOISE_STD
+NOISE_SEED = 7
 
 _lock = threading.Lock()
 _runs: dict[str, Path] = {}
 
 
-def case_with_fmu(src: Path, fmu: Path, dest: Path) -> Path:
-    """Copy a case file with its ``fmu`` set to the absolute path of the FMU under test."""
+def case_with_fmu(src: Path, fmu: Path, dest: Path, name: str | None = None, extra: str = "") -> Path:
+    """Copy a case file with its ``fmu`` set to the FMU under test (optionally a new
+    ``name`` and ``extra`` TOML appended)."""
     text = src.read_text(encoding="utf-8")
     text = re.sub(r'(?m)^fmu\s*=.*$', f'fmu = "{fmu.as_posix()}"', text)
-    dest.write_text(text, encoding="utf-8")
+    if name is not None:
+        text = re.sub(r'(?m)^name\s*=.*$', f'name = "{name}"', text)
+    dest.write_text(text + extra, encoding="utf-8")
     return dest
 
 
 def noise_case(name: str, fmu: Path, dest: Path, fault: bool) -> Path:
-    text = f'name = "{name}"\nfmu = "{fmu.as_posix()}"\n\n' + _TABLE1 + (_STEP if fault else "") + _NOISE
-    dest.write_text(text, encoding="utf-8")
-    return dest
+    """Table 1's Case 1 or 2 (the shipped case file) with σ = 5 mm sensor noise on x2."""
+    src = REPO / "cases" / ("case2_fault_L2.toml" if fault else "case1_normal.toml")
+    noise = f"\n[noise]\nseed = {NOISE_SEED}\nstd = {{ x2 = {NOISE_STD!r} }}\n"
+    return case_with_fmu(src, fmu, dest, name=name, extra=noise)
 
 
 def orchestrated(tmp_path_factory: pytest.TempPathFactory, fmu: Path, name: str) -> Path:
