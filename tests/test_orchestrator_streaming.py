@@ -128,9 +128,12 @@ def test_realtime_pacing(factor, stop, fourbar_fmu, tmp_path):
     for wall, t in seen:
         # A block is never visible before its simulated time is due (5 ms: the reader's
         # clock reading happens after the file read) and is not held much longer than
-        # one block (0.1 s) plus jitter.
+        # one block (0.1 s) plus jitter.  The reader is a thread of this process and shares
+        # the GIL with the FMU's Python code, so its reading can lag by up to ~0.2 s on a
+        # busy 2-core machine (seen once in a clean-clone run); 0.3 s still catches a run
+        # that buffers its rows (up to stop/factor = 1 s late).
         assert t / factor <= (wall - w0) + 0.005
-        assert (wall - w0) - t / factor <= 0.1 / factor + 0.1
+        assert (wall - w0) - t / factor <= 0.1 / factor + 0.3
     print(f"factor {factor}: loop {result.sim_wall_time_s:.4f} s, seen by reader {w1 - w0:.4f} s "
           f"(whole run_case {result.wall_time_s:.3f} s including FMU loading)")
 
