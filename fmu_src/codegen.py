@@ -13,7 +13,7 @@ import datetime as _dt
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
-from .derivation import COORDINATES, PARAMETERS, FourBarEquations, derive_equations
+from .derivation import COORDINATES, INDEPENDENT, PARAMETERS, FourBarEquations, derive_equations
 
 __all__ = ["generate_module", "write_module"]
 
@@ -28,8 +28,27 @@ class _Printer(PythonCodePrinter):
     _print_cos = _print_sin = _print_known_func
 
 
-def _function(name: str, args: str, doc: str, outputs: dict[str, sp.Matrix | sp.Expr]) -> str:
-    """One generated function returning the given named outputs (flattened, row-major)."""
+def _preamble(name: str, args: str, doc: str, eqs: FourBarEquations) -> list[str]:
+    """``def`` line, docstring and the unpacking of the arguments into symbol names."""
+    lines = [f"def {name}({args}):", f'    """{doc}"""']
+    names = args.split(", ")
+    if "lam" in names:
+        lines.append(f"    {', '.join(str(s) for s in eqs.multipliers)}, = lam")
+    if "q" in names:
+        lines.append(f"    {', '.join(COORDINATES)} = q")
+    if "qd" in names:
+        lines.append(f"    {', '.join(n + '_d' for n in COORDINATES)} = qd")
+    lines.append(f"    {', '.join(PARAMETERS)} = p")
+    return lines
+
+
+def _function(name: str, args: str, doc: str, outputs: dict[str, sp.Matrix | sp.Expr],
+              eqs: FourBarEquations, container: str = "array") -> str:
+    """One generated function returning the given named outputs (flattened, row-major).
+
+    Matrices are returned as numpy arrays (``container="array"``) or, where the caller
+    goes on with scalar code, as plain lists of floats (``container="list"``).
+    """
     printer = _Printer({"fully_qualified_modules": False, "standard": "python3"})
     names = list(outputs)
     flat: list[sp.Expr] = []
@@ -43,12 +62,7 @@ def _function(name: str, args: str, doc: str, outputs: dict[str, sp.Matrix | sp.
             shapes.append(())
             flat.append(value)
     replacements, reduced = sp.cse(flat, symbols=sp.numbered_symbols("_c"), optimizations="basic")
-    lines = [f"def {name}({args}):", f'    """{doc}"""']
-    if "q" in args.split(", "):
-        lines.append(f"    {', '.join(COORDINATES)} = q")
-    if "qd" in args.split(", "):
-        lines.append(f"    {', '.join(n + '_d' for n in COORDINATES)} = qd")
-    lines.append(f"    {', '.join(PARAMETERS)} = p")
+    lines = _preamble(name, args, doc, eqs)
     for sym, expr in replacements:
         lines.append(f"    {sym} = {printer.doprint(expr)}")
     pos = 0
@@ -61,7 +75,9 @@ def _function(name: str, args: str, doc: str, outputs: dict[str, sp.Matrix | sp.
             n = shape[0] * shape[1]
             items = ", ".join(printer.doprint(e) for e in reduced[pos:pos + n])
             pos += n
-            if shape[1] == 1:
+            if container == "list":
+                lines.append(f"    {key} = [{items}]")
+            elif shape[1] == 1:
                 lines.append(f"    {key} = array([{items}], dtype=float)")
             else:
                 lines.append(f"    {key} = array([{items}], dtype=float).reshape({shape[0]}, {shape[1]})")
@@ -70,15 +86,30 @@ def _function(name: str, args: str, doc: str, outputs: dict[str, sp.Matrix | sp.
     return "\n".join(lines) + "\n"
 
 
-def _fill_function(name: str, matrix: sp.Matrix, state: set, doc: str) -> str:
-    """A function writing only the state-dependent entries of ``matrix`` into an array."""
+def _max_abs_function(name: str, args: str, doc: str, exprs: list[sp.Expr], eqs: FourBarEquations) -> str:
+    """A generated function returning max(|e|) over the given expressions."""
     printer = _Printer({"fully_qualified_modules": False, "standard": "python3"})
+    replacements, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("_c"), optimizations="basic")
+    lines = _preamble(name, args, doc, eqs)
+    lines += [f"    {sym} = {printer.doprint(expr)}" for sym, expr in replacements]
+    lines.append(f"    return max({', '.join(f'abs({printer.doprint(e)})' for e in reduced)})")
+    return "\n".join(lines) + "\n"
+
+
+def _fill_function(name: str, matrix: sp.Matrix, eqs: FourBarEquations, doc: str,
+                   lower_only: bool = False) -> str:
+    """A function writing only the state-dependent entries of ``matrix`` into an array.
+
+    With ``lower_only`` just the lower triangle (with the diagonal) is written: what
+    LAPACK reads of a symmetric matrix factorised with ``lower=1``.
+    """
+    printer = _Printer({"fully_qualified_modules": False, "standard": "python3"})
+    state = set(eqs.q)
     entries = [(i, j, matrix[i, j]) for i in range(matrix.rows) for j in range(matrix.cols)
-               if matrix[i, j].free_symbols & state]
+               if matrix[i, j].free_symbols & state and (j <= i or not lower_only)]
     replacements, reduced = sp.cse([e for _, _, e in entries], symbols=sp.numbered_symbols("_c"),
                                    optimizations="basic")
-    lines = [f"def {name}(out, q, p):", f'    """{doc}"""',
-             f"    {', '.join(COORDINATES)} = q", f"    {', '.join(PARAMETERS)} = p"]
+    lines = _preamble(name, "out, q, p", doc, eqs)
     lines += [f"    {sym} = {printer.doprint(expr)}" for sym, expr in replacements]
     lines += [f"    out[{i}, {j}] = {printer.doprint(e)}" for (i, j, _), e in zip(entries, reduced)]
     return "\n".join(lines) + "\n"
@@ -104,6 +135,9 @@ COORDINATES = {COORDINATES!r}
 PARAMETERS = {PARAMETERS!r}
 N_COORDINATES = {len(COORDINATES)}
 N_CONSTRAINTS = {eqs.constraints.shape[0]}
+#: The independent coordinate of the coordinate partitioning, and its index in q.
+INDEPENDENT = {INDEPENDENT!r}
+INDEPENDENT_INDEX = {COORDINATES.index(INDEPENDENT)}
 #: True when M does not depend on the state (it can be cached per parameter set).
 MASS_IS_CONSTANT = {not (eqs.mass_matrix.free_symbols & (set(eqs.q) | set(eqs.qd)))}
 #: True when Q does not depend on the state (gravity only: cached per parameter set).
@@ -111,19 +145,41 @@ FORCES_ARE_CONSTANT = {not (eqs.forces.free_symbols & (set(eqs.q) | set(eqs.qd))
 
 
 '''
+    i = COORDINATES.index(INDEPENDENT)
     body = [
-        _function("mass_matrix", "q, p", "Mass matrix M (9x9).", {"M": eqs.mass_matrix}),
+        _function("mass_matrix", "q, p", "Mass matrix M (9x9).", {"M": eqs.mass_matrix}, eqs),
         _function("forces", "q, qd, p", "Generalized forces Q (9,), gravity and velocity terms.",
-                  {"Q": eqs.forces}),
-        _function("constraints", "q, p", "Constraint residual Phi (8,).", {"Phi": eqs.constraints}),
-        _function("jacobian", "q, p", "Constraint Jacobian Phi_q (8x9).", {"Phi_q": eqs.jacobian}),
-        _fill_function("jacobian_fill", eqs.jacobian, set(eqs.q),
+                  {"Q": eqs.forces}, eqs),
+        _function("constraints", "q, p", "Constraint residual Phi (8,).", {"Phi": eqs.constraints}, eqs),
+        _function("jacobian", "q, p", "Constraint Jacobian Phi_q (8x9).", {"Phi_q": eqs.jacobian}, eqs),
+        _fill_function("jacobian_fill", eqs.jacobian, eqs,
                        "Write the state-dependent entries of Phi_q into ``out`` (8x9); the others "
                        "are those of ``jacobian`` for the same parameters."),
         _function("gamma", "q, qd, p", "Right-hand side gamma = -(Phi_q qd)_q qd (8,).",
-                  {"gamma": eqs.gamma}),
+                  {"gamma": eqs.gamma}, eqs),
+        _function("schur_matrix", "q, p", "S = Phi_q M^-1 Phi_q^T (8x8), symmetric positive definite "
+                  "away from toggle positions.", {"S": eqs.schur_matrix}, eqs),
+        _fill_function("schur_fill", eqs.schur_matrix, eqs,
+                       "Write the state-dependent entries of the lower triangle of S into ``out`` "
+                       "(8x8); the others are those of ``schur_matrix`` for the same parameters.",
+                       lower_only=True),
+        _function("schur_rhs", "q, qd, p", "Right-hand side of S lambda = Phi_q M^-1 Q - gamma (list of 8).",
+                  {"r": eqs.schur_rhs}, eqs, container="list"),
+        _function("accelerations", "lam, q, qd, p", "qdd = M^-1 (Q - Phi_q^T lambda) (9,) for given "
+                  "multipliers.",
+                  {"qdd": eqs.accelerations}, eqs),
+        _function("independent_acceleration", "lam, q, qd, p",
+                  f"The {INDEPENDENT} component of ``accelerations`` (rad/s2).",
+                  {"qdd": eqs.accelerations[i]}, eqs),
+        _function("velocities", "q, omega, p",
+                  f"qd (list of 9) solving Phi_q qd = 0 with {INDEPENDENT}_d = omega (coordinate "
+                  "partitioning); singular at toggle positions.",
+                  {"qd": eqs.velocities}, eqs, container="list"),
+        _max_abs_function("constraint_residual", "q, qd, p",
+                          "max(|Phi|, |Phi_q qd|) over all 16 components (m and m/s).",
+                          list(eqs.constraints) + list(eqs.velocity_constraints), eqs),
         _function("energy", "q, qd, p", "Kinetic and potential energy (J).",
-                  {"T": eqs.kinetic_energy, "V": eqs.potential_energy}),
+                  {"T": eqs.kinetic_energy, "V": eqs.potential_energy}, eqs),
     ]
     return header + "\n\n".join(body)
 

@@ -23,22 +23,35 @@ Equation form (the paper's eq. (10)-(11))::
 Sign convention of the multipliers: ``M qdd + Phi_q^T lambda = Q``.  The force
 that the joints exert on the bodies is therefore ``-Phi_q^T lambda``.
 
+Because ``M`` is diagonal (three rigid bodies in their centre-of-mass frames), eq. (11)
+is solved at run time by block elimination (the range-space form)::
+
+    S lambda = Phi_q M^-1 Q - gamma,   S = Phi_q M^-1 Phi_q^T   (8x8, symmetric positive definite)
+    qdd = M^-1 (Q - Phi_q^T lambda)
+
+and this module also derives those pieces, plus the rates of the dependent coordinates
+for a given crank rate (``Phi_q qd = 0`` solved with ``th2_d = omega2``) and ``Phi_q qd``
+itself (the velocity-level constraint, reported as part of the constraint residual).
+
 ``M`` and ``Q`` come from the Lagrangian ``L = T - V`` (eq. 1) through
 Lagrange's equations (eq. 2/10):
 ``M = d2L/dqd2`` and ``Q = dL/dq - (d2L/dqd dq) qd``.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import sympy as sp
 
-__all__ = ["FourBarEquations", "derive_equations", "COORDINATES", "PARAMETERS"]
+__all__ = ["FourBarEquations", "derive_equations", "COORDINATES", "PARAMETERS", "INDEPENDENT"]
 
 #: Names of the generalized coordinates, in state order.
 COORDINATES = ("x2", "y2", "th2", "x3", "y3", "th3", "x4", "y4", "th4")
 #: Names of the model parameters, in the order the generated code takes them.
 PARAMETERS = ("L1", "L2", "L3", "L4", "m2", "m3", "m4", "g")
+#: The independent coordinate of the coordinate partitioning (the crank angle).
+INDEPENDENT = "th2"
 
 
 @dataclass(frozen=True)
@@ -55,8 +68,16 @@ class FourBarEquations:
     gamma: sp.Matrix              # 8x1, -(Phi_q qd)_q qd
     kinetic_energy: sp.Expr
     potential_energy: sp.Expr
+    multipliers: sp.Matrix        # 8x1 symbols lambda_0..lambda_7
+    schur_matrix: sp.Matrix       # 8x8, S = Phi_q M^-1 Phi_q^T
+    schur_rhs: sp.Matrix          # 8x1, Phi_q M^-1 Q - gamma
+    accelerations: sp.Matrix      # 9x1, qdd = M^-1 (Q - Phi_q^T lambda), in terms of lambda
+    omega: sp.Symbol              # rate of the independent coordinate
+    velocities: sp.Matrix         # 9x1, qd solving Phi_q qd = 0 with qd[INDEPENDENT] = omega
+    velocity_constraints: sp.Matrix   # 8x1, Phi_q qd
 
 
+@functools.lru_cache(maxsize=None)
 def derive_equations() -> FourBarEquations:
     """Derive ``M``, ``Q``, ``Phi``, ``Phi_q`` and ``gamma`` for the four-bar.
 
@@ -64,7 +85,8 @@ def derive_equations() -> FourBarEquations:
     -------
     FourBarEquations
         Symbolic matrices; see the module docstring for the equation form and the
-        sign convention of the Lagrange multipliers.
+        sign convention of the Lagrange multipliers.  The result is cached (the
+        derivation takes a few seconds): treat it as read-only.
     """
     q = sp.Matrix(sp.symbols(" ".join(COORDINATES), real=True))
     qd = sp.Matrix(sp.symbols(" ".join(n + "_d" for n in COORDINATES), real=True))
@@ -99,11 +121,30 @@ def derive_equations() -> FourBarEquations:
         (y4 - L4 / 2 * s(th4)),
     ])
     Phi_q = Phi.jacobian(q)
-    gamma = -(Phi_q * qd).jacobian(q) * qd
+    gamma = sp.simplify(-(Phi_q * qd).jacobian(q) * qd)
+    M, Q = sp.simplify(M), sp.simplify(Q)
+
+    # Block elimination of eq. (11); needs the diagonal M of rigid bodies.
+    if not M.is_diagonal():
+        raise ValueError("the range-space solution of eq. (11) assumes a diagonal mass matrix")
+    M_inv = sp.diag(*[1 / M[i, i] for i in range(M.rows)])
+    lam = sp.Matrix(sp.symbols(f"lambda_0:{Phi.rows}", real=True))
+    S = (Phi_q * M_inv * Phi_q.T).applyfunc(sp.simplify)
+    r = (Phi_q * M_inv * Q - gamma).applyfunc(sp.simplify)
+    qdd = M_inv * (Q - Phi_q.T * lam)
+
+    # Coordinate partitioning: rates of the dependent coordinates from Phi_q qd = 0.
+    i = COORDINATES.index(INDEPENDENT)
+    dependent = [k for k in range(len(COORDINATES)) if k != i]
+    omega = sp.Symbol("omega", real=True)
+    qd_dep = Phi_q.extract(list(range(Phi.rows)), dependent).LUsolve(-Phi_q[:, i] * omega)
+    rates = [omega if k == i else sp.simplify(qd_dep[dependent.index(k)]) for k in range(len(COORDINATES))]
 
     return FourBarEquations(
         q=q, qd=qd, params=tuple(params),
-        mass_matrix=sp.simplify(M), forces=sp.simplify(Q),
-        constraints=Phi, jacobian=Phi_q, gamma=sp.simplify(gamma),
+        mass_matrix=M, forces=Q,
+        constraints=Phi, jacobian=Phi_q, gamma=gamma,
         kinetic_energy=T, potential_energy=V,
+        multipliers=lam, schur_matrix=S, schur_rhs=r, accelerations=qdd,
+        omega=omega, velocities=sp.Matrix(rates), velocity_constraints=Phi_q * qd,
     )

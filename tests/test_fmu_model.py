@@ -53,6 +53,52 @@ def test_generated_code_matches_sympy(eqs, gen):
         assert_allclose(gen.forces(list(q), list(qd), P), Q.ravel(), rtol=0, atol=1e-12)
 
 
+def test_generated_range_space_pieces_match_sympy(eqs, gen):
+    # S = Phi_q M^-1 Phi_q^T, its right-hand side, the rates and qdd(lambda): generated
+    # code against the same symbolic expressions evaluated by lambdify.
+    lam_sym = list(eqs.multipliers)
+    symbols = list(eqs.q) + list(eqs.qd) + list(eqs.params) + lam_sym + [eqs.omega]
+    f = sp.lambdify(symbols, [eqs.schur_matrix, eqs.schur_rhs, eqs.accelerations, eqs.velocities], "numpy")
+    rng = np.random.default_rng(3)
+    for q, qd in random_states():
+        lam, omega = rng.normal(size=8), float(rng.normal())
+        S, r, qdd, rates = (np.asarray(a, float) for a in f(*q, *qd, *P, *lam, omega))
+        assert_allclose(gen.schur_matrix(list(q), P), S, rtol=0, atol=1e-12)
+        filled = gen.schur_matrix([0.0] * 9, P)
+        gen.schur_fill(filled, list(q), P)
+        assert_allclose(np.tril(filled), np.tril(S), rtol=0, atol=1e-12)
+        assert_allclose(gen.schur_rhs(list(q), list(qd), P), r.ravel(), rtol=0, atol=1e-12)
+        assert_allclose(gen.accelerations(list(lam), list(q), list(qd), P), qdd.ravel(), rtol=0, atol=1e-12)
+        assert gen.independent_acceleration(list(lam), list(q), list(qd), P) == pytest.approx(qdd.ravel()[2], abs=1e-12)
+        assert_allclose(gen.velocities(list(q), omega, P), rates.ravel(), rtol=0, atol=1e-9)
+
+
+def test_range_space_solve_agrees_with_the_full_augmented_system(gen):
+    # The integrator solves eq. (11) by block elimination through S (8x8 Cholesky); the
+    # reference solves the full 17x17 system by LU.  Both are exact up to round-off: the
+    # tolerance is a few hundred ulps of the largest multiplier (~10 N).
+    dae = FourBarDAE(gen, P)
+    for theta2, omega2 in ((0.5, 0.0), (2.0, -3.0), (-2.9, 5.0), (4.0, 1.0)):
+        q, qd = assemble(theta2, omega2, P, gen)
+        qdd_ref, lam_ref = dae.accelerations(q, qd)
+        lam = dae.multipliers(list(q), list(qd))
+        assert_allclose(lam, lam_ref, rtol=0, atol=1e-12 * max(1.0, np.abs(lam_ref).max()) * 100)
+        qdd = gen.accelerations(list(lam), list(q), list(qd), P)
+        assert_allclose(qdd, qdd_ref, rtol=0, atol=1e-10)
+        dae.start(0.0, q, qd)
+        assert dae._rhs(0.0, np.array([theta2, omega2]))[1] == pytest.approx(qdd_ref[2], abs=1e-10)
+
+
+def test_generated_rates_satisfy_the_velocity_constraint(gen):
+    # qd from the symbolic solution of Phi_q qd = 0 (with th2_d = omega2), checked against
+    # the numeric Jacobian; also at crank angles far from Table 1's start.
+    for theta2 in np.linspace(-np.pi, np.pi, 13):
+        q, qd = assemble(float(theta2), 1.7, P, gen)
+        assert qd[2] == 1.7
+        assert_allclose(gen.jacobian(list(q), P) @ qd, 0, atol=1e-13)
+        assert gen.constraint_residual(list(q), list(qd), P) < 1e-13
+
+
 def test_gamma_is_minus_time_derivative_of_jacobian_times_rates(gen):
     # gamma = -(Phi_q qd)_q qd = -(d/dt Phi_q) qd; check by central differences along qd.
     eps = 1e-6

@@ -3,22 +3,33 @@
 Coordinates ``q = [x2, y2, th2, x3, y3, th3, x4, y4, th4]`` (link centres and
 angles), parameters ``p = (L1, L2, L3, L4, m2, m3, m4, g)``.
 
-At every right-hand-side evaluation the augmented system of the paper's eq. (11)::
+At every right-hand-side evaluation the paper's eq. (11)::
 
     [[M,     Phi_q^T],   [qdd   ]   [Q    ]
      [Phi_q, 0      ]] . [lambda] = [gamma]
 
-is solved numerically (LAPACK ``dgesv``), so ``M qdd + Phi_q^T lambda = Q``: the
-joints act on the bodies with ``-Phi_q^T lambda``.
+is solved for the accelerations and the multipliers, with ``M qdd + Phi_q^T lambda = Q``:
+the joints act on the bodies with ``-Phi_q^T lambda``.  ``M`` of three rigid bodies is
+diagonal, so the solve is done by block elimination (the range-space form)::
+
+    (Phi_q M^-1 Phi_q^T) lambda = Phi_q M^-1 Q - gamma,   qdd = M^-1 (Q - Phi_q^T lambda)
+
+with the 8x8 symmetric positive definite matrix factorised by LAPACK (``dposv``).  All
+the pieces (``S``, its right-hand side, ``qdd(lambda)``) are generated from the sympy
+derivation.  ``FourBarDAE.accelerations`` solves the full 17x17 system with ``dgesv``
+instead; the tests check that the two agree.
 
 Constraint stabilisation is by generalized-coordinate partitioning (Wehage and
 Haug): the explicit Runge-Kutta method integrates only the independent pair
 ``y = [th2, omega2]``; the eight dependent coordinates are recovered from
 ``Phi(q) = 0`` (closed-form loop closure on a fixed assembly branch) and their
-rates from ``Phi_q qd = 0`` whenever the state is needed.  This is projection onto
-the constraint manifold carried to its limit: every reported state satisfies
-``Phi = 0`` and ``Phi_q qd = 0`` to round-off, the integrator never drifts off the
-manifold, and it is never restarted unless a parameter changes.
+rates from ``Phi_q qd = 0`` (solved symbolically at build time) whenever the state is
+needed.  This is projection onto the constraint manifold carried to its limit: every
+reported state satisfies ``Phi = 0`` and ``Phi_q qd = 0`` to round-off, the integrator
+never drifts off the manifold, and it is never restarted unless a parameter changes.
+
+Speed: the FMU spends its time in Python, so the right-hand side is a handful of
+scalar generated functions and one LAPACK call, and states are kept as lists of floats.
 """
 from __future__ import annotations
 
@@ -52,7 +63,9 @@ TIME_RESOLUTION = 1e-9
 
 def snap_time(t):
     """``t`` (s, float or array) rounded to whole nanoseconds, in one canonical form."""
-    return np.round(np.asarray(t) * 1e9) / 1e9 if np.ndim(t) else round(t * 1e9) / 1e9
+    if isinstance(t, float):
+        return round(t * 1e9) / 1e9
+    return np.round(np.asarray(t) * 1e9) / 1e9 if np.ndim(t) else round(float(t) * 1e9) / 1e9
 
 
 class AssemblyError(ValueError):
@@ -98,30 +111,19 @@ def _positions(theta2: float, p, branch: float) -> list[float]:
             L1 + 0.5 * L4 * math.cos(th4), 0.5 * L4 * math.sin(th4), th4]
 
 
-def _velocities(J: np.ndarray, omega2: float, work: np.ndarray | None = None) -> np.ndarray:
-    """Rates of all coordinates from Phi_q qd = 0 with qd[th2] = omega2.
-
-    Solves the square system [Phi_q; e_th2] qd = [0; omega2].  ``work`` is an optional
-    preallocated (9, 9) Fortran-ordered array whose last row is e_th2.
-    """
-    m, n = J.shape
-    if work is None:
-        work = np.zeros((n, n), order="F")
-        work[m, _I] = 1.0
-    work[:m] = J
-    rhs = np.zeros(n)
-    rhs[m] = omega2
-    lu, piv, qd, info = lapack.dgesv(work, rhs)
-    if info != 0:
-        raise AssemblyError("the constraint Jacobian is singular: the linkage is at a toggle position")
-    return qd
-
-
 def assemble(theta2: float, omega2: float, p, eq, branch: float = BRANCH_OPEN
              ) -> tuple[np.ndarray, np.ndarray]:
-    """Consistent (q, qd) for a crank angle (rad) and crank rate (rad/s) on a branch."""
+    """Consistent (q, qd) arrays for a crank angle (rad) and crank rate (rad/s) on a branch."""
     q = _positions(theta2, p, branch)
-    return np.array(q), _velocities(eq.jacobian(q, p), omega2)
+    return np.array(q), np.array(_rates(eq, q, omega2, p))
+
+
+def _rates(eq, q, omega2, p) -> list:
+    """qd from Phi_q qd = 0 with th2_d = omega2 (generated closed form)."""
+    try:
+        return eq.velocities(q, omega2, p)
+    except ZeroDivisionError:
+        raise AssemblyError("the constraint Jacobian is singular: the linkage is at a toggle position") from None
 
 
 def branch_of(q, p) -> float:
@@ -167,61 +169,59 @@ class FourBarDAE:
     def _set_parameters(self, p) -> None:
         self.p = tuple(float(v) for v in p)
         n, m = self.eq.N_COORDINATES, self.eq.N_CONSTRAINTS
-        self._n = n
-        self._A = np.zeros((n + m, n + m), order="F")
-        self._b = np.zeros(n + m)
         zeros = [0.0] * n
+        # S = Phi_q M^-1 Phi_q^T with its constant entries in place; schur_fill updates the others.
+        self._S = np.asfortranarray(self.eq.schur_matrix(zeros, self.p))
+        # For the full augmented system of ``accelerations``.
+        self._A = np.zeros((n + m, n + m), order="F")
         self._A[:n, :n] = self.eq.mass_matrix(zeros, self.p)
-        self._constant_forces = self.eq.FORCES_ARE_CONSTANT
-        if self._constant_forces:
-            self._b[:n] = self.eq.forces(zeros, zeros, self.p)
-        self._V = np.zeros((n, n), order="F")     # [Phi_q; e_th2], see _velocities
-        self._V[m, _I] = 1.0
-        # Phi_q with its constant entries in place; jacobian_fill updates the others.
-        self._J = self.eq.jacobian(zeros, self.p)
+        self._n = n
 
     # -- the DAE -----------------------------------------------------------------
-    def state(self, theta2: float, omega2: float) -> tuple[np.ndarray, np.ndarray]:
-        """Full consistent (q, qd) for the independent pair on the current branch."""
+    def state(self, theta2: float, omega2: float) -> tuple[list, list]:
+        """Full consistent (q, qd), as lists of floats, for the independent pair on the current branch."""
         q = _positions(theta2, self.p, self.branch)
-        J = self._J
-        self.eq.jacobian_fill(J, q, self.p)
-        return np.array(q), _velocities(J, omega2, self._V)
+        return q, _rates(self.eq, q, omega2, self.p)
 
     def accelerations(self, q, qd) -> tuple[np.ndarray, np.ndarray]:
-        """Solve eq. (11) for (qdd, lambda) at a consistent state."""
-        eq, p, A, b, n = self.eq, self.p, self._A, self._b, self._n
+        """Solve the full 17x17 eq. (11) for (qdd, lambda) at a consistent state (LAPACK dgesv).
+
+        The reference for the range-space solve used while integrating (``multipliers``).
+        """
+        eq, p, A, n = self.eq, self.p, self._A, self._n
         ql, qdl = list(q), list(qd)
         if not eq.MASS_IS_CONSTANT:
             A[:n, :n] = eq.mass_matrix(ql, p)
         J = eq.jacobian(ql, p)
         A[:n, n:] = J.T
         A[n:, :n] = J
-        b[:n] = eq.forces(ql, qdl, p)
-        b[n:] = eq.gamma(ql, qdl, p)
+        b = np.concatenate([eq.forces(ql, qdl, p), eq.gamma(ql, qdl, p)])
         lu, piv, x, info = lapack.dgesv(A, b)
         if info != 0:
             raise IntegrationError("the augmented matrix [[M, Phi_q^T], [Phi_q, 0]] is singular")
         return x[:n], x[n:]
 
+    def multipliers(self, q, qd) -> np.ndarray:
+        """lambda of eq. (11) at a consistent state, by the range-space solve (8x8 Cholesky)."""
+        S = self._S
+        self.eq.schur_fill(S, q, self.p)
+        c, lam, info = lapack.dposv(S, self.eq.schur_rhs(q, qd, self.p), lower=1)
+        if info != 0:
+            raise IntegrationError("Phi_q M^-1 Phi_q^T is singular: the linkage is at a toggle position")
+        return lam
+
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         self.rhs_evaluations += 1
-        theta2, omega2 = float(y[0]), float(y[1])
+        theta2, omega2 = y.tolist()
         eq, p = self.eq, self.p
         q = _positions(theta2, p, self.branch)
-        J = self._J
-        eq.jacobian_fill(J, q, p)
-        qd = _velocities(J, omega2, self._V).tolist()
-        A, b, n = self._A, self._b, self._n
-        A[:n, n:] = J.T
-        A[n:, :n] = J
-        if not self._constant_forces:
-            b[:n] = eq.forces(q, qd, p)
-        b[n:] = eq.gamma(q, qd, p)
-        lu, piv, x, info = lapack.dgesv(A, b)
+        qd = _rates(eq, q, omega2, p)
+        S = self._S
+        eq.schur_fill(S, q, p)
+        c, lam, info = lapack.dposv(S, eq.schur_rhs(q, qd, p), lower=1)
         if info != 0:
-            raise IntegrationError("the augmented matrix [[M, Phi_q^T], [Phi_q, 0]] is singular")
-        return np.array((omega2, x[_I]))
+            raise IntegrationError("Phi_q M^-1 Phi_q^T is singular: the linkage is at a toggle position")
+        return np.array((omega2, eq.independent_acceleration(lam.tolist(), q, qd, p)))
 
     # -- time stepping -----------------------------------------------------------
     def start(self, t: float, q, qd, branch: float | None = None,
@@ -229,7 +229,7 @@ class FourBarDAE:
         """(Re)start the integrator at time t from a consistent state (q, qd)."""
         self.branch = branch_of(q, self.p) if branch is None else branch
         self.t = float(t)
-        self.q, self.qd = np.asarray(q, float), np.asarray(qd, float)
+        self.q, self.qd = [float(v) for v in q], [float(v) for v in qd]
         self._dense = None
         kwargs = {} if first_step is None else {"first_step": first_step}
         self._solver = INTEGRATORS[self.method](
@@ -254,34 +254,34 @@ class FourBarDAE:
                 if solver.status == "failed":
                     raise IntegrationError(f"{self.method} failed at t = {solver.t:.9g} s: {message}")
             if abs(solver.t - t_end) <= eps:
-                y = solver.y
+                y = solver.y.tolist()
             else:
-                y = self._interpolate(t_end, eps)
+                y = self._interpolate(t_end)
             if not (math.isfinite(y[0]) and math.isfinite(y[1])):
                 raise IntegrationError(f"{self.method} produced a non-finite state before t = {t_end:.9g} s")
-            self.q, self.qd = self.state(float(y[0]), float(y[1]))
+            self.q, self.qd = self.state(y[0], y[1])
         except AssemblyError as exc:
             raise IntegrationError(f"at t = {t_end:.9g} s {exc}") from None
         self._last_step = t_end - self.t
         self.t = float(t_end)
 
-    def _interpolate(self, t_end: float, eps: float) -> np.ndarray:
+    def _interpolate(self, t_end: float) -> list:
+        """[th2, omega2] at t_end inside the last accepted step, from the dense output."""
         if self._dense is None:
             dense = self._solver.dense_output()
+            table = {}
             dt = getattr(self, "_last_step", 0.0)
             if dt > 0.0:
                 n = int((self._solver.t - t_end) / dt) + 1
-                # Predicted grid, snapped like the master's times are (whole nanoseconds).
+                # Predicted grid, snapped like the master's times are (whole nanoseconds),
+                # keyed by integer nanoseconds.
                 grid = snap_time(t_end + dt * np.arange(n))
-                self._dense = (dense, grid, dense(grid))
-            else:
-                self._dense = (dense, np.empty(0), None)
-        dense, grid, values = self._dense
-        if grid.size:
-            k = int(np.searchsorted(grid, t_end - eps))
-            if k < grid.size and abs(grid[k] - t_end) <= eps:
-                return values[:, k]
-        return dense(t_end)
+                keys = np.round(grid * 1e9).astype(np.int64).tolist()
+                table = dict(zip(keys, dense(grid).T.tolist()))
+            self._dense = (dense, table)
+        dense, table = self._dense
+        y = table.get(round(t_end * 1e9))
+        return dense(t_end).tolist() if y is None else y
 
     def change_parameters(self, p) -> None:
         """Apply new lengths/masses at the current time by re-assembly keeping th2 and omega2.
@@ -298,13 +298,9 @@ class FourBarDAE:
     # -- derived outputs ---------------------------------------------------------
     def energy(self) -> float:
         """Total mechanical energy T + V (J) of the current state."""
-        T, V = self.eq.energy(list(self.q), list(self.qd), self.p)
-        return float(T + V)
+        T, V = self.eq.energy(self.q, self.qd, self.p)
+        return T + V
 
     def constraint_residual(self) -> float:
         """max(|Phi(q)|_inf in m, |Phi_q qd|_inf in m/s) of the current state."""
-        ql = self.q.tolist()
-        J = self._J
-        self.eq.jacobian_fill(J, ql, self.p)
-        phi = self.eq.constraints(ql, self.p)
-        return float(max(np.abs(phi).max(), np.abs(J @ self.qd).max()))
+        return self.eq.constraint_residual(self.q, self.qd, self.p)
