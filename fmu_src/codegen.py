@@ -115,6 +115,35 @@ def _fill_function(name: str, matrix: sp.Matrix, eqs: FourBarEquations, doc: str
     return "\n".join(lines) + "\n"
 
 
+def _rhs_terms_function(eqs: FourBarEquations) -> str:
+    """The right-hand side's scalar work in one function, sharing subexpressions.
+
+    From the closed-form positions and the crank rate: the rates of all coordinates
+    (``velocities``), the state-dependent lower-triangle entries of S written into the
+    flat column-major view ``out`` of the 8x8 array (entry (i, j) at ``i + 8 j``), and the
+    right-hand side of S lambda = Phi_q M^-1 Q - gamma with the rates substituted.
+    """
+    printer = _Printer({"fully_qualified_modules": False, "standard": "python3"})
+    S = eqs.schur_matrix
+    n = S.rows
+    entries = [(i, j) for i in range(n) for j in range(i + 1) if S[i, j].free_symbols & set(eqs.q)]
+    rates = list(eqs.velocities)
+    r = list(eqs.schur_rhs.subs(dict(zip(eqs.qd, rates))))
+    flat = rates + [S[i, j] for i, j in entries] + r
+    replacements, reduced = sp.cse(flat, symbols=sp.numbered_symbols("_c"), optimizations="basic")
+    lines = _preamble("rhs_terms", "out, q, omega, p",
+                      "Rates qd (list of 9) and the right-hand side r (list of 8) for a crank rate "
+                      "omega; writes the state-dependent lower-triangle entries of S into the flat "
+                      "column-major view ``out`` (entry (i, j) at i + 8 j).  The fused form of "
+                      "``velocities``, ``schur_fill`` and ``schur_rhs`` used by the integrator.", eqs)
+    lines += [f"    {sym} = {printer.doprint(expr)}" for sym, expr in replacements]
+    k = len(rates)
+    lines += [f"    out[{i + n * j}] = {printer.doprint(e)}" for (i, j), e in zip(entries, reduced[k:k + len(entries)])]
+    lines.append(f"    return [{', '.join(printer.doprint(e) for e in reduced[:k])}], "
+                 f"[{', '.join(printer.doprint(e) for e in reduced[k + len(entries):])}]")
+    return "\n".join(lines) + "\n"
+
+
 def generate_module(eqs: FourBarEquations | None = None) -> str:
     """Return the source text of the generated equations module."""
     eqs = eqs or derive_equations()
@@ -163,6 +192,7 @@ FORCES_ARE_CONSTANT = {not (eqs.forces.free_symbols & (set(eqs.q) | set(eqs.qd))
                        "Write the state-dependent entries of the lower triangle of S into ``out`` "
                        "(8x8); the others are those of ``schur_matrix`` for the same parameters.",
                        lower_only=True),
+        _rhs_terms_function(eqs),
         _function("schur_rhs", "q, qd, p", "Right-hand side of S lambda = Phi_q M^-1 Q - gamma (list of 8).",
                   {"r": eqs.schur_rhs}, eqs, container="list"),
         _function("accelerations", "lam, q, qd, p", "qdd = M^-1 (Q - Phi_q^T lambda) (9,) for given "

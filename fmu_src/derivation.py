@@ -129,8 +129,8 @@ def derive_equations() -> FourBarEquations:
         raise ValueError("the range-space solution of eq. (11) assumes a diagonal mass matrix")
     M_inv = sp.diag(*[1 / M[i, i] for i in range(M.rows)])
     lam = sp.Matrix(sp.symbols(f"lambda_0:{Phi.rows}", real=True))
-    S = (Phi_q * M_inv * Phi_q.T).applyfunc(sp.simplify)
-    r = (Phi_q * M_inv * Q - gamma).applyfunc(sp.simplify)
+    S = (Phi_q * M_inv * Phi_q.T).applyfunc(sp.cancel)
+    r = (Phi_q * M_inv * Q - gamma).applyfunc(sp.cancel)
     qdd = M_inv * (Q - Phi_q.T * lam)
 
     # Coordinate partitioning: rates of the dependent coordinates from Phi_q qd = 0.
@@ -138,7 +138,7 @@ def derive_equations() -> FourBarEquations:
     dependent = [k for k in range(len(COORDINATES)) if k != i]
     omega = sp.Symbol("omega", real=True)
     qd_dep = Phi_q.extract(list(range(Phi.rows)), dependent).LUsolve(-Phi_q[:, i] * omega)
-    rates = [omega if k == i else sp.simplify(qd_dep[dependent.index(k)]) for k in range(len(COORDINATES))]
+    rates = [omega if k == i else sp.cancel(qd_dep[dependent.index(k)]) for k in range(len(COORDINATES))]
 
     return FourBarEquations(
         q=q, qd=qd, params=tuple(params),

@@ -172,6 +172,7 @@ class FourBarDAE:
         zeros = [0.0] * n
         # S = Phi_q M^-1 Phi_q^T with its constant entries in place; schur_fill updates the others.
         self._S = np.asfortranarray(self.eq.schur_matrix(zeros, self.p))
+        self._S_flat = self._S.reshape(-1, order="F")     # a view: entry (i, j) at i + 8 j
         # For the full augmented system of ``accelerations``.
         self._A = np.zeros((n + m, n + m), order="F")
         self._A[:n, :n] = self.eq.mass_matrix(zeros, self.p)
@@ -215,10 +216,8 @@ class FourBarDAE:
         theta2, omega2 = y.tolist()
         eq, p = self.eq, self.p
         q = _positions(theta2, p, self.branch)
-        qd = _rates(eq, q, omega2, p)
-        S = self._S
-        eq.schur_fill(S, q, p)
-        c, lam, info = lapack.dposv(S, eq.schur_rhs(q, qd, p), lower=1)
+        qd, r = eq.rhs_terms(self._S_flat, q, omega2, p)      # fills S's lower triangle
+        c, lam, info = lapack.dposv(self._S, r, lower=1)
         if info != 0:
             raise IntegrationError("Phi_q M^-1 Phi_q^T is singular: the linkage is at a toggle position")
         return np.array((omega2, eq.independent_acceleration(lam.tolist(), q, qd, p)))
