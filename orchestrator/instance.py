@@ -13,6 +13,8 @@ import shutil
 import threading
 from typing import Any, Callable, Iterable, Sequence
 
+from .pythonfmu_exit import install_exit_hook, release_library
+
 __all__ = ["FmuError", "FmuInstance"]
 
 _STATUS = ("ok", "warning", "discard", "error", "fatal", "pending")
@@ -105,6 +107,7 @@ class FmuInstance:
 
         self._call_error = FMICallException
 
+        install_exit_hook()     # also guards FMUs that FMPy loads elsewhere in this process
         self._unzipdir = extract(str(self.path))
         self._env = next(_ENV_IDS)
         _ROUTES[self._env] = self
@@ -139,10 +142,12 @@ class FmuInstance:
                         # FMI 2.0 allows no call after fmi2Fatal, fmi2FreeInstance included, and
                         # pythonfmu's slaves corrupt the interpreter's heap if freed then (a later
                         # segfault in the garbage collector).  The instance is left allocated.
-                        pass
+                        release_library(slave.dll)
                     else:
-                        slave.freeInstance()    # frees the instance and unloads the library
+                        release_library(slave.dll)      # see pythonfmu_exit; the instance keeps
+                        slave.freeInstance()            # its own reference until freed here
                 else:
+                    release_library(slave.dll)
                     slave.freeLibrary()
         finally:
             _ROUTES.pop(self._env, None)

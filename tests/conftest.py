@@ -23,6 +23,12 @@ REPO = Path(__file__).resolve().parents[1]
 if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
+# The tests load pythonfmu FMUs with plain FMPy and libcosim too; without this guard the
+# test process can abort at exit after all tests passed (orchestrator/pythonfmu_exit.py).
+from orchestrator.pythonfmu_exit import install_exit_hook  # noqa: E402
+
+install_exit_hook()
+
 
 @pytest.fixture(scope="session")
 def repo_root() -> Path:
