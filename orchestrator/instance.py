@@ -14,6 +14,7 @@ import threading
 from typing import Any, Callable, Iterable, Sequence
 
 from .pythonfmu_exit import install_exit_hook, release_library
+from .pythonfmu_modules import forget_other_fmu_modules
 
 __all__ = ["FmuError", "FmuInstance"]
 
@@ -121,6 +122,7 @@ class FmuInstance:
         self._slave = FMU2Slave(guid=self.md.guid, unzipDirectory=self._unzipdir,
                                 modelIdentifier=self.md.coSimulation.modelIdentifier,
                                 instanceName=self.instance_name)
+        forget_other_fmu_modules(self._unzipdir)   # another build's cached Python code
         try:
             # loggingOn: pythonfmu (and many FMUs) forward messages only when logging is on.
             self._slave.instantiate(callbacks=callbacks, loggingOn=True)
