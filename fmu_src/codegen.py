@@ -181,9 +181,6 @@ FORCES_ARE_CONSTANT = {not (eqs.forces.free_symbols & (set(eqs.q) | set(eqs.qd))
                   {"Q": eqs.forces}, eqs),
         _function("constraints", "q, p", "Constraint residual Phi (8,).", {"Phi": eqs.constraints}, eqs),
         _function("jacobian", "q, p", "Constraint Jacobian Phi_q (8x9).", {"Phi_q": eqs.jacobian}, eqs),
-        _fill_function("jacobian_fill", eqs.jacobian, eqs,
-                       "Write the state-dependent entries of Phi_q into ``out`` (8x9); the others "
-                       "are those of ``jacobian`` for the same parameters."),
         _function("gamma", "q, qd, p", "Right-hand side gamma = -(Phi_q qd)_q qd (8,).",
                   {"gamma": eqs.gamma}, eqs),
         _function("schur_matrix", "q, p", "S = Phi_q M^-1 Phi_q^T (8x8), symmetric positive definite "
