@@ -11,16 +11,30 @@ twice runs the first extraction's modules, whose files are already deleted.)
 ``forget_other_fmu_modules`` is called just before instantiating: it removes from
 ``sys.modules`` the cached slave module and every module loaded from the same
 ``resources/`` directory when that directory is not the one of the FMU about to be
-instantiated.  The next import then reads the new FMU's own files.  Instances that are
-still alive keep the objects they already hold.
+instantiated and its Python files differed.  The next import then reads the new FMU's own
+files.  Instances that are still alive keep the objects they already hold.  Runs of the
+same FMU (a sweep's worker runs hundreds) keep the cached modules: the Python files of each
+extracted FMU are fingerprinted when it is instantiated.
 """
 from __future__ import annotations
 
+import hashlib
 import os
 import sys
 from pathlib import Path
 
 __all__ = ["forget_other_fmu_modules"]
+
+#: Fingerprint of the Python files of each FMU resources/ directory instantiated so far.
+_FINGERPRINTS: dict[str, str] = {}
+
+
+def _fingerprint(resources: Path) -> str:
+    digest = hashlib.sha256()
+    for path in sorted(resources.rglob("*.py")):
+        digest.update(str(path.relative_to(resources)).encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
 
 
 def _inside(path: str | None, directories: tuple[str, ...]) -> bool:
@@ -45,11 +59,18 @@ def forget_other_fmu_modules(unzip_dir) -> list[str]:
         name = (resources / "slavemodule.txt").read_text(encoding="utf-8").strip()
     except OSError:
         return []              # not a pythonfmu FMU
+    try:
+        fingerprint = _fingerprint(resources)
+    except OSError:
+        fingerprint = ""
+    _FINGERPRINTS[os.path.realpath(resources)] = fingerprint
     cached = sys.modules.get(name)
     origin = getattr(cached, "__file__", None) if cached is not None else None
     if not origin or _inside(origin, _forms(resources)):
         return []
     other = _forms(Path(origin).parent)
+    if fingerprint and _FINGERPRINTS.get(os.path.realpath(Path(origin).parent)) == fingerprint:
+        return []              # the same Python code: keep it
     removed = [key for key, module in list(sys.modules.items())
                if _inside(getattr(module, "__file__", None), other)]
     for key in removed:

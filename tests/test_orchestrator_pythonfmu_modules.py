@@ -47,3 +47,21 @@ for i, case in enumerate([{str(case_a)!r}, {str(case_b)!r}, {str(case_a)!r}]):
     assert first < 1.0            # the crank's centre stays within L2/2 = 0.5 m of the origin
     assert patched == 42.0        # build B's own slave ran
     assert again == first         # and build A's again after it
+
+
+def test_runs_of_the_same_build_keep_its_modules(fourbar_fmu, tmp_path, repo_root):
+    # A sweep worker runs the same FMU hundreds of times, each from a fresh extraction:
+    # identical Python files are not imported again.
+    case = shipped_case("case1_normal", fourbar_fmu, tmp_path, stop=0.05)
+    code = f"""
+import sys
+from orchestrator import run_case
+ids = []
+for i in range(3):
+    run_case({str(case)!r}, {str(tmp_path)!r} + f"/out{{i}}")
+    ids.append(id(sys.modules["fourbar_slave"]))
+print(len(set(ids)))
+"""
+    result = subprocess.run([sys.executable, "-c", code], cwd=repo_root, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["1"]
