@@ -28,6 +28,10 @@ class _Printer(PythonCodePrinter):
     _print_cos = _print_sin = _print_known_func
 
 
+def _printer() -> _Printer:
+    return _Printer({"fully_qualified_modules": False, "standard": "python3"})
+
+
 def _preamble(name: str, args: str, doc: str, eqs: FourBarEquations) -> list[str]:
     """``def`` line, docstring and the unpacking of the arguments into symbol names."""
     lines = [f"def {name}({args}):", f'    """{doc}"""']
@@ -49,7 +53,7 @@ def _function(name: str, args: str, doc: str, outputs: dict[str, sp.Matrix | sp.
     Matrices are returned as numpy arrays (``container="array"``) or, where the caller
     goes on with scalar code, as plain lists of floats (``container="list"``).
     """
-    printer = _Printer({"fully_qualified_modules": False, "standard": "python3"})
+    printer = _printer()
     names = list(outputs)
     flat: list[sp.Expr] = []
     shapes: list[tuple[int, ...]] = []
@@ -88,7 +92,7 @@ def _function(name: str, args: str, doc: str, outputs: dict[str, sp.Matrix | sp.
 
 def _max_abs_function(name: str, args: str, doc: str, exprs: list[sp.Expr], eqs: FourBarEquations) -> str:
     """A generated function returning max(|e|) over the given expressions."""
-    printer = _Printer({"fully_qualified_modules": False, "standard": "python3"})
+    printer = _printer()
     replacements, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("_c"), optimizations="basic")
     lines = _preamble(name, args, doc, eqs)
     lines += [f"    {sym} = {printer.doprint(expr)}" for sym, expr in replacements]
@@ -103,7 +107,7 @@ def _fill_function(name: str, matrix: sp.Matrix, eqs: FourBarEquations, doc: str
     With ``lower_only`` just the lower triangle (with the diagonal) is written: what
     LAPACK reads of a symmetric matrix factorised with ``lower=1``.
     """
-    printer = _Printer({"fully_qualified_modules": False, "standard": "python3"})
+    printer = _printer()
     state = set(eqs.q)
     entries = [(i, j, matrix[i, j]) for i in range(matrix.rows) for j in range(matrix.cols)
                if matrix[i, j].free_symbols & state and (j <= i or not lower_only)]
@@ -123,7 +127,7 @@ def _rhs_terms_function(eqs: FourBarEquations) -> str:
     flat column-major view ``out`` of the 8x8 array (entry (i, j) at ``i + 8 j``), and the
     right-hand side of S lambda = Phi_q M^-1 Q - gamma with the rates substituted.
     """
-    printer = _Printer({"fully_qualified_modules": False, "standard": "python3"})
+    printer = _printer()
     S = eqs.schur_matrix
     n = S.rows
     entries = [(i, j) for i in range(n) for j in range(i + 1) if S[i, j].free_symbols & set(eqs.q)]

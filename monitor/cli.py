@@ -52,38 +52,34 @@ def _version() -> str:
         return "0.1.0"
 
 
-def _positive(name: str):
+def _float_arg(accept, expected: str, rejected: str | None = None):
+    """argparse type: a finite float for which ``accept(value)`` holds.
+
+    ``expected`` is the message for text that is not a number, ``rejected`` (default: the
+    same) the one for a number that is not accepted; both get ", got '<text>'".
+    """
     def parse(text: str) -> float:
         try:
             value = float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{name}: expected a positive number of seconds, got {text!r}")
-        if not (math.isfinite(value) and value > 0):
-            raise argparse.ArgumentTypeError(f"{name}: expected a positive number of seconds, got {text!r}")
+            raise argparse.ArgumentTypeError(f"{expected}, got {text!r}") from None
+        if not (math.isfinite(value) and accept(value)):
+            raise argparse.ArgumentTypeError(f"{rejected or expected}, got {text!r}")
         return value
     return parse
 
 
-def _nonnegative(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds ≥ 0, got {text!r}")
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"expected a number of seconds ≥ 0, got {text!r}")
-    return value
+def _positive(name: str):
+    return _float_arg(lambda v: v > 0, f"{name}: expected a positive number of seconds")
+
+
+_nonnegative = _float_arg(lambda v: v >= 0, "expected a number of seconds ≥ 0")
+_time = _float_arg(lambda v: True, "expected a time in seconds", "expected a finite time in seconds")
+_positive_level = _float_arg(lambda v: v > 0, "expected 'auto' or a positive number in the signal's units")
 
 
 def _threshold(text: str) -> float | str:
-    if text.strip().lower() == "auto":
-        return "auto"
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected 'auto' or a positive number in the signal's units, got {text!r}")
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected 'auto' or a positive number in the signal's units, got {text!r}")
-    return value
+    return "auto" if text.strip().lower() == "auto" else _positive_level(text)
 
 
 def _count(low: int):
@@ -91,21 +87,11 @@ def _count(low: int):
         try:
             value = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer ≥ {low}, got {text!r}")
+            raise argparse.ArgumentTypeError(f"expected an integer ≥ {low}, got {text!r}") from None
         if value < low:
             raise argparse.ArgumentTypeError(f"expected an integer ≥ {low}, got {text!r}")
         return value
     return parse
-
-
-def _time(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a time in seconds, got {text!r}")
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"expected a finite time in seconds, got {text!r}")
-    return value
 
 
 def build_parser() -> argparse.ArgumentParser:
