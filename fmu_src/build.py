@@ -19,33 +19,13 @@ from pathlib import Path
 from xml.etree import ElementTree as ET
 
 from .codegen import write_module
+from .fourbar_model.variables import BY_NAME, UNITS, VARIABLES
 
 __all__ = ["BuildResult", "build_fmu", "RUNTIME_REQUIREMENTS"]
 
 HERE = Path(__file__).resolve().parent
 #: Run-time needs of the FMU's Python code (``pythonfmu deploy`` installs these).
 RUNTIME_REQUIREMENTS = ("numpy>=1.26", "scipy>=1.11")
-
-# Units: name -> (kg, m, s, rad exponents), display units (name, factor).
-_UNITS = {
-    "m": ({"m": "1"}, []),
-    "kg": ({"kg": "1"}, []),
-    "m/s2": ({"m": "1", "s": "-2"}, []),
-    "rad": ({"rad": "1"}, [("deg", 57.29577951308232)]),
-    "rad/s": ({"rad": "1", "s": "-1"}, [("deg/s", 57.29577951308232)]),
-    "J": ({"kg": "1", "m": "2", "s": "-2"}, []),
-    "1": ({}, []),
-}
-_VARIABLE_UNITS = {
-    "L1": "m", "L2": "m", "L3": "m", "L4": "m", "m2": "kg", "m3": "kg", "m4": "kg", "g": "m/s2",
-    "theta2_start": "rad", "omega2_start": "rad/s", "rtol": "1", "atol": "1",
-    "x2": "m", "y2": "m", "x3": "m", "y3": "m", "x4": "m", "y4": "m",
-    "theta2": "rad", "theta3": "rad", "theta4": "rad",
-    "omega2": "rad/s", "omega3": "rad/s", "omega4": "rad/s", "energy": "J",
-    "constraint_residual": "1",
-}
-_DISPLAY = {"theta2_start": "deg", "theta2": "deg", "theta3": "deg", "theta4": "deg"}
-
 
 @dataclass(frozen=True)
 class BuildResult:
@@ -56,28 +36,41 @@ class BuildResult:
     problems: tuple[str, ...]
 
 
-def _complete_model_description(xml: bytes) -> bytes:
-    """Add units and <InitialUnknowns> to pythonfmu's model description."""
-    root = ET.fromstring(xml)
-    # Unit definitions go right after the <CoSimulation> element (schema order).
+def unit_definitions() -> ET.Element:
+    """``<UnitDefinitions>`` for every unit of the variable table."""
     units = ET.Element("UnitDefinitions")
-    for name, (base, displays) in _UNITS.items():
+    for name, (base, displays) in UNITS.items():
         unit = ET.SubElement(units, "Unit", {"name": name})
         ET.SubElement(unit, "BaseUnit", base)
         for dname, factor in displays:
             ET.SubElement(unit, "DisplayUnit", {"name": dname, "factor": repr(factor)})
+    return units
+
+
+def _complete_model_description(xml: bytes) -> bytes:
+    """Add units and <InitialUnknowns> to pythonfmu's model description.
+
+    Also checks that pythonfmu numbered the variables as the shared table does
+    (``fourbar_model/variables.py``): the native FMU relies on the same value references.
+    """
+    root = ET.fromstring(xml)
+    # Unit definitions go right after the <CoSimulation> element (schema order).
     position = list(root).index(root.find("CoSimulation")) + 1
-    root.insert(position, units)
+    root.insert(position, unit_definitions())
 
     variables = root.find("ModelVariables")
     outputs = []
+    written = [(sv.get("name"), int(sv.get("valueReference"))) for sv in variables.findall("ScalarVariable")]
+    expected = [(v.name, vr) for vr, v in enumerate(VARIABLES)]
+    if written != expected:
+        raise RuntimeError(f"pythonfmu numbered the variables {written}, the shared table expects {expected}")
     for index, sv in enumerate(variables.findall("ScalarVariable"), start=1):
-        name = sv.get("name")
+        var = BY_NAME[sv.get("name")]
         real = sv.find("Real")
-        if real is not None and name in _VARIABLE_UNITS:
-            real.set("unit", _VARIABLE_UNITS[name])
-            if name in _DISPLAY:
-                real.set("displayUnit", _DISPLAY[name])
+        if real is not None and var.unit:
+            real.set("unit", var.unit)
+            if var.display_unit:
+                real.set("displayUnit", var.display_unit)
         if sv.get("causality") == "output":
             outputs.append(index)
 

@@ -160,7 +160,7 @@ Arguments are sequences of Python floats (lists are fastest), p = the parameter 
 Parameters p = ({", ".join(PARAMETERS)}).
 Equation form: M qdd + Phi_q^T lambda = Q,  Phi_q qdd = gamma.
 """
-from math import cos, sin
+from math import atan2, cos, sin, sqrt
 
 from numpy import array
 
@@ -211,6 +211,18 @@ FORCES_ARE_CONSTANT = {not (eqs.forces.free_symbols & (set(eqs.q) | set(eqs.qd))
                           list(eqs.constraints) + list(eqs.velocity_constraints), eqs),
         _function("energy", "q, qd, p", "Kinetic and potential energy (J).",
                   {"T": eqs.kinetic_energy, "V": eqs.potential_energy}, eqs),
+    ]
+    d, a, h, branch = eqs.closure_symbols
+    body += [
+        _function("closure_reach", "th2, p",
+                  "Loop closure at crank angle th2: (d, a, h2), see fmu_src/derivation.py; the loop "
+                  "closes only where h2 > 0.", {"d": eqs.closure_reach[0], "a": eqs.closure_reach[1],
+                                                 "h2": eqs.closure_reach[2]}, eqs),
+        _function("closure_angles", "th2, d, a, h, branch, p",
+                  "(th3, th4) in rad from the loop closure's d, a, h = sqrt(h2) on a branch (+1/-1).",
+                  {"th3": eqs.closure_angles[0], "th4": eqs.closure_angles[1]}, eqs),
+        _function("positions", "th2, th3, th4, p", "q (list of 9) for the three link angles (Phi = 0).",
+                  {"q": eqs.positions}, eqs, container="list"),
     ]
     return header + "\n\n".join(body)
 

@@ -33,6 +33,15 @@ and this module also derives those pieces, plus the rates of the dependent coord
 for a given crank rate (``Phi_q qd = 0`` solved with ``th2_d = omega2``) and ``Phi_q qd``
 itself (the velocity-level constraint, reported as part of the constraint residual).
 
+Position analysis (the closed-form loop closure used for assembly and for coordinate
+partitioning) is derived here too, so that every generated code path shares it: with the
+crank tip ``A = L2 (cos th2, sin th2)`` at distance ``d`` from the rocker pivot
+``O4 = (L1, 0)``, the coupler-rocker joint ``B`` lies at ``a`` along ``A -> O4`` and ``h``
+across it, ``a = (L3^2 - L4^2 + d^2) / (2 d)``, ``h^2 = L3^2 - a^2``; ``branch = +1`` puts B
+to the left of ``A -> O4`` (Table 1's assembly, the rocker tip above the ground line).  The
+loop closes only where ``h^2 > 0``; the run-time code checks that before taking the root.
+The link centres then follow from ``Phi = 0``, which is linear in them.
+
 ``M`` and ``Q`` come from the Lagrangian ``L = T - V`` (eq. 1) through
 Lagrange's equations (eq. 2/10):
 ``M = d2L/dqd2`` and ``Q = dL/dq - (d2L/dqd dq) qd``.
@@ -75,6 +84,10 @@ class FourBarEquations:
     omega: sp.Symbol              # rate of the independent coordinate
     velocities: sp.Matrix         # 9x1, qd solving Phi_q qd = 0 with qd[INDEPENDENT] = omega
     velocity_constraints: sp.Matrix   # 8x1, Phi_q qd
+    closure_symbols: tuple        # (d, a, h, branch): intermediate symbols of the loop closure
+    closure_reach: sp.Matrix      # 3x1, (d, a, h^2) as functions of th2 and the parameters only
+    closure_angles: sp.Matrix     # 2x1, (th3, th4) as functions of th2, d, a, h, branch, parameters
+    positions: sp.Matrix          # 9x1, q as a function of (th2, th3, th4) and the parameters
 
 
 @functools.lru_cache(maxsize=None)
@@ -140,6 +153,25 @@ def derive_equations() -> FourBarEquations:
     qd_dep = Phi_q.extract(list(range(Phi.rows)), dependent).LUsolve(-Phi_q[:, i] * omega)
     rates = [omega if k == i else sp.cancel(qd_dep[dependent.index(k)]) for k in range(len(COORDINATES))]
 
+    # Closed-form position analysis (see the module docstring).
+    d_, a_, h_ = sp.symbols("d a h", positive=True)
+    branch = sp.Symbol("branch", real=True)
+    ax, ay = L2 * c(th2), L2 * s(th2)
+    dx, dy = L1 - ax, -ay
+    d_expr = sp.sqrt(dx**2 + dy**2)
+    a_expr = (L3**2 - L4**2 + d_expr**2) / (2 * d_expr)
+    reach = sp.Matrix([d_expr, a_expr, L3**2 - a_expr**2])
+    bx = ax + a_ * dx / d_ - branch * h_ * dy / d_
+    by = ay + a_ * dy / d_ + branch * h_ * dx / d_
+    angles = sp.Matrix([sp.atan2(by - ay, bx - ax), sp.atan2(by, bx - L1)])
+    centres = [x2, y2, x3, y3, x4, y4]
+    # Ground-crank, crank-coupler and rocker-ground joints fix the centres for given angles;
+    # the coupler-rocker joint is what the closure above satisfies.
+    solved = sp.solve([Phi[k] for k in (0, 1, 2, 3, 6, 7)], centres, dict=True)
+    if len(solved) != 1:
+        raise ValueError("Phi = 0 should fix the link centres uniquely for given angles")
+    positions = sp.Matrix([solved[0].get(k, k) for k in q])
+
     return FourBarEquations(
         q=q, qd=qd, params=tuple(params),
         mass_matrix=M, forces=Q,
@@ -147,4 +179,6 @@ def derive_equations() -> FourBarEquations:
         kinetic_energy=T, potential_energy=V,
         multipliers=lam, schur_matrix=S, schur_rhs=r, accelerations=qdd,
         omega=omega, velocities=sp.Matrix(rates), velocity_constraints=Phi_q * qd,
+        closure_symbols=(d_, a_, h_, branch), closure_reach=reach, closure_angles=angles,
+        positions=positions,
     )

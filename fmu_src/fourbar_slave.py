@@ -17,36 +17,18 @@ from pythonfmu.enums import Fmi2Status
 from pythonfmu.variables import Real, String
 
 from fourbar_model import equations
+from fourbar_model.variables import PARAMETER_NAMES, VARIABLES
 from fourbar_model.dae import INTEGRATORS, AssemblyError, FourBarDAE, IntegrationError, assemble, snap_time
 
-_TUNABLE = {   # name: (start value of Table 1, description)
-    "L1": (3.0, "Ground link length: distance between the crank and rocker pivots [m]"),
-    "L2": (1.0, "Crank (link 2) length [m]"),
-    "L3": (4.0, "Coupler (link 3) length [m]"),
-    "L4": (2.5, "Rocker (link 4) length [m]"),
-    "m2": (1.0, "Crank (link 2) mass, uniform slender rod [kg]"),
-    "m3": (1.0, "Coupler (link 3) mass, uniform slender rod [kg]"),
-    "m4": (1.0, "Rocker (link 4) mass, uniform slender rod [kg]"),
-    "g": (9.81, "Gravitational acceleration, acting along -y [m/s2]"),
-}
-_FIXED = {
-    "theta2_start": (math.radians(30.0), "Initial crank angle from +x, counter-clockwise [rad]"),
-    "omega2_start": (0.0, "Initial crank angular velocity [rad/s]"),
-    "rtol": (1e-9, "Relative tolerance of the Runge-Kutta error control [-]"),
-    "atol": (1e-6, "Absolute tolerance of the Runge-Kutta error control [rad, rad/s]"),
-}
-_OUTPUTS = {
-    "x2": "x of the crank's centre [m]", "y2": "y of the crank's centre [m]",
-    "x3": "x of the coupler's centre [m]", "y3": "y of the coupler's centre [m]",
-    "x4": "x of the rocker's centre [m]", "y4": "y of the rocker's centre [m]",
-    "theta2": "Crank angle from +x [rad]", "theta3": "Coupler angle from +x [rad]",
-    "theta4": "Rocker angle from +x [rad]",
-    "omega2": "Crank angular velocity [rad/s]", "omega3": "Coupler angular velocity [rad/s]",
-    "omega4": "Rocker angular velocity [rad/s]",
-    "energy": "Total mechanical energy T + V, V = 0 at y = 0 [J]",
-    "constraint_residual": "max(|Phi|, |Phi_q qd|) of the reported state [m, m/s]",
-}
 _PARAMETER_ORDER = equations.PARAMETERS   # (L1, L2, L3, L4, m2, m3, m4, g)
+if tuple(_PARAMETER_ORDER) != PARAMETER_NAMES:
+    raise ImportError("the generated equations and the variable table disagree on the parameter order")
+
+_CAUSALITY = {"parameter": Fmi2Causality.parameter, "output": Fmi2Causality.output}
+_VARIABILITY = {"tunable": Fmi2Variability.tunable, "fixed": Fmi2Variability.fixed,
+                "continuous": Fmi2Variability.continuous}
+
+
 class FourBar(Fmi2Slave):
     author = "fourbar-cosim developers"
     description = ("Planar four-bar linkage (Table 1 of Park's integrated engineering education model): "
@@ -58,22 +40,13 @@ class FourBar(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        for name, (start, doc) in _TUNABLE.items():
-            setattr(self, name, start)
-            self.register_variable(Real(name, causality=Fmi2Causality.parameter,
-                                        variability=Fmi2Variability.tunable, description=doc))
-        for name, (start, doc) in _FIXED.items():
-            setattr(self, name, start)
-            self.register_variable(Real(name, causality=Fmi2Causality.parameter,
-                                        variability=Fmi2Variability.fixed, description=doc))
-        self.integrator = "DOP853"
-        self.register_variable(String("integrator", causality=Fmi2Causality.parameter,
-                                      variability=Fmi2Variability.fixed,
-                                      description="Explicit Runge-Kutta method: DOP853 or RK45"))
-        for name, doc in _OUTPUTS.items():
-            setattr(self, name, 0.0)
-            self.register_variable(Real(name, causality=Fmi2Causality.output,
-                                        variability=Fmi2Variability.continuous, description=doc))
+        # Registered in the table's order: pythonfmu numbers the value references as registered.
+        for var in VARIABLES:
+            setattr(self, var.name, 0.0 if var.start is None else var.start)
+            kind = Real if var.type == "Real" else String
+            self.register_variable(kind(var.name, causality=_CAUSALITY[var.causality],
+                                        variability=_VARIABILITY[var.variability],
+                                        description=var.description))
         self._stop_time = math.inf
         self._dae = None
 

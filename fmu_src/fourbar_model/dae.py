@@ -76,45 +76,34 @@ class IntegrationError(RuntimeError):
     """The Runge-Kutta integration failed (step size collapse, singular system...)."""
 
 
-def _closure(theta2: float, p, branch: float) -> tuple[float, float]:
-    """Closed-form position analysis: (theta3, theta4) in rad for a crank angle and branch.
+def _positions(theta2: float, p, branch: float, eq) -> list[float]:
+    """Closed-form position analysis: q (list of 9) for a crank angle (rad) on a branch.
 
-    Raises AssemblyError, naming the lengths, when the loop cannot be closed or is at a
-    toggle position (coupler and rocker aligned: the constraint Jacobian is singular).
+    The closure is generated from the derivation (``closure_reach``, ``closure_angles``,
+    ``positions``).  Raises AssemblyError, naming the lengths, when the loop cannot be
+    closed or is at a toggle position (coupler and rocker aligned: Phi_q is singular).
     """
-    L1, L2, L3, L4 = p[0], p[1], p[2], p[3]
-    ax, ay = L2 * math.cos(theta2), L2 * math.sin(theta2)       # crank tip A
-    dx, dy = L1 - ax, -ay                                       # A -> rocker pivot O4
-    d = math.hypot(dx, dy)
-    a = (L3 * L3 - L4 * L4 + d * d) / (2.0 * d) if d > 0.0 else math.inf
-    h2 = L3 * L3 - a * a
+    try:
+        d, a, h2 = eq.closure_reach(theta2, p)
+    except ZeroDivisionError:          # the crank tip on the rocker pivot: never closable
+        d, a, h2 = 0.0, math.inf, -math.inf
+    L3 = p[2]
     if not h2 > 1e-18 * L3 * L3:
+        L1, L2, L4 = p[0], p[1], p[3]
         reach = f"between {abs(L3 - L4):.6g} m and {L3 + L4:.6g} m"
         why = ("cannot be closed" if not h2 >= 0.0 else "is at a toggle (singular) position")
         raise AssemblyError(
             f"the loop {why}: the crank tip is {d:.6g} m from the rocker pivot at theta2 = "
             f"{math.degrees(theta2):.6g} deg, but coupler L3 = {L3:g} m and rocker L4 = {L4:g} m "
             f"can only span distances {reach} (L1 = {L1:g} m, L2 = {L2:g} m)")
-    h = math.sqrt(h2)
-    ux, uy = dx / d, dy / d
-    bx = ax + a * ux - branch * h * uy                          # coupler-rocker joint B
-    by = ay + a * uy + branch * h * ux
-    return math.atan2(by - ay, bx - ax), math.atan2(by, bx - L1)
-
-
-def _positions(theta2: float, p, branch: float) -> list[float]:
-    L1, L2, L3, L4 = p[0], p[1], p[2], p[3]
-    th3, th4 = _closure(theta2, p, branch)
-    c2, s2 = math.cos(theta2), math.sin(theta2)
-    return [0.5 * L2 * c2, 0.5 * L2 * s2, theta2,
-            L2 * c2 + 0.5 * L3 * math.cos(th3), L2 * s2 + 0.5 * L3 * math.sin(th3), th3,
-            L1 + 0.5 * L4 * math.cos(th4), 0.5 * L4 * math.sin(th4), th4]
+    th3, th4 = eq.closure_angles(theta2, d, a, math.sqrt(h2), branch, p)
+    return eq.positions(theta2, th3, th4, p)
 
 
 def assemble(theta2: float, omega2: float, p, eq, branch: float = BRANCH_OPEN
              ) -> tuple[np.ndarray, np.ndarray]:
     """Consistent (q, qd) arrays for a crank angle (rad) and crank rate (rad/s) on a branch."""
-    q = _positions(theta2, p, branch)
+    q = _positions(theta2, p, branch, eq)
     return np.array(q), np.array(_rates(eq, q, omega2, p))
 
 
@@ -181,7 +170,7 @@ class FourBarDAE:
     # -- the DAE -----------------------------------------------------------------
     def state(self, theta2: float, omega2: float) -> tuple[list, list]:
         """Full consistent (q, qd), as lists of floats, for the independent pair on the current branch."""
-        q = _positions(theta2, self.p, self.branch)
+        q = _positions(theta2, self.p, self.branch, self.eq)
         return q, _rates(self.eq, q, omega2, self.p)
 
     def accelerations(self, q, qd) -> tuple[np.ndarray, np.ndarray]:
@@ -215,7 +204,7 @@ class FourBarDAE:
         self.rhs_evaluations += 1
         theta2, omega2 = y.tolist()
         eq, p = self.eq, self.p
-        q = _positions(theta2, p, self.branch)
+        q = _positions(theta2, p, self.branch, eq)
         qd, r = eq.rhs_terms(self._S_flat, q, omega2, p)      # fills S's lower triangle
         c, lam, info = lapack.dposv(self._S, r, lower=1)
         if info != 0:
