@@ -9,7 +9,7 @@ REALTIME ?= 0
 SPEEDUP  ?= 10
 # REALTIME=1 runs the demo at wall-clock pace (the paper's live setting).
 DEMO_SPEED := $(if $(filter 1,$(REALTIME)),1,$(SPEEDUP))
-FMU_SOURCES := build_fmu.py $(wildcard fmu_src/*.py fmu_src/fourbar_model/*.py)
+FMU_SOURCES := build_fmu.py $(wildcard fmu_src/*.py fmu_src/fourbar_model/*.py fmu_src/native/*.[ch])
 
 .PHONY: demo test fmu benchmarks clean help
 
@@ -18,7 +18,7 @@ help:
 	@echo "make demo REALTIME=1   the same at wall-clock pace (100 s)"
 	@echo "make test       run the test suite"
 	@echo "make benchmarks measure speed and accuracy (writes docs/benchmarks.md figures to stdout)"
-	@echo "make fmu        build $(FMU) only"
+	@echo "make fmu        build $(FMU) and build/FourBarNative.fmu (when a C compiler exists)"
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)

@@ -223,6 +223,8 @@ FORCES_ARE_CONSTANT = {not (eqs.forces.free_symbols & (set(eqs.q) | set(eqs.qd))
                   {"th3": eqs.closure_angles[0], "th4": eqs.closure_angles[1]}, eqs),
         _function("positions", "th2, th3, th4, p", "q (list of 9) for the three link angles (Phi = 0).",
                   {"q": eqs.positions}, eqs, container="list"),
+        _function("branch_indicator", "q, p", "(O4 - A) x (B - A): >= 0 on assembly branch +1, < 0 on -1.",
+                  {"cross": eqs.branch_indicator}, eqs),
     ]
     return header + "\n\n".join(body)
 

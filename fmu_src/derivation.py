@@ -88,6 +88,7 @@ class FourBarEquations:
     closure_reach: sp.Matrix      # 3x1, (d, a, h^2) as functions of th2 and the parameters only
     closure_angles: sp.Matrix     # 2x1, (th3, th4) as functions of th2, d, a, h, branch, parameters
     positions: sp.Matrix          # 9x1, q as a function of (th2, th3, th4) and the parameters
+    branch_indicator: sp.Expr     # >= 0 on branch +1, < 0 on branch -1 (a function of q)
 
 
 @functools.lru_cache(maxsize=None)
@@ -172,6 +173,9 @@ def derive_equations() -> FourBarEquations:
         raise ValueError("Phi = 0 should fix the link centres uniquely for given angles")
     positions = sp.Matrix([solved[0].get(k, k) for k in q])
 
+    # Which side of A -> O4 the coupler-rocker joint B lies on: (O4 - A) x (B - A).
+    indicator = (L1 - ax) * (L3 * s(th3)) - (0 - ay) * (L3 * c(th3))
+
     return FourBarEquations(
         q=q, qd=qd, params=tuple(params),
         mass_matrix=M, forces=Q,
@@ -180,5 +184,5 @@ def derive_equations() -> FourBarEquations:
         multipliers=lam, schur_matrix=S, schur_rhs=r, accelerations=qdd,
         omega=omega, velocities=sp.Matrix(rates), velocity_constraints=Phi_q * qd,
         closure_symbols=(d_, a_, h_, branch), closure_reach=reach, closure_angles=angles,
-        positions=positions,
+        positions=positions, branch_indicator=indicator,
     )

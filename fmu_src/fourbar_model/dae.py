@@ -115,13 +115,9 @@ def _rates(eq, q, omega2, p) -> list:
         raise AssemblyError("the constraint Jacobian is singular: the linkage is at a toggle position") from None
 
 
-def branch_of(q, p) -> float:
+def branch_of(q, p, eq) -> float:
     """The closure branch (+1 or -1) of a configuration, see ``BRANCH_OPEN``."""
-    L1, L2, L3 = p[0], p[1], p[2]
-    ax, ay = L2 * math.cos(q[2]), L2 * math.sin(q[2])
-    bx, by = ax + L3 * math.cos(q[5]), ay + L3 * math.sin(q[5])
-    cross = (L1 - ax) * (by - ay) + ay * (bx - ax)
-    return 1.0 if cross >= 0.0 else -1.0
+    return 1.0 if eq.branch_indicator(list(q), p) >= 0.0 else -1.0
 
 
 class FourBarDAE:
@@ -215,7 +211,7 @@ class FourBarDAE:
     def start(self, t: float, q, qd, branch: float | None = None,
               first_step: float | None = None) -> None:
         """(Re)start the integrator at time t from a consistent state (q, qd)."""
-        self.branch = branch_of(q, self.p) if branch is None else branch
+        self.branch = branch_of(q, self.p, self.eq) if branch is None else branch
         self.t = float(t)
         self.q, self.qd = [float(v) for v in q], [float(v) for v in qd]
         self._dense = None
@@ -277,7 +273,7 @@ class FourBarDAE:
         Raises AssemblyError (state unchanged) when the new geometry cannot be assembled.
         """
         p = tuple(float(v) for v in p)
-        branch = branch_of(self.q, self.p)
+        branch = branch_of(self.q, self.p, self.eq)
         q, qd = assemble(float(self.q[_I]), float(self.qd[_I]), p, self.eq, branch)
         self._set_parameters(p)
         step = getattr(self._solver, "h_abs", None)

@@ -1,0 +1,242 @@
+/* Explicit Runge-Kutta driver: scipy's RungeKutta step control in C (see rk.h). */
+#include <float.h>
+#include <math.h>
+#include "rk.h"
+
+#define SAFETY 0.9
+#define MIN_FACTOR 0.2
+#define MAX_FACTOR 10.0
+
+const RKTableau *rk_tableau(int method)
+{
+    switch (method) {
+    case 0: return &RK_DOP853;
+    case 1: return &RK_RK45;
+    default: return 0;
+    }
+}
+
+/* RMS norm of a vector of RK_N entries (scipy's common.norm). */
+static double rms(const double *x)
+{
+    double sum = 0.0;
+    for (int j = 0; j < RK_N; j++) sum += x[j] * x[j];
+    return sqrt(sum) / sqrt((double)RK_N);
+}
+
+/* Hairer, Norsett and Wanner's initial step, as scipy's select_initial_step (max_step = inf). */
+static RKResult initial_step(RKSolver *s, const RKTableau *tab, RKFunction fun, void *ctx, double *h)
+{
+    double interval = fabs(s->t_bound - s->t);
+    if (interval == 0.0) { *h = 0.0; return RK_OK; }
+    double scale[RK_N], v[RK_N], y1[RK_N], f1[RK_N];
+    for (int j = 0; j < RK_N; j++) scale[j] = s->atol + fabs(s->y[j]) * s->rtol;
+    for (int j = 0; j < RK_N; j++) v[j] = s->y[j] / scale[j];
+    double d0 = rms(v);
+    for (int j = 0; j < RK_N; j++) v[j] = s->f[j] / scale[j];
+    double d1 = rms(v);
+    double h0 = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
+    if (h0 > interval) h0 = interval;
+    for (int j = 0; j < RK_N; j++) y1[j] = s->y[j] + h0 * s->f[j];
+    s->nfev++;
+    if (fun(ctx, s->t + h0, y1, f1)) return RK_ERROR_RHS;
+    for (int j = 0; j < RK_N; j++) v[j] = (f1[j] - s->f[j]) / scale[j];
+    double d2 = rms(v) / h0;
+    double h1;
+    if (d1 <= 1e-15 && d2 <= 1e-15) h1 = fmax(1e-6, h0 * 1e-3);
+    else h1 = pow(0.01 / fmax(d1, d2), 1.0 / (tab->error_estimator_order + 1));
+    double hmin = 100.0 * h0;
+    if (h1 < hmin) hmin = h1;
+    if (interval < hmin) hmin = interval;
+    *h = hmin;
+    return RK_OK;
+}
+
+RKResult rk_start(RKSolver *s, int method, RKFunction fun, void *ctx, double t0, const double *y0,
+                  double t_bound, double rtol, double atol, double first_step)
+{
+    const RKTableau *tab = rk_tableau(method);
+    s->method = method;
+    s->t = s->t_old = t0;
+    s->t_bound = t_bound;
+    for (int j = 0; j < RK_N; j++) s->y[j] = s->y_old[j] = y0[j];
+    s->rtol = rtol < 100.0 * DBL_EPSILON ? 100.0 * DBL_EPSILON : rtol;   /* scipy's floor for rtol */
+    s->atol = atol;
+    s->h_previous = 0.0;
+    s->dense_ready = 0;
+    s->has_step = 0;
+    s->status = RK_RUNNING;
+    s->nfev++;
+    if (fun(ctx, t0, s->y, s->f)) return RK_ERROR_RHS;
+    if (first_step > 0.0) {
+        double interval = fabs(t_bound - t0);
+        s->h_abs = first_step < interval ? first_step : interval;
+        return RK_OK;
+    }
+    return initial_step(s, tab, fun, ctx, &s->h_abs);
+}
+
+/* One attempt: stages, the solution at t + h and its derivative (scipy's rk_step). */
+static RKResult attempt(RKSolver *s, const RKTableau *tab, RKFunction fun, void *ctx, double h,
+                        double *y_new, double *f_new)
+{
+    const int n = tab->n_stages, stride = tab->n_stages_extended;
+    double dy[RK_N], ys[RK_N];
+    for (int j = 0; j < RK_N; j++) s->K[0][j] = s->f[j];
+    for (int st = 1; st < n; st++) {
+        const double *a = tab->A + st * stride;
+        for (int j = 0; j < RK_N; j++) {
+            double sum = 0.0;
+            for (int k = 0; k < st; k++) sum += s->K[k][j] * a[k];
+            dy[j] = sum * h;
+            ys[j] = s->y[j] + dy[j];
+        }
+        s->nfev++;
+        if (fun(ctx, s->t + tab->C[st] * h, ys, s->K[st])) return RK_ERROR_RHS;
+    }
+    for (int j = 0; j < RK_N; j++) {
+        double sum = 0.0;
+        for (int k = 0; k < n; k++) sum += s->K[k][j] * tab->B[k];
+        y_new[j] = s->y[j] + h * sum;
+    }
+    s->nfev++;
+    if (fun(ctx, s->t + h, y_new, f_new)) return RK_ERROR_RHS;
+    for (int j = 0; j < RK_N; j++) s->K[n][j] = f_new[j];
+    return RK_OK;
+}
+
+static double error_norm(const RKSolver *s, const RKTableau *tab, double h, const double *scale)
+{
+    const int n = tab->n_stages;
+    if (tab->kind == RK_KIND_DOP853) {
+        double e5 = 0.0, e3 = 0.0;
+        for (int j = 0; j < RK_N; j++) {
+            double s5 = 0.0, s3 = 0.0;
+            for (int k = 0; k <= n; k++) { s5 += s->K[k][j] * tab->E[k]; s3 += s->K[k][j] * tab->E3[k]; }
+            s5 /= scale[j];
+            s3 /= scale[j];
+            e5 += s5 * s5;
+            e3 += s3 * s3;
+        }
+        if (e5 == 0.0 && e3 == 0.0) return 0.0;
+        return fabs(h) * e5 / sqrt((e5 + 0.01 * e3) * RK_N);
+    }
+    double err[RK_N];
+    for (int j = 0; j < RK_N; j++) {
+        double sum = 0.0;
+        for (int k = 0; k <= n; k++) sum += s->K[k][j] * tab->E[k];
+        err[j] = sum * h / scale[j];
+    }
+    return rms(err);
+}
+
+RKResult rk_step(RKSolver *s, RKFunction fun, void *ctx)
+{
+    const RKTableau *tab = rk_tableau(s->method);
+    if (s->status != RK_RUNNING) return RK_ERROR_FINISHED;
+    if (s->t == s->t_bound) {
+        s->t_old = s->t;
+        s->status = RK_FINISHED;
+        return RK_OK;
+    }
+    const double t = s->t;
+    const double exponent = -1.0 / (tab->error_estimator_order + 1);
+    const double min_step = 10.0 * fabs(nextafter(t, INFINITY) - t);
+    double h_abs = s->h_abs < min_step ? min_step : s->h_abs;
+    double h = 0.0, t_new = t, y_new[RK_N], f_new[RK_N], scale[RK_N];
+    int rejected = 0;
+    for (;;) {
+        if (h_abs < min_step) { s->status = RK_FAILED; return RK_ERROR_STEP_TOO_SMALL; }
+        t_new = t + h_abs;
+        if (t_new - s->t_bound > 0.0) t_new = s->t_bound;
+        h = t_new - t;
+        h_abs = fabs(h);
+        s->dense_ready = 0;                       /* K is overwritten from here on */
+        if (attempt(s, tab, fun, ctx, h, y_new, f_new) != RK_OK) { s->status = RK_FAILED; return RK_ERROR_RHS; }
+        for (int j = 0; j < RK_N; j++) scale[j] = s->atol + fmax(fabs(s->y[j]), fabs(y_new[j])) * s->rtol;
+        double en = error_norm(s, tab, h, scale);
+        if (en < 1.0) {
+            double factor = en == 0.0 ? MAX_FACTOR : fmin(MAX_FACTOR, SAFETY * pow(en, exponent));
+            if (rejected) factor = fmin(1.0, factor);
+            h_abs *= factor;
+            break;
+        }
+        h_abs *= fmax(MIN_FACTOR, SAFETY * pow(en, exponent));
+        rejected = 1;
+    }
+    s->h_previous = h;
+    for (int j = 0; j < RK_N; j++) { s->y_old[j] = s->y[j]; s->y[j] = y_new[j]; s->f[j] = f_new[j]; }
+    s->t_old = t;
+    s->t = t_new;
+    s->h_abs = h_abs;
+    s->has_step = 1;
+    if (s->t - s->t_bound >= 0.0) s->status = RK_FINISHED;
+    return RK_OK;
+}
+
+/* The interpolant's coefficients for the last step (scipy's _dense_output_impl). */
+static RKResult prepare_dense(RKSolver *s, const RKTableau *tab, RKFunction fun, void *ctx)
+{
+    const double h = s->h_previous;
+    if (tab->kind == RK_KIND_DOP853) {
+        const int stride = tab->n_stages_extended;
+        double ys[RK_N];
+        for (int st = tab->n_stages + 1; st < tab->n_stages_extended; st++) {
+            const double *a = tab->A + st * stride;
+            for (int j = 0; j < RK_N; j++) {
+                double sum = 0.0;
+                for (int k = 0; k < st; k++) sum += s->K[k][j] * a[k];
+                ys[j] = s->y_old[j] + sum * h;
+            }
+            s->nfev++;
+            if (fun(ctx, s->t_old + tab->C[st] * h, ys, s->K[st])) return RK_ERROR_RHS;
+        }
+        for (int j = 0; j < RK_N; j++) {
+            const double f_old = s->K[0][j], delta = s->y[j] - s->y_old[j];
+            s->dense[0][j] = delta;
+            s->dense[1][j] = h * f_old - delta;
+            s->dense[2][j] = 2.0 * delta - h * (s->f[j] + f_old);
+            for (int i = 0; i < tab->n_dense - 3; i++) {
+                double sum = 0.0;
+                for (int k = 0; k < tab->n_stages_extended; k++) sum += tab->P[i * stride + k] * s->K[k][j];
+                s->dense[3 + i][j] = h * sum;
+            }
+        }
+    } else {
+        for (int c = 0; c < tab->n_dense; c++)
+            for (int j = 0; j < RK_N; j++) {
+                double sum = 0.0;
+                for (int k = 0; k <= tab->n_stages; k++) sum += s->K[k][j] * tab->P[k * tab->n_dense + c];
+                s->dense[c][j] = sum;
+            }
+    }
+    s->dense_ready = 1;
+    return RK_OK;
+}
+
+RKResult rk_dense(RKSolver *s, RKFunction fun, void *ctx, double t, double *y)
+{
+    const RKTableau *tab = rk_tableau(s->method);
+    if (!s->dense_ready && prepare_dense(s, tab, fun, ctx) != RK_OK) return RK_ERROR_RHS;
+    const double h = s->t - s->t_old;
+    const double x = (t - s->t_old) / h;
+    if (tab->kind == RK_KIND_DOP853) {
+        for (int j = 0; j < RK_N; j++) {
+            double v = 0.0;
+            for (int i = 0; i < tab->n_dense; i++) {
+                v += s->dense[tab->n_dense - 1 - i][j];
+                v *= (i % 2 == 0) ? x : 1.0 - x;
+            }
+            y[j] = v + s->y_old[j];
+        }
+    } else {
+        double p[RK_MAX_DENSE], xp = 1.0;
+        for (int c = 0; c < tab->n_dense; c++) { xp *= x; p[c] = xp; }
+        for (int j = 0; j < RK_N; j++) {
+            double sum = 0.0;
+            for (int c = 0; c < tab->n_dense; c++) sum += s->dense[c][j] * p[c];
+            y[j] = h * sum + s->y_old[j];
+        }
+    }
+    return RK_OK;
+}
