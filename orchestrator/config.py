@@ -214,35 +214,40 @@ class Case:
 # ---------------------------------------------------------------------------- loading
 
 def load_case(path: str | Path, *, overrides: Mapping[str, Value] | None = None,
-              stop: float | None = None, realtime: float | None = None) -> Case:
+              stop: float | None = None, realtime: float | None = None, fmu: str | Path | None = None) -> Case:
     """Read and validate a case file; raise :class:`ConfigError` listing every problem.
 
-    ``overrides`` (parameter start values), ``stop`` (s) and ``realtime`` (factor) replace
-    the file's values before validation, as the CLI's ``--set``, ``--stop``, ``--realtime``.
+    ``overrides`` (parameter start values), ``stop`` (s), ``realtime`` (factor) and ``fmu``
+    (a path, relative to the working directory) replace the file's values before validation,
+    as the CLI's ``--set``, ``--stop``, ``--realtime`` and ``--fmu``.
     """
     path = Path(path)
     label = str(path)
     raw = read_toml(path, "case file")
     raw.setdefault("name", path.stem)
-    raw, origins = _merge_overrides(raw, overrides, stop, realtime)
+    raw, origins = _merge_overrides(raw, overrides, stop, realtime, fmu)
     return _Validator(raw, label, path.resolve().parent, origins, source=path.resolve()).case()
 
 
 def apply_overrides(case: Case, *, overrides: Mapping[str, Value] | None = None,
-                    stop: float | None = None, realtime: float | None = None) -> Case:
+                    stop: float | None = None, realtime: float | None = None,
+                    fmu: str | Path | None = None) -> Case:
     """A new :class:`Case` with the overrides applied, validated again in full.
 
     Also the way to check a :class:`Case` built or modified in code (all arguments None).
     """
-    raw, origins = _merge_overrides(case.as_dict(), overrides, stop, realtime)
+    raw, origins = _merge_overrides(case.as_dict(), overrides, stop, realtime, fmu)
     label = str(case.source) if case.source is not None else f"case {case.name!r}"
     base = case.source.parent if case.source is not None else Path.cwd()
     return _Validator(raw, label, base, origins, source=case.source).case()
 
 
-def _merge_overrides(raw: dict, overrides, stop, realtime) -> tuple[dict, dict[str, str]]:
+def _merge_overrides(raw: dict, overrides, stop, realtime, fmu=None) -> tuple[dict, dict[str, str]]:
     raw = dict(raw)
     origins: dict[str, str] = {}
+    if fmu is not None:
+        raw["fmu"] = str(Path(fmu).resolve())     # given relative to the working directory
+        origins["fmu"] = "--fmu"
     if overrides:
         params = raw.get("parameters")
         params = dict(params) if isinstance(params, dict) else {}

@@ -66,12 +66,13 @@ class RunInterrupted(KeyboardInterrupt):
 
 def run_case(case: Case | str | Path, out_dir: str | Path | None = None, *, stop: float | None = None,
              realtime: float | None = None, overrides: Mapping[str, Value] | None = None,
-             progress: bool = False) -> RunResult:
+             progress: bool = False, fmu: str | Path | None = None) -> RunResult:
     """Run ``case`` (a :class:`Case` or a case-file path) and write ``out_dir``.
 
     ``out_dir`` defaults to ``out/<case name>`` (relative to the working directory).
-    ``stop`` (s), ``realtime`` (factor) and ``overrides`` (parameter start values) replace
-    the case's values; the result is validated again (:class:`~orchestrator.ConfigError`).
+    ``stop`` (s), ``realtime`` (factor), ``overrides`` (parameter start values) and ``fmu``
+    (another FMU with the case's variables, e.g. build/FourBarNative.fmu) replace the case's
+    values; the result is validated again (:class:`~orchestrator.ConfigError`).
     ``progress`` shows a tqdm bar on stderr.
 
     A failure of the FMU or of writing returns a result with status ``failed`` and the
@@ -80,9 +81,9 @@ def run_case(case: Case | str | Path, out_dir: str | Path | None = None, *, stop
     """
     wall0 = time.monotonic()
     if isinstance(case, Case):
-        case = apply_overrides(case, overrides=overrides, stop=stop, realtime=realtime)
+        case = apply_overrides(case, overrides=overrides, stop=stop, realtime=realtime, fmu=fmu)
     else:
-        case = load_case(case, overrides=overrides, stop=stop, realtime=realtime)
+        case = load_case(case, overrides=overrides, stop=stop, realtime=realtime, fmu=fmu)
     out = Path(out_dir) if out_dir is not None else Path("out") / case.name
     return _Run(case, out, progress, wall0).execute()
 

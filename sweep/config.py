@@ -38,7 +38,7 @@ __all__ = [
     "load_sweep",
 ]
 
-_TOP_KEYS = ("name", "description", "case", "stop", "fault", "noise", "monitor", "sample", "report", "output")
+_TOP_KEYS = ("name", "description", "case", "fmu", "stop", "fault", "noise", "monitor", "sample", "report", "output")
 _FAULT_KEYS = ("variable", "kind", "relative", "value", "time", "ramp_duration", "no_fault")
 _NOISE_KEYS = ("std", "seed")
 _SAMPLE_KEYS = ("n", "seed")
@@ -357,11 +357,16 @@ class _Validator(ProblemReporter):
         from orchestrator import ConfigError, load_case
 
         path = (self.path.parent / value).resolve()
+        fmu = self.raw.get("fmu")
+        if fmu is not None and (not isinstance(fmu, str) or not fmu):
+            self.problem("fmu", fmu, f"expected a path string (relative to the sweep file), got {_kind(fmu)}")
+            fmu = None
         try:
-            case = load_case(path)
+            case = load_case(path, fmu=None if fmu is None else self.path.parent / fmu)
         except ConfigError as exc:
             for p in exc.problems:
-                self.problems.append(f"case = {_show(value)}: {path.name}: {p}")
+                where = "fmu" if p.startswith("fmu") and fmu is not None else f"case = {_show(value)}: {path.name}"
+                self.problems.append(f"{where}: {p}")
             return None, None
         from fmpy import read_model_description
 

@@ -35,6 +35,33 @@ def repo_root() -> Path:
     return REPO
 
 
+def _fresh(built: Path, patterns: tuple[str, ...]) -> bool:
+    """``built`` exists and is newer than every source file matching ``patterns`` under fmu_src/."""
+    sources = [p for pattern in patterns for p in (REPO / "fmu_src").rglob(pattern)] + [REPO / "build_fmu.py"]
+    return built.exists() and built.stat().st_mtime >= max(p.stat().st_mtime for p in sources)
+
+
+@pytest.fixture(scope="session")
+def native_fmu(tmp_path_factory) -> Path:
+    """Path of a valid FourBarNative.fmu (FOURBAR_NATIVE_FMU, else build/, else a fresh build).
+
+    Skips the test when no C compiler is available (the native FMU cannot be built then).
+    """
+    env = os.environ.get("FOURBAR_NATIVE_FMU")
+    if env:
+        return Path(env)
+    built = REPO / "build" / "FourBarNative.fmu"
+    if _fresh(built, ("*.py", "*.c", "*.h")):
+        return built
+    from fmu_src.native_build import find_compiler
+    if find_compiler() is None:
+        pytest.skip("no C compiler: the native FMU cannot be built here")
+    dest = tmp_path_factory.mktemp("native") / "FourBarNative.fmu"
+    subprocess.run([sys.executable, str(REPO / "build_fmu.py"), "--only", "native", "--native-out", str(dest)],
+                   check=True, cwd=REPO)
+    return dest
+
+
 @pytest.fixture(scope="session")
 def fourbar_fmu(tmp_path_factory) -> Path:
     """Path of a valid FourBar.fmu (FOURBAR_FMU, else build/FourBar.fmu, else a fresh build)."""
@@ -42,9 +69,15 @@ def fourbar_fmu(tmp_path_factory) -> Path:
     if env:
         return Path(env)
     built = REPO / "build" / "FourBar.fmu"
-    sources = list((REPO / "fmu_src").rglob("*.py")) + [REPO / "build_fmu.py"]
-    if built.exists() and built.stat().st_mtime >= max(p.stat().st_mtime for p in sources):
+    if _fresh(built, ("*.py",)):
         return built
     dest = tmp_path_factory.mktemp("fmu") / "FourBar.fmu"
-    subprocess.run([sys.executable, str(REPO / "build_fmu.py"), "--out", str(dest)], check=True, cwd=REPO)
+    subprocess.run([sys.executable, str(REPO / "build_fmu.py"), "--only", "pythonfmu", "--out", str(dest)],
+                   check=True, cwd=REPO)
     return dest
+
+
+@pytest.fixture(scope="session", params=["pythonfmu", "native"])
+def either_fmu(request) -> Path:
+    """Each of the two FMUs in turn (tests that must hold for both: parametrized, not copied)."""
+    return request.getfixturevalue("fourbar_fmu" if request.param == "pythonfmu" else "native_fmu")

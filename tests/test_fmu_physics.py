@@ -90,23 +90,23 @@ def _logged_instance(md, unzipdir):
 
 
 @pytest.fixture(scope="module")
-def case1(fourbar_fmu):
-    return run(fourbar_fmu)
+def case1(either_fmu):
+    return run(either_fmu)
 
 
 @pytest.fixture(scope="module")
-def case2(fourbar_fmu):
-    return run(fourbar_fmu, l2_step=(10.0, 1.1))
+def case2(either_fmu):
+    return run(either_fmu, l2_step=(10.0, 1.1))
 
 
 @pytest.fixture(scope="module")
-def case1_tight(fourbar_fmu):
-    return run(fourbar_fmu, start_values=TIGHT)
+def case1_tight(either_fmu):
+    return run(either_fmu, start_values=TIGHT)
 
 
 @pytest.fixture(scope="module")
-def case2_tight(fourbar_fmu):
-    return run(fourbar_fmu, start_values=TIGHT, l2_step=(10.0, 1.1))
+def case2_tight(either_fmu):
+    return run(either_fmu, start_values=TIGHT, l2_step=(10.0, 1.1))
 
 
 def joint_mismatch(r, L2):
@@ -132,16 +132,16 @@ def test_initial_assembly_is_table1(case1):
     assert case1["omega2"][0] == 0.0
 
 
-def test_nothing_moves_without_gravity(fourbar_fmu):
-    r = run(fourbar_fmu, stop=5.0, start_values={"g": 0.0})
+def test_nothing_moves_without_gravity(either_fmu):
+    r = run(either_fmu, stop=5.0, start_values={"g": 0.0})
     for name in ALL[:-2]:
         # At rest with no force the exact solution is constant; allow round-off only.
         assert np.ptp(r[name]) <= 1e-12, name
 
 
 @pytest.mark.parametrize("which", ["case1", "case2"])
-def test_constraints_hold_at_every_output(which, request):
-    r = request.getfixturevalue(which)
+def test_constraints_hold_at_every_output(which, either_fmu, request):
+    r = request.getfixturevalue(which)      # either_fmu named so that the case runs for each FMU
     assert len(r) == 10001
     # The FMU's own residual: positions and velocities satisfy Phi = 0, Phi_q qd = 0.
     assert r["constraint_residual"].max() <= 1e-10
@@ -151,9 +151,10 @@ def test_constraints_hold_at_every_output(which, request):
 
 
 def test_energy_constant_case1(case1_tight):
-    # Conservative system: T + V constant.  Tight tolerances (see module docstring).
+    # Conservative system: T + V constant.  Tight tolerances (see module docstring); both FMUs
+    # measured 5.8e-10 J over 100 s, the bound is the FMU issue's 1e-9 J.
     drift = np.ptp(case1_tight["energy"])
-    assert drift <= 1e-8, f"energy drift {drift:.3g} J over 100 s"
+    assert drift <= 1e-9, f"energy drift {drift:.3g} J over 100 s"
 
 
 def test_energy_at_table1_tolerances(case1):
@@ -194,27 +195,33 @@ def test_agrees_with_independent_formulation_case2(case2_tight, times):
         assert math.hypot(r["x2"], r["y2"]) == pytest.approx(L2 / 2, abs=1e-12)
 
 
-def test_rk45_is_selectable_and_accurate(fourbar_fmu, times):
-    r = run(fourbar_fmu, stop=10.0, start_values={"integrator": "RK45", "rtol": 1e-11, "atol": 1e-11},
+def test_rk45_is_selectable_and_accurate(either_fmu, times):
+    r = run(either_fmu, stop=10.0, start_values={"integrator": "RK45", "rtol": 1e-11, "atol": 1e-11},
             output=CENTRES)
     ref = reference(times[:1001], THETA2_0, **TABLE1)
     assert np.abs(np.column_stack([r[n] for n in CENTRES]) - ref).max() <= 1e-6
 
 
 @pytest.mark.parametrize("name, value, unit", [("L4", -1.0, "m"), ("m3", 0.0, "kg"), ("L1", float("nan"), "m")])
-def test_bad_start_parameters_are_rejected(fourbar_fmu, name, value, unit):
+def test_bad_start_parameters_are_rejected(either_fmu, name, value, unit):
     LOG.clear()
     with pytest.raises(Exception, match="fmi2ExitInitializationMode"):
-        run(fourbar_fmu, stop=0.1, start_values={name: value}, capture_log=True)
+        run(either_fmu, stop=0.1, start_values={name: value}, capture_log=True)
     assert any(f"{name} = {value!r} {unit}: must be a finite positive number" in m for m in LOG), LOG
 
 
-def test_unassemblable_length_fails_the_step_cleanly(fourbar_fmu):
-    # L2 = 10 m puts the crank tip ~10 m from the rocker pivot; L3 + L4 = 6.5 m.  The step
-    # returns fmi2Discard (pythonfmu's non-fatal failure status) with an error-level log
-    # message; simulate_fmu stops there and returns the rows computed so far.
+def test_unassemblable_length_fails_the_step_cleanly(either_fmu):
+    # L2 = 10 m puts the crank tip ~10 m from the rocker pivot; L3 + L4 = 6.5 m.  The native
+    # FMU's doStep returns fmi2Error (simulate_fmu raises); the pythonfmu FMU can only return
+    # fmi2Discard (its non-fatal failure status) and simulate_fmu returns the rows so far.  Both
+    # log an error-level message naming the parameter, its values and why.
     LOG.clear()
-    r = run(fourbar_fmu, stop=2.0, l2_step=(1.0, 10.0), capture_log=True)
-    assert r["time"][-1] == pytest.approx(1.0, abs=1e-12)
+    if either_fmu.name.startswith("FourBarNative"):
+        with pytest.raises(FMICallException, match="fmi2DoStep") as info:
+            run(either_fmu, stop=2.0, l2_step=(1.0, 10.0), capture_log=True)
+        assert info.value.status == 3   # fmi2Error
+    else:
+        r = run(either_fmu, stop=2.0, l2_step=(1.0, 10.0), capture_log=True)
+        assert r["time"][-1] == pytest.approx(1.0, abs=1e-12)
     text = " ".join(LOG)
     assert "L2 1 -> 10" in text and "cannot be closed" in text and "between 1.5 m and 6.5 m" in text, text

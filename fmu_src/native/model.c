@@ -52,11 +52,13 @@ static fmi2Status fail(ModelInstance *m, const char *fmt, ...)
     return fmi2Error;
 }
 
-/* Shortest of %.15g / %.17g that reads back as the same double (like Python's repr). */
+/* A double as Python's repr writes it: the shorter of %.15g / %.17g that reads back as the
+   same value, with ".0" on whole numbers (so messages read the same from both FMUs). */
 static const char *real_text(char *buf, size_t n, double v)
 {
     snprintf(buf, n, "%.15g", v);
-    if (strtod(buf, NULL) != v) snprintf(buf, n, "%.17g", v);
+    if (isfinite(v) && strtod(buf, NULL) != v) snprintf(buf, n, "%.17g", v);
+    if (isfinite(v) && !strpbrk(buf, ".e")) strncat(buf, ".0", n - strlen(buf) - 1);
     return buf;
 }
 
