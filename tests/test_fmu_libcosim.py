@@ -1,4 +1,6 @@
-"""FourBar.fmu under libcosim (through libcosimpy) gives FMPy's outputs: Case 2 of the paper.
+"""Both FMUs under libcosim (through libcosimpy) give FMPy's outputs: Case 2 of the paper.
+
+Every test runs for the pythonfmu FMU and for the native one (``either_fmu``).
 
 Case 2: 0-100 s, communication step 0.01 s, L2 = 1.0 m changed to 1.1 m at t = 10 s.
 FMPy runs it the standard FMI way (``simulate_fmu`` with an ``input`` signal: the new L2 is
@@ -21,6 +23,7 @@ not depend on one-ulp differences of the communication times.
 """
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -64,28 +67,31 @@ np.savez(sys.argv[3], **result)
 
 
 @pytest.fixture(scope="module")
-def libcosim_case2(fourbar_fmu, repo_root, tmp_path_factory):
+def libcosim_case2(either_fmu, repo_root, tmp_path_factory):
     out = tmp_path_factory.mktemp("libcosim") / "case2.npz"
+    # A clean environment: no LD_PRELOAD, PYTHONHOME or PYTHONPATH (neither FMU needs them in a
+    # Python host; the native one needs them in no host at all).
+    env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "PYTHONHOME", "PYTHONPATH")}
     proc = subprocess.run([sys.executable, "-c", _CHILD, str(repo_root / "examples" / "libcosim_case2.py"),
-                           str(fourbar_fmu), str(out)], capture_output=True, text=True, timeout=300)
+                           str(either_fmu), str(out)], capture_output=True, text=True, timeout=300, env=env)
     assert proc.returncode == 0 and out.exists(), f"libcosim run failed ({proc.returncode}):\n{proc.stderr[-3000:]}"
     with np.load(out) as data:
         return {name: data[name] for name in data.files}
 
 
 @pytest.fixture(scope="module")
-def fmpy_case2(fourbar_fmu):
+def fmpy_case2(either_fmu):
     signal = np.array([(0.0, 1.0), (10.0, 1.0), (10.0, 1.1)], dtype=[("time", float), ("L2", float)])
-    return simulate_fmu(str(fourbar_fmu), stop_time=100.0, output_interval=0.01, input=signal, output=OUTPUTS)
+    return simulate_fmu(str(either_fmu), stop_time=100.0, output_interval=0.01, input=signal, output=OUTPUTS)
 
 
 @pytest.fixture(scope="module")
-def fmpy_on_libcosim_grid(fourbar_fmu, tmp_path_factory):
+def fmpy_on_libcosim_grid(either_fmu, tmp_path_factory):
     """FMPy's FMU2Slave making exactly libcosim's calls: same times, L2 set before step 1000."""
-    md = read_model_description(str(fourbar_fmu))
+    md = read_model_description(str(either_fmu))
     vr = {v.name: v.valueReference for v in md.modelVariables}
     refs = [vr[name] for name in OUTPUTS]
-    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fourbar_fmu), tmp_path_factory.mktemp("fmu")),
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(either_fmu), tmp_path_factory.mktemp("fmu")),
                       modelIdentifier=md.coSimulation.modelIdentifier, instanceName="fourbar")
     slave.instantiate()
     slave.setupExperiment(startTime=0.0)

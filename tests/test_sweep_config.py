@@ -255,3 +255,16 @@ def test_a_directory_in_use_by_a_live_sweep_is_refused(tmp_path, fourbar_fmu):
     (out / ".lock").write_text("999999999")                 # no such process: a stale lock is taken over
     result = run_sweep(smoke(tmp_path, fourbar_fmu), out, limit=0)
     assert result.ran == 0 and not (out / ".lock").exists()
+
+
+def test_a_sweep_file_can_name_the_native_fmu(tmp_path, fourbar_fmu, native_fmu):
+    path = smoke(tmp_path, fourbar_fmu)
+    path.write_text(f'fmu = "{native_fmu}"\n' + path.read_text())
+    sweep = load_sweep(path)
+    assert sweep.case.fmu == native_fmu.resolve()
+    from fmpy import read_model_description
+    assert sweep.fmu_guid == read_model_description(str(native_fmu)).guid
+    bad = smoke(tmp_path, fourbar_fmu)
+    bad.write_text('fmu = "missing.fmu"\n' + bad.read_text())
+    with pytest.raises(SweepError, match="missing.fmu.*file not found"):
+        load_sweep(bad)
