@@ -21,6 +21,8 @@ REPO = Path(__file__).resolve().parents[1]
 
 SECTIONS = [
     ("fmu_speed", "FMU speed against the pythonfmu/FMPy floor (issue 2)", ["benchmarks/fmu_speed.py"]),
+    ("native_fmu", "Native FMU against the pythonfmu FMU and the FMPy floor (issue 10)",
+     ["benchmarks/native_fmu.py", "--sweep"]),
     ("fmu_accuracy", "FMU accuracy: independent formulation, energy, constraints (issue 2)",
      ["benchmarks/fmu_accuracy.py"]),
     ("orchestrator_overhead", "Orchestrator overhead against plain simulate_fmu (issue 3)",

@@ -22,6 +22,7 @@ import uuid
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Mapping
 from xml.etree import ElementTree as ET
 
 from .build import unit_definitions
@@ -70,7 +71,7 @@ def _fmi_header_dir() -> Path:
     return Path(fmpy.__file__).resolve().parent / "c-code"
 
 
-def _sources(guid: str) -> dict[str, bytes]:
+def _sources(guid: str, replace: Mapping[str, bytes] | None = None) -> dict[str, bytes]:
     """Every file of ``sources/``: generated, hand-written and the FMI headers."""
     files = {name: text.encode() for name, text in generate_c_sources(guid, MODEL_IDENTIFIER).items()}
     for name in HAND_WRITTEN:
@@ -78,13 +79,14 @@ def _sources(guid: str) -> dict[str, bytes]:
     headers = _fmi_header_dir()
     for name in FMI_HEADERS:
         files[name] = (headers / name).read_bytes()
+    files.update(replace or {})
     return files
 
 
-def _guid() -> str:
+def _guid(replace: Mapping[str, bytes] | None = None) -> str:
     """A stable GUID: a hash of the sources (with a placeholder GUID) and the variable table."""
     digest = hashlib.sha256()
-    for name, data in sorted(_sources("GUID").items()):
+    for name, data in sorted(_sources("GUID", replace).items()):
         digest.update(name.encode() + b"\0" + data + b"\0")
     digest.update(repr(VARIABLES).encode())
     return str(uuid.UUID(bytes=digest.digest()[:16], version=5))
@@ -165,9 +167,10 @@ def _platform() -> tuple[str, str]:
 
 
 def build_native_fmu(dest: str | Path = "build/FourBarNative.fmu", validate: bool = True,
-                     compiler: str | None = None) -> NativeBuildResult:
+                     compiler: str | None = None, replace: Mapping[str, bytes] | None = None) -> NativeBuildResult:
     """Generate, compile and package the native FMU at ``dest``; validate it with FMPy.
 
+    ``replace`` swaps source files by name (the benchmarks' floor FMU replaces ``model.c``).
     Raises :class:`CompilerNotFound` when no C compiler can be found, RuntimeError when
     compiling fails.
     """
@@ -176,8 +179,8 @@ def build_native_fmu(dest: str | Path = "build/FourBarNative.fmu", validate: boo
         raise CompilerNotFound("no C compiler found (set CC, or install gcc or clang)")
     dest = Path(dest).resolve()
     dest.parent.mkdir(parents=True, exist_ok=True)
-    guid = _guid()
-    files = _sources(guid)
+    guid = _guid(replace)
+    files = _sources(guid, replace)
     c_files = sorted(name for name in files if name.endswith(".c"))
     platforms = []
     with tempfile.TemporaryDirectory(prefix="fourbar_native_") as tmp:

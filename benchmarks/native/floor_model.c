@@ -1,0 +1,50 @@
+/* The FMPy floor for benchmarks/native_fmu.py: model.h implemented with no numerics.
+ *
+ * Compiled in place of fmu_src/native/model.c, it gives an FMU with the native FMU's FMI
+ * layer, variables and value references whose doStep only copies a number, so the wall
+ * time of a run through FMPy is FMPy's own cost: the floor the native FMU is compared with.
+ */
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+#include "model.h"
+
+static const double REAL_STARTS[FB_N_VARIABLES] = FB_REAL_STARTS;
+
+void model_log(ModelInstance *m, fmi2Status status, const char *category, const char *fmt, ...)
+{
+    char text[512];
+    va_list args;
+    if (!m->functions || !m->functions->logger || (status == fmi2OK && !m->logging_on)) return;
+    va_start(args, fmt);
+    vsnprintf(text, sizeof text, fmt, args);
+    va_end(args);
+    m->functions->logger(m->environment, m->instance_name, status, category, "%s", text);
+}
+
+void model_reset(ModelInstance *m)
+{
+    memset(&m->state, 0, sizeof m->state);
+    memcpy(m->state.values, REAL_STARTS, sizeof m->state.values);
+    m->state.stop_time = INFINITY;
+    m->state.mode = MODE_INSTANTIATED;
+}
+
+fmi2Status model_initialize(ModelInstance *m)
+{
+    m->state.t = m->state.start_time;
+    return fmi2OK;
+}
+
+fmi2Status model_do_step(ModelInstance *m, double current_time, double step)
+{
+    m->state.t = current_time + step;
+    m->state.values[VR_x2] = m->state.t;
+    return fmi2OK;
+}
+
+void model_preview_outputs(ModelInstance *m)
+{
+    (void)m;
+}
