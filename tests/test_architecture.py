@@ -47,3 +47,25 @@ def test_fmu_runtime_needs_only_numpy_and_scipy():
     for path in files:
         extra = imported_roots(path) - stdlib - FMU_RUNTIME_ALLOWED
         assert not extra, f"{path.name} imports {sorted(extra)}: the FMU ships only numpy/scipy needs"
+
+
+# What the native FMU's C may include: the C standard library, the FMI 2.0 headers and its own.
+C_STANDARD_HEADERS = {"float.h", "math.h", "stdarg.h", "stddef.h", "stdio.h", "stdlib.h", "string.h"}
+FMI_HEADERS = {"fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"}
+
+
+def test_native_fmu_runtime_is_the_c_standard_library_only(native_fmu):
+    import re
+    import zipfile
+
+    with zipfile.ZipFile(native_fmu) as z:
+        sources = {Path(n).name: z.read(n).decode() for n in z.namelist()
+                   if n.startswith("sources/") and n.endswith((".c", ".h"))}
+    own = set(sources) - FMI_HEADERS
+    allowed = C_STANDARD_HEADERS | FMI_HEADERS | own
+    for name in sorted(own):
+        included = set(re.findall(r'^\s*#\s*include\s*[<"]([^>"]+)[>"]', sources[name], flags=re.M))
+        assert included <= allowed, f"{name} includes {sorted(included - allowed)}"
+    # The equations are generated, never written by hand: the hand-written C has no copy.
+    hand_written = {p.name for p in (REPO / "fmu_src" / "native").glob("*.[ch]")}
+    assert {"fourbar_equations.c", "rk_tableaus.c", "fourbar_variables.h"} <= own - hand_written
