@@ -128,7 +128,7 @@ def accuracy(native: Path, python: Path, repeat: int) -> list[str]:
                 break
         else:
             lines.append(f"| {label} | not reached at 1e-12 | | | |")
-    lines += ["", "The wall time includes FMPy's own cost (the floor above, ~0.13-0.24 s here); the C model "
+    lines += ["", "The wall time includes FMPy's own cost (the floor in the first table); the C model "
                   "alone is in the in-process table."]
     lines += ["", "| Case | tolerances | max \\|native - pythonfmu\\|, m | max \\|native - reference\\|, m "
                   "| max \\|pythonfmu - reference\\|, m |", "|---|---|---|---|---|"]
