@@ -9,7 +9,9 @@ REALTIME ?= 0
 SPEEDUP  ?= 10
 # REALTIME=1 runs the demo at wall-clock pace (the paper's live setting).
 DEMO_SPEED := $(if $(filter 1,$(REALTIME)),1,$(SPEEDUP))
-FMU_SOURCES := build_fmu.py $(wildcard fmu_src/*.py fmu_src/fourbar_model/*.py fmu_src/native/*.[ch])
+# The hand-written sources only: the build regenerates equations.py and the generated C in place.
+GENERATED   := fmu_src/fourbar_model/equations.py $(addprefix fmu_src/native/,fourbar_equations.c fourbar_equations.h rk_tableaus.c fourbar_variables.h)
+FMU_SOURCES := build_fmu.py $(filter-out $(GENERATED),$(wildcard fmu_src/*.py fmu_src/fourbar_model/*.py fmu_src/native/*.[ch]))
 
 .PHONY: demo test fmu benchmarks clean help
 
@@ -41,4 +43,4 @@ benchmarks: $(FMU)
 	$(BIN)/python benchmarks/run_all.py --write docs/benchmarks.md
 
 clean:
-	rm -rf build out .pytest_cache
+	rm -rf build out .pytest_cache $(GENERATED)

@@ -86,11 +86,15 @@ def _complete_model_description(xml: bytes) -> bytes:
 
 
 def _stage(stage: Path) -> Path:
-    """Copy the slave and its run-time package into ``stage`` and generate the equations."""
+    """Copy the slave and its run-time package into ``stage``, the equations generated first.
+
+    The generated module is written in place, ``fmu_src/fourbar_model/equations.py``
+    (gitignored), so that editors and readers can follow slave -> dae -> equations.
+    """
+    write_module(HERE / "fourbar_model" / "equations.py")
     shutil.copy2(HERE / "fourbar_slave.py", stage / "fourbar_slave.py")
     shutil.copytree(HERE / "fourbar_model", stage / "fourbar_model",
-                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "equations.py"))
-    write_module(stage / "fourbar_model" / "equations.py")
+                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
     (stage / "requirements.txt").write_text("\n".join(RUNTIME_REQUIREMENTS) + "\n")
     return stage / "fourbar_slave.py"
 

@@ -27,6 +27,7 @@ from xml.etree import ElementTree as ET
 
 from .build import unit_definitions
 from .c_codegen import generate_c_sources
+from .codegen import write_if_changed
 from .fourbar_model.variables import VARIABLES
 
 __all__ = ["NativeBuildResult", "CompilerNotFound", "build_native_fmu", "find_compiler", "MODEL_IDENTIFIER"]
@@ -35,6 +36,8 @@ HERE = Path(__file__).resolve().parent
 MODEL_IDENTIFIER = "FourBarNative"
 #: The hand-written C: FMI layer, model behind it, Runge-Kutta driver.
 HAND_WRITTEN = ("fmi2Functions.c", "model.c", "model.h", "rk.c", "rk.h")
+#: The generated C (``c_codegen``); also written to fmu_src/native/ (gitignored).
+GENERATED = ("fourbar_equations.c", "fourbar_equations.h", "rk_tableaus.c", "fourbar_variables.h")
 #: The standard FMI 2.0 headers (2-clause BSD), as FMPy ships them.
 FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
 _C_FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra")
@@ -181,6 +184,11 @@ def build_native_fmu(dest: str | Path = "build/FourBarNative.fmu", validate: boo
     dest.parent.mkdir(parents=True, exist_ok=True)
     guid = _guid(replace)
     files = _sources(guid, replace)
+    if not replace:
+        # The generated C also goes beside the hand-written C (gitignored), so that editors
+        # resolve model.c's #include "fourbar_equations.h".
+        for name in GENERATED:
+            write_if_changed(HERE / "native" / name, files[name].decode())
     c_files = sorted(name for name in files if name.endswith(".c"))
     platforms = []
     with tempfile.TemporaryDirectory(prefix="fourbar_native_") as tmp:

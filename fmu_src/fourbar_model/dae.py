@@ -50,22 +50,20 @@ INTEGRATORS = {"DOP853": DOP853, "RK45": RK45}
 #: pivot, which puts the rocker tip above the ground line.  The other branch is -1.
 BRANCH_OPEN = 1.0
 
-#: Independent coordinate (th2) in q.
-_I = 2
-
 #: Time resolution of the FMU: 1 ns.  Communication times are snapped to whole
 #: nanoseconds, so masters that compute the same grid differently (FMPy: n*h; libcosim:
 #: integer nanoseconds) drive exactly the same arithmetic.  Without it a one-ulp difference
 #: at a re-assembly changes the Runge-Kutta step sequence, and at Table 1's atol = 1e-6
 #: the trajectories then differ by up to the global error (~3e-3 m was measured).
 TIME_RESOLUTION = 1e-9
+_TICKS = 1e9    # 1 / TIME_RESOLUTION, exactly: t * _TICKS is the arithmetic the native FMU does too
 
 
 def snap_time(t):
-    """``t`` (s, float or array) rounded to whole nanoseconds, in one canonical form."""
+    """``t`` (s, float or array) rounded to whole ``TIME_RESOLUTION`` ticks, in one canonical form."""
     if isinstance(t, float):
-        return round(t * 1e9) / 1e9
-    return np.round(np.asarray(t) * 1e9) / 1e9 if np.ndim(t) else round(float(t) * 1e9) / 1e9
+        return round(t * _TICKS) / _TICKS
+    return np.round(np.asarray(t) * _TICKS) / _TICKS if np.ndim(t) else round(float(t) * _TICKS) / _TICKS
 
 
 class AssemblyError(ValueError):
@@ -217,7 +215,7 @@ class FourBarDAE:
         self._dense = None
         kwargs = {} if first_step is None else {"first_step": first_step}
         self._solver = INTEGRATORS[self.method](
-            self._rhs, self.t, np.array([self.q[_I], self.qd[_I]]), self.t_bound,
+            self._rhs, self.t, np.array([self.q[self.eq.INDEPENDENT_INDEX], self.qd[self.eq.INDEPENDENT_INDEX]]), self.t_bound,
             rtol=self.rtol, atol=self.atol, **kwargs)
         self.starts += 1
 
@@ -260,11 +258,11 @@ class FourBarDAE:
                 # Predicted grid, snapped like the master's times are (whole nanoseconds),
                 # keyed by integer nanoseconds.
                 grid = snap_time(t_end + dt * np.arange(n))
-                keys = np.round(grid * 1e9).astype(np.int64).tolist()
+                keys = np.round(grid * _TICKS).astype(np.int64).tolist()
                 table = dict(zip(keys, dense(grid).T.tolist()))
             self._dense = (dense, table)
         dense, table = self._dense
-        y = table.get(round(t_end * 1e9))
+        y = table.get(round(t_end * _TICKS))
         return dense(t_end).tolist() if y is None else y
 
     def change_parameters(self, p) -> None:
@@ -274,7 +272,8 @@ class FourBarDAE:
         """
         p = tuple(float(v) for v in p)
         branch = branch_of(self.q, self.p, self.eq)
-        q, qd = assemble(float(self.q[_I]), float(self.qd[_I]), p, self.eq, branch)
+        i = self.eq.INDEPENDENT_INDEX
+        q, qd = assemble(float(self.q[i]), float(self.qd[i]), p, self.eq, branch)
         self._set_parameters(p)
         step = getattr(self._solver, "h_abs", None)
         self.start(self.t, q, qd, branch=branch, first_step=step or None)
