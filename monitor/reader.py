@@ -529,10 +529,6 @@ def read_run_info(exchange_path: str | os.PathLike[str]) -> RunInfo | None:
         return RunInfo(path, "unreadable", None, error=f"{path}: not valid JSON: {exc}")
     fault = data.get("fault_time")
     events = data.get("events") or []
-    if fault is None and isinstance(events, list):        # older writers: first event time
-        times = [e.get("time", e.get("start")) for e in events if isinstance(e, dict)]
-        times = [float(x) for x in times if isinstance(x, (int, float))]
-        fault = min(times) if times else None
     try:
         fault = None if fault is None else float(fault)
     except (TypeError, ValueError):

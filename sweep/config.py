@@ -116,14 +116,6 @@ class MonitorSpec:
     options: Mapping[str, Any]  # other MonitorOptions fields, as given in the file
     unit: str = ""              # the signal's unit (from the FMU)
 
-    def replay_options(self, model: str, threshold: float | str) -> dict[str, Any]:
-        """Keyword arguments of :func:`monitor.replay` for one scenario."""
-        opts = dict(self.options)
-        if "train" in opts:
-            opts["train"] = tuple(opts["train"])
-        opts.update(signal=self.signal, model=model, threshold=threshold)
-        return opts
-
 
 @dataclass(frozen=True)
 class SampleSpec:
