@@ -13,12 +13,13 @@ DEMO_SPEED := $(if $(filter 1,$(REALTIME)),1,$(SPEEDUP))
 GENERATED   := fmu_src/fourbar_model/equations.py $(addprefix fmu_src/native/,fourbar_equations.c fourbar_equations.h rk_tableaus.c fourbar_variables.h)
 FMU_SOURCES := build_fmu.py $(filter-out $(GENERATED),$(wildcard fmu_src/*.py fmu_src/fourbar_model/*.py fmu_src/native/*.[ch]))
 
-.PHONY: demo test fmu benchmarks clean help
+.PHONY: demo test check fmu benchmarks clean help
 
 help:
 	@echo "make demo       build the FMU, run Case 2 with orchestrator and monitor, print the verdict"
 	@echo "make demo REALTIME=1   the same at wall-clock pace (100 s)"
-	@echo "make test       run the test suite"
+	@echo "make test       run the test suite (all of it; what CI runs)"
+	@echo "make check      the fast lane: every test not marked slow (about a minute)"
 	@echo "make benchmarks measure speed and accuracy (writes docs/benchmarks.md figures to stdout)"
 	@echo "make fmu        build $(FMU) and build/FourBarNative.fmu (when a C compiler exists)"
 
@@ -38,6 +39,9 @@ demo: $(FMU)
 
 test: $(FMU)
 	$(BIN)/python -m pytest -q
+
+check: $(FMU)
+	$(BIN)/python -m pytest -q -m "not slow"
 
 benchmarks: $(FMU)
 	$(BIN)/python benchmarks/run_all.py --write docs/benchmarks.md

@@ -36,6 +36,8 @@ pytest.importorskip("libcosimpy", reason="libcosimpy is not installed (pip insta
 from fmpy import extract, read_model_description, simulate_fmu  # noqa: E402
 from fmpy.fmi2 import FMU2Slave  # noqa: E402
 
+pytestmark = pytest.mark.slow    # whole 100 s runs; `make check` leaves them out
+
 OUTPUTS = ["x2", "y2", "x3", "y3", "x4", "y4"]
 STEP_NS = 10_000_000            # 0.01 s
 N_STEPS = 10_000                # 0-100 s

@@ -26,6 +26,8 @@ from fmpy.validation import validate_fmu
 
 from reference_theta2 import simulate as reference
 
+pytestmark = pytest.mark.slow    # whole 100 s runs; `make check` leaves them out
+
 CENTRES = ["x2", "y2", "x3", "y3", "x4", "y4"]
 TIGHT = {"rtol": 1e-12, "atol": 1e-12}
 THETA2_0 = math.radians(30.0)

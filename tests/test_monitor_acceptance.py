@@ -18,6 +18,8 @@ from monitor import ALARM_MESSAGE, dominant_period, read_exchange, replay
 from monitor.cli import main
 from test_monitor_support import orchestrated
 
+pytestmark = pytest.mark.slow    # real orchestrated runs with Prophet; `make check` leaves them out
+
 MODELS = ("prophet", "harmonic")
 
 

@@ -124,15 +124,19 @@ def test_realtime_pacing(factor, stop, fourbar_fmu, tmp_path):
     # The same seen from outside by a reader polling every 1 ms (first row at t = 0 s).
     (w0, t0), (w1, t1) = seen[0], seen[-1]
     assert t0 == 0.0 and t1 == stop
-    assert 1.0 - 0.005 <= w1 - w0 <= 1.3, w1 - w0       # 5 ms: poll period plus scheduling jitter
+    # EARLY: the reader's clock at the first row (w0) can itself be late: it polls every 1 ms and
+    # shares the GIL with the FMU's Python code (5.1 ms was seen once in a full-suite run).  An
+    # unpaced run would show the last block ~1 s early, so 20 ms still catches it.
+    EARLY = 0.02
+    assert 1.0 - EARLY <= w1 - w0 <= 1.3, w1 - w0
     for wall, t in seen:
-        # A block is never visible before its simulated time is due (5 ms: the reader's
-        # clock reading happens after the file read) and is not held much longer than
+        # A block is never visible before its simulated time is due (EARLY: the reader's
+        # own lag at the first row, above) and is not held much longer than
         # one block (0.1 s) plus jitter.  The reader is a thread of this process and shares
         # the GIL with the FMU's Python code, so its reading can lag by up to ~0.2 s on a
         # busy 2-core machine (seen once in a clean-clone run); 0.3 s still catches a run
         # that buffers its rows (up to stop/factor = 1 s late).
-        assert t / factor <= (wall - w0) + 0.005
+        assert t / factor <= (wall - w0) + EARLY
         assert (wall - w0) - t / factor <= 0.1 / factor + 0.3
     print(f"factor {factor}: loop {result.sim_wall_time_s:.4f} s, seen by reader {w1 - w0:.4f} s "
           f"(whole run_case {result.wall_time_s:.3f} s including FMU loading)")
