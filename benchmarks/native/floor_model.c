@@ -5,23 +5,10 @@
  * time of a run through FMPy is FMPy's own cost: the floor the native FMU is compared with.
  */
 #include <math.h>
-#include <stdarg.h>
-#include <stdio.h>
 #include <string.h>
 #include "model.h"
 
 static const double REAL_STARTS[FB_N_VARIABLES] = FB_REAL_STARTS;
-
-void model_log(ModelInstance *m, fmi2Status status, const char *category, const char *fmt, ...)
-{
-    char text[512];
-    va_list args;
-    if (!m->functions || !m->functions->logger || (status == fmi2OK && !m->logging_on)) return;
-    va_start(args, fmt);
-    vsnprintf(text, sizeof text, fmt, args);
-    va_end(args);
-    m->functions->logger(m->environment, m->instance_name, status, category, "%s", text);
-}
 
 void model_reset(ModelInstance *m)
 {

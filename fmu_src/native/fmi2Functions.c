@@ -6,6 +6,8 @@
  * logger callback.  No global or static mutable data: instances are independent.
  */
 #include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include "model.h"
@@ -27,6 +29,20 @@ typedef struct {
     char guid[48];
 } StateHeader;
 static const char STATE_MAGIC[8] = "FBSTATE";
+
+/* Every message goes through the host's logger: errors and warnings always, information
+   (status OK) only with logging on.  The text is formatted here and passed as "%s". */
+void model_log(ModelInstance *m, fmi2Status status, const char *category, const char *fmt, ...)
+{
+    char text[1024];
+    va_list args;
+    if (!m->functions || !m->functions->logger) return;
+    if (status == fmi2OK && !m->logging_on) return;
+    va_start(args, fmt);
+    vsnprintf(text, sizeof text, fmt, args);
+    va_end(args);
+    m->functions->logger(m->environment, m->instance_name, status, category, "%s", text);
+}
 
 static const char *mode_name(ModelMode mode)
 {

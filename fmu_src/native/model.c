@@ -29,18 +29,6 @@ static const int PARAMETER_VRS[FB_N_PARAMETERS] = FB_PARAMETER_VRS;
 static const char *const PARAMETER_NAMES[FB_N_PARAMETERS] = FB_PARAMETER_NAMES;
 static const char *const INTEGRATOR_NAMES[FB_N_INTEGRATORS] = FB_INTEGRATOR_NAMES;
 
-void model_log(ModelInstance *m, fmi2Status status, const char *category, const char *fmt, ...)
-{
-    char text[2 * MSG];
-    va_list args;
-    if (!m->functions || !m->functions->logger) return;
-    if (status == fmi2OK && !m->logging_on) return;
-    va_start(args, fmt);
-    vsnprintf(text, sizeof text, fmt, args);
-    va_end(args);
-    m->functions->logger(m->environment, m->instance_name, status, category, "%s", text);
-}
-
 static fmi2Status fail(ModelInstance *m, const char *fmt, ...)
 {
     char text[2 * MSG];

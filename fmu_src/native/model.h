@@ -43,7 +43,7 @@ typedef struct {
     ModelState state;
 } ModelInstance;
 
-/* Logging through the host's callback; `status` is an fmi2Status. */
+/* Logging through the host's callback (defined in fmi2Functions.c); `status` is an fmi2Status. */
 void model_log(ModelInstance *m, fmi2Status status, const char *category, const char *fmt, ...);
 
 void model_reset(ModelInstance *m);                       /* start values, mode instantiated */
