@@ -99,15 +99,15 @@ def time_replays(path: Path, model: str, repeat: int, out_dir: Path) -> dict[str
         replay(path, model=model, out_dir=out_dir / f"{model}{i}")
         outs.append(time.perf_counter() - start)
     r = results[len(results) // 2]
-    t = r.summary["timing_s"]
+    t = r.summary.timing
     fit = r.fits[0]
-    span = r.summary["last_time"] - 0.0
-    n_eval = r.summary["evaluations"]
+    span = r.summary.last_time - 0.0
+    n_eval = r.summary.evaluations
     return {
         "fit": statistics.median(x.fits[0].forecaster.fit_seconds for x in results),
-        "train": statistics.median(x.summary["timing_s"]["train"] for x in results),
-        "per_eval_batch": statistics.median((x.summary["timing_s"]["forecast"] + x.summary["timing_s"]["evaluate"])
-                                            / x.summary["evaluations"] for x in results),
+        "train": statistics.median(x.summary.timing.train for x in results),
+        "per_eval_batch": statistics.median((x.summary.timing.forecast + x.summary.timing.evaluate)
+                                            / x.summary.evaluations for x in results),
         "wall": statistics.median(walls),
         "wall_out": statistics.median(outs),
         "rtf": span / statistics.median(walls),
@@ -115,7 +115,7 @@ def time_replays(path: Path, model: str, repeat: int, out_dir: Path) -> dict[str
         "n_eval": n_eval,
         "order": fit.forecaster.order,
         "first_alarm": r.first_alarm_time,
-        "read": t["read"],
+        "read": t.read,
     }
 
 
@@ -156,11 +156,11 @@ def detection_table(paths: dict[str, Path], seeds: int) -> list[dict]:
             for key in keys:
                 r2 = replay(paths["case2" + key], model=model).summary
                 r1 = replay(paths["case1" + key], model=model).summary
-                lat.append(r2["detection_latency_s"])
-                fa2.append(r2["false_alarms_before_fault"])
-                fa1.append(r1["alarms"])
-                ratio1.append(r1["max_mae_over_threshold"])
-                thr.append(r2["threshold"]["base"])
+                lat.append(r2.detection_latency)
+                fa2.append(r2.false_alarms)
+                fa1.append(r1.alarms)
+                ratio1.append(r1.max_mae_over_threshold)
+                thr.append(r2.fit.rule.base)
             rows.append({"model": model, "noise": f"σ = {NOISE_STD * 1000:g} mm, {len(keys)} seeds" if noisy else "none",
                          "latency": lat, "fa2": sum(fa2), "fa1": sum(fa1), "ratio1": max(ratio1),
                          "thr": (min(thr), max(thr))})

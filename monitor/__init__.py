@@ -9,17 +9,25 @@ Public API::
     read_exchange(path) -> pandas.DataFrame
     dominant_period(t, x) -> PeriodEstimate
     fit_forecaster(kind, t, x, period, ...) -> Forecaster      # .predict(t) -> ndarray
-    detect(t, x, forecaster, rule, start=...) -> Detection
+    Monitor(MonitorOptions(...)).feed(t, x)                   # the streaming monitor
     replay(exchange_path, **options) -> MonitorResult         # a finished file
     follow(exchange_path, **options) -> MonitorResult         # a growing file
+    score_alarms(alarm_times, fault_time) -> FaultScore       # false alarms, latency
+
+Modules: ``options`` (every setting), ``reader`` (exchange file, run.json), ``spectrum``
+(period), ``forecasters``, ``detector`` (threshold rule, the alarm decision), ``stream``
+(the streaming monitor), ``summary`` (typed results, fault scoring), ``session``
+(replay/follow), ``outputs`` (files and plots), ``cli``.
 
 Command: ``fourbar-monitor`` (:mod:`monitor.cli`).  Method and options: docs/monitor.md.
 """
 from __future__ import annotations
 
-from .detector import (ALARM_MESSAGE, Detection, Detector, Event, State, ThresholdRule, auto_threshold,
-                       detect, fixed_threshold)
-from .engine import Monitor, MonitorOptions, MonitorResult, follow, replay
+from .detector import ALARM_MESSAGE, Detector, Event, State, ThresholdRule, auto_threshold, fixed_threshold
+from .options import FollowOptions, MonitorOptions
+from .session import follow, replay
+from .stream import Monitor
+from .summary import FaultScore, MonitorResult, Summary, score_alarms
 from .errors import ExchangeFormatError, ExchangeMissingError, MonitorError, OptionError, TrainingError
 from .forecasters import Forecaster, fit_forecaster
 from .reader import ExchangeReader, ExchangeWarning, RunInfo, read_exchange, read_run_info
@@ -27,7 +35,8 @@ from .spectrum import PeriodEstimate, dominant_period
 
 __all__ = [
     "ALARM_MESSAGE",
-    "Detection",
+    "FaultScore",
+    "FollowOptions",
     "Detector",
     "Event",
     "ExchangeFormatError",
@@ -43,10 +52,10 @@ __all__ = [
     "PeriodEstimate",
     "RunInfo",
     "State",
+    "Summary",
     "ThresholdRule",
     "TrainingError",
     "auto_threshold",
-    "detect",
     "dominant_period",
     "fit_forecaster",
     "fixed_threshold",
@@ -54,4 +63,5 @@ __all__ = [
     "read_exchange",
     "read_run_info",
     "replay",
+    "score_alarms",
 ]

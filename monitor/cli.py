@@ -1,7 +1,7 @@
 """``fourbar-monitor``: the paper's analysis part as a command (see ``--help``).
 
 Exit codes: 0 no alarm, 1 alarm (or the monitored run failed), 2 usage or input error,
-130 interrupted.  Input problems are reported in one line naming the file, field and
+3 the run was cut off (its writer died without closing run.json), 130 interrupted.  Input problems are reported in one line naming the file, field and
 value — never with a traceback.
 """
 from __future__ import annotations
@@ -9,8 +9,13 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from dataclasses import fields
 from pathlib import Path
 from typing import Any, Sequence, TextIO
+
+from fourbar_common import package_version
+
+from .options import FollowOptions, MonitorOptions, add_arguments
 
 __all__ = ["main", "build_parser"]
 
@@ -31,7 +36,8 @@ threshold 'auto' (default):
   scored on the rest; the second term covers the forecast drift that the period's
   uncertainty sigma_P allows (negligible on clean data). Details: docs/monitor.md.
 
-outputs (in --out, default <exchange dir>/monitor):
+outputs (in --out; default <exchange dir>/monitor beside fourbar-run's run.json, else
+<exchange dir>/<exchange name>.monitor; nothing is written when the input is rejected):
   events.jsonl  evaluations.csv  summary.json  history.png  mae.png  spectrum.png
 
 examples:
@@ -39,62 +45,24 @@ examples:
   fourbar-monitor out/case2_fault_L2/exchange.csv --follow        # while fourbar-run runs
   fourbar-monitor exchange.csv --model harmonic --threshold 0.01 --window 0.3
 
-exit status: 0 no alarm, 1 alarm or failed run, 2 usage/input error, 130 interrupted
+exit status: 0 no alarm, 1 alarm or failed run, 2 usage/input error, 3 the run was cut off
+(its writer died: run.json still says running), 130 interrupted
 """
 
 
-def _version() -> str:
+def _positive_seconds(text: str) -> float:
     try:
-        from importlib.metadata import version
-
-        return version("fourbar-cosim")
-    except Exception:  # noqa: BLE001 - not installed: fall back to the source version
-        return "0.1.0"
-
-
-def _float_arg(accept, expected: str, rejected: str | None = None):
-    """argparse type: a finite float for which ``accept(value)`` holds.
-
-    ``expected`` is the message for text that is not a number, ``rejected`` (default: the
-    same) the one for a number that is not accepted; both get ", got '<text>'".
-    """
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{expected}, got {text!r}") from None
-        if not (math.isfinite(value) and accept(value)):
-            raise argparse.ArgumentTypeError(f"{rejected or expected}, got {text!r}")
-        return value
-    return parse
-
-
-def _positive(name: str):
-    return _float_arg(lambda v: v > 0, f"{name}: expected a positive number of seconds")
-
-
-_nonnegative = _float_arg(lambda v: v >= 0, "expected a number of seconds ≥ 0")
-_time = _float_arg(lambda v: True, "expected a time in seconds", "expected a finite time in seconds")
-_positive_level = _float_arg(lambda v: v > 0, "expected 'auto' or a positive number in the signal's units")
-
-
-def _threshold(text: str) -> float | str:
-    return "auto" if text.strip().lower() == "auto" else _positive_level(text)
-
-
-def _count(low: int):
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer ≥ {low}, got {text!r}") from None
-        if value < low:
-            raise argparse.ArgumentTypeError(f"expected an integer ≥ {low}, got {text!r}")
-        return value
-    return parse
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    return value
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The arguments: what is monitored comes from :mod:`monitor.options` (defaults, choices,
+    checks and help in one place); display and output flags are the command's own."""
     p = argparse.ArgumentParser(
         prog="fourbar-monitor",
         description="Watch a signal of a fourbar-cosim exchange file and alarm when it stops "
@@ -102,44 +70,25 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("exchange", metavar="EXCHANGE.csv", help="exchange file written by fourbar-run")
     p.add_argument("--follow", action="store_true",
-                   help="follow the file while it grows (wait for it to appear; stop when run.json says the "
-                        "run ended, or after --timeout s without new rows); default: replay a finished file")
-    p.add_argument("--out", metavar="DIR", type=Path, help="output directory (default: <exchange dir>/monitor)")
-    g = p.add_argument_group("model")
-    g.add_argument("--signal", default="x2", help="column to monitor (default: %(default)s)")
-    g.add_argument("--train", nargs=2, type=_time, metavar=("START", "END"), default=(0.0, 9.0),
-                   help="training window in s (default: 0 9, as in the paper)")
-    g.add_argument("--model", choices=("prophet", "harmonic"), default="prophet",
-                   help="prophet (the paper's) or harmonic (least-squares Fourier series, fast); "
-                        "default: %(default)s")
-    g.add_argument("--order", type=_count(1), default=30, help="Fourier order of the model (default: %(default)s)")
-    g = p.add_argument_group("detection")
-    g.add_argument("--threshold", type=_threshold, default="auto",
-                   help="MAE threshold in the signal's units, or 'auto' (default) from the training data")
-    g.add_argument("--window", type=_positive("--window"), default=0.5,
-                   help="evaluation window: the newest WINDOW s of data (default: %(default)s)")
-    g.add_argument("--every", type=_positive("--every"), default=0.1,
-                   help="evaluation cadence in s of data time (default: %(default)s)")
-    g.add_argument("--persistence", type=_count(1), default=2,
-                   help="consecutive evaluations above the threshold before an alarm (default: %(default)s)")
-    g.add_argument("--refit", choices=("none", "paper"), default="none",
-                   help="none (default): fit once; paper: refit on the latest --refit-samples samples until "
-                        "the first evaluation passes (the paper's policy)")
-    g.add_argument("--refit-samples", type=_count(32), default=1000, help="samples per refit (default: %(default)s)")
-    g = p.add_argument_group("following and output")
-    g.add_argument("--poll", type=_positive("--poll"), default=0.2,
-                   help="with --follow: seconds between reads of the file (default: %(default)s)")
-    g.add_argument("--timeout", type=_nonnegative, default=60.0,
-                   help="with --follow: give up after this many seconds without the file or without new rows "
-                        "when run.json does not say the run ended; 0 = wait for ever (default: %(default)s)")
-    g.add_argument("--status-every", type=_positive("--status-every"), default=None, metavar="S",
+                   help="follow the run writing the file: the one running now, or else the next one to start "
+                        "(a folder whose run has ended is not re-read: replay it without --follow); stop when "
+                        "run.json says the run ended or its writer is gone; default: replay a finished file")
+    p.add_argument("--out", metavar="DIR", type=Path,
+                   help="output directory (default: <exchange dir>/monitor for a fourbar-run folder, else "
+                        "<exchange dir>/<exchange name>.monitor)")
+    groups = {"model": p.add_argument_group("model"), "detection": p.add_argument_group("detection"),
+              "following": p.add_argument_group("following and output")}
+    add_arguments(groups, MonitorOptions)
+    add_arguments(groups, FollowOptions)
+    g = groups["following"]
+    g.add_argument("--status-every", type=_positive_seconds, default=None, metavar="S",
                    help="print a status line at most every S s of data time (default: 1 with --follow, "
                         "10 when replaying); state changes and alarms are always printed")
     g.add_argument("--no-plots", action="store_true", help="do not write the PNG figures")
     v = g.add_mutually_exclusive_group()
     v.add_argument("--quiet", "-q", action="store_true", help="print only alarms, warnings and the verdict")
     v.add_argument("--verbose", "-v", action="store_true", help="print a status line for every evaluation")
-    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    p.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
     return p
 
 
@@ -201,31 +150,32 @@ class _Printer:
 
 def _verdict(result: Any, out_dir: Path) -> str:
     s = result.summary
-    if s["alarms"]:
-        head = f"ALARM at t = {s['first_alarm_time']:g} s (MAE {s['first_alarm_mae']:.4g} > {s['first_alarm_threshold']:.4g})"
-        if s.get("fault_time") is not None:
-            lat = s.get("detection_latency_s")
-            head += (f"; fault at {s['fault_time']:g} s (run.json): " +
+    first = s.first_alarm
+    if first is not None:
+        head = f"ALARM at t = {first.time:g} s (MAE {first.mae:.4g} > {first.threshold:.4g})"
+        if s.fault_time is not None:
+            lat = s.detection_latency
+            head += (f"; fault at {s.fault_time:g} s (run.json): " +
                      (f"detected {lat:.3g} s after it" if lat is not None else "not detected after it") +
-                     f", {s['false_alarms_before_fault']} false alarm(s) before it")
-        elif s.get("false_alarms_before_fault") is not None:
+                     f", {s.false_alarms} false alarm(s) before it")
+        elif s.false_alarms is not None:
             head += "; run.json records no fault: false alarm"
     else:
         head = "no alarm"
-        if s.get("max_mae_over_threshold") is not None:
-            head += f" (largest MAE/threshold {s['max_mae_over_threshold']:.3g})"
-        if s.get("fault_time") is not None:
-            head += f"; fault at {s['fault_time']:g} s (run.json) NOT detected"
+        if s.max_mae_over_threshold is not None:
+            head += f" (largest MAE/threshold {s.max_mae_over_threshold:.3g})"
+        if s.fault_time is not None:
+            head += f"; fault at {s.fault_time:g} s (run.json) NOT detected"
     if result.status == "interrupted":
         head = f"interrupted; {head}"
     extra = ""
-    if result.status == "run_failed":
+    if result.status in ("run_failed", "run_lost"):
         extra = f"; {result.error}"
     elif result.status == "timeout":
         extra = "; stopped: no new rows within --timeout"
     span = ""
-    if s.get("last_time") is not None:
-        span = f" [{s['evaluations']} evaluations up to t = {s['last_time']:g} s]"
+    if s.last_time is not None:
+        span = f" [{s.evaluations} evaluations up to t = {s.last_time:g} s]"
     return f"verdict: {head}{extra}{span}; outputs in {out_dir}"
 
 
@@ -240,15 +190,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         args.status_every = 1.0 if args.follow else 10.0
     printer = _Printer(args, out, err)
     exchange = Path(args.exchange)
-    out_dir = args.out if args.out is not None else exchange.parent / "monitor"
-    settings = dict(signal=args.signal, train=tuple(args.train), model=args.model, order=args.order,
-                    threshold=args.threshold, window=args.window, every=args.every,
-                    persistence=args.persistence, refit=args.refit, refit_samples=args.refit_samples)
+    settings = {f.name: getattr(args, f.name) for f in fields(MonitorOptions) if hasattr(args, f.name)}
     from .errors import MonitorError
 
     previous = _terminate_as_interrupt()
     try:
-        from .engine import follow, replay
+        from .outputs import checked_default_out_dir
+        from .session import follow, replay
+
+        out_dir = args.out if args.out is not None else checked_default_out_dir(exchange)
 
         if not args.quiet:
             mode = "following" if args.follow else "replaying"

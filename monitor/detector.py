@@ -58,13 +58,11 @@ from .spectrum import PeriodEstimate, dominant_period, fourier_design, fit_fouri
 
 __all__ = [
     "ALARM_MESSAGE",
-    "Detection",
     "Detector",
     "Event",
     "State",
     "ThresholdRule",
     "auto_threshold",
-    "detect",
     "evaluation_times",
     "fixed_threshold",
     "window_mae",
@@ -231,7 +229,9 @@ def auto_threshold(t: np.ndarray, x: np.ndarray, estimate: PeriodEstimate, *, mo
 
 
 class Detector:
-    """The state machine; fed one evaluation at a time by :meth:`update`.
+    """The state machine, and the one place where an alarm is decided (:meth:`update`).
+
+    :class:`monitor.stream.Monitor` feeds it one evaluation at a time.
 
     Parameters
     ----------
@@ -310,49 +310,3 @@ class Detector:
         if self.first_alarm is None:
             self.first_alarm = ev
         return ev
-
-
-@dataclass
-class Detection:
-    """Result of :func:`detect`: evaluation times, MAE, thresholds, states and events."""
-
-    times: np.ndarray
-    mae: np.ndarray
-    threshold: np.ndarray
-    states: list[State]
-    events: list[Event]
-
-    @property
-    def first_alarm_time(self) -> float | None:
-        for e in self.events:
-            if e.kind == "alarm":
-                return e.time
-        return None
-
-
-def detect(t: np.ndarray, x: np.ndarray, forecaster: Forecaster, rule: ThresholdRule, *, start: float,
-           window: float = 0.5, every: float = 0.1, persistence: int = 2) -> Detection:
-    """Run the detector over finished arrays with one fitted model (refit policy ``none``).
-
-    ``start`` is the end of the training window; evaluations run from ``start + window``
-    to the last sample, every ``every`` seconds.
-    """
-    t = np.asarray(t, dtype=float)
-    x = np.asarray(x, dtype=float)
-    dt = float(np.median(np.diff(t)))
-    times = evaluation_times(start, start + window, float(t[-1]), every)
-    after = t > start + 1e-6 * dt
-    forecast = np.full(t.size, np.nan)
-    forecast[after] = forecaster.predict(t[after])
-    mae, _ = window_mae(t, x, forecast, times, window, eps=1e-6 * dt,
-                        min_samples=max(1, int(round(0.5 * window / dt))))
-    det = Detector(persistence=persistence)
-    events = det.trained(start, rule)
-    thr = np.asarray(rule.at(times), dtype=float)
-    states = []
-    for tk, m, th in zip(times, mae, thr):
-        if np.isfinite(m):
-            ev, _ = det.update(float(tk), float(m), float(th))
-            events.extend(ev)
-        states.append(det.state)
-    return Detection(times, mae, thr, states, events)

@@ -10,6 +10,7 @@ __all__ = [
     "ExchangeFormatError",
     "ExchangeMissingError",
     "OptionError",
+    "OutputDirError",
     "TrainingError",
 ]
 
@@ -32,3 +33,7 @@ class OptionError(MonitorError, ValueError):
 
 class TrainingError(MonitorError, ValueError):
     """The training window cannot give a model: too few samples, constant signal, no period."""
+
+
+class OutputDirError(MonitorError, ValueError):
+    """The output folder cannot be used (the default one holds files the monitor did not write)."""

@@ -491,7 +491,11 @@ def read_exchange(path: str | os.PathLike[str], columns: Sequence[str] | None = 
 
 @dataclass(frozen=True)
 class RunInfo:
-    """What the monitor uses from ``run.json`` (the orchestrator's run record)."""
+    """What the monitor uses from ``run.json`` (the orchestrator's run record).
+
+    ``run_id`` tells runs in the same folder apart; ``writer_pid``/``writer_host`` name the
+    process that writes the record and ``updated_at`` is its last heartbeat (ISO 8601).
+    """
 
     path: Path
     status: str
@@ -501,11 +505,50 @@ class RunInfo:
     case: str | None = None
     rows_written: int | None = None
     last_time: float | None = None
+    run_id: str | None = None
+    started_at: str | None = None
+    updated_at: str | None = None
+    writer_pid: int | None = None
+    writer_host: str | None = None
+    units: dict[str, str] = field(default_factory=dict)
 
     @property
     def ended(self) -> bool:
-        """True when the run will not append any more rows."""
+        """True when run.json says the run will not append any more rows."""
         return self.status in ("finished", "failed", "interrupted")
+
+    @property
+    def identity(self) -> str | None:
+        """What tells this run from another one in the same folder."""
+        return self.run_id or self.started_at
+
+    def describe(self) -> str:
+        """``run 3f2a… of case2_fault_L2, started 2026-…`` for messages."""
+        what = f"run {self.run_id}" if self.run_id else "the run"
+        if self.case:
+            what += f" of {self.case}"
+        if self.started_at:
+            what += f", started {self.started_at}"
+        return what
+
+    def writer_alive(self) -> bool | None:
+        """Whether the writing process still exists: None when it cannot be checked from here
+        (another host, or a run.json without writer); a pid reused within a run is not detected."""
+        import socket
+
+        if self.writer_pid is None or self.writer_host != socket.gethostname():
+            return None
+        try:
+            os.kill(self.writer_pid, 0)
+        except ProcessLookupError:
+            return False
+        except PermissionError:          # exists, owned by someone else
+            return True
+        return True
+
+
+def _text(value: Any) -> str | None:
+    return value if isinstance(value, str) else None
 
 
 def read_run_info(exchange_path: str | os.PathLike[str]) -> RunInfo | None:
@@ -535,13 +578,22 @@ def read_run_info(exchange_path: str | os.PathLike[str]) -> RunInfo | None:
         fault = None
     rows = data.get("rows_written")
     last = data.get("last_time")
+    writer = data.get("writer") if isinstance(data.get("writer"), dict) else {}
+    pid = writer.get("pid")
     return RunInfo(
         path=path,
         status=str(data.get("status", "unknown")),
         fault_time=fault,
         events=tuple(e for e in events if isinstance(e, dict)) if isinstance(events, list) else (),
         error=data.get("error"),
-        case=data.get("case"),
+        case=_text(data.get("case")),
         rows_written=rows if isinstance(rows, int) else None,
         last_time=float(last) if isinstance(last, (int, float)) else None,
+        run_id=_text(data.get("run_id")),
+        started_at=_text(data.get("started_at")),
+        updated_at=_text(data.get("updated_at")),
+        writer_pid=pid if isinstance(pid, int) and not isinstance(pid, bool) and pid > 0 else None,
+        writer_host=_text(writer.get("host")),
+        units={str(k): v for k, v in data["units"].items() if isinstance(v, str)}
+        if isinstance(data.get("units"), dict) else {},
     )

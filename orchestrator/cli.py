@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from fourbar_common import package_version
+
 __all__ = ["main"]
 
 _DESCRIPTION = """\
@@ -31,15 +33,6 @@ exit status: 0 finished, 1 run failed, 2 usage or case-file error, 130 interrupt
 """
 
 
-def _version() -> str:
-    try:
-        from importlib.metadata import version
-
-        return version("fourbar-cosim")
-    except Exception:   # not installed (run from a source tree)
-        return "unknown"
-
-
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="fourbar-run", description=_DESCRIPTION, epilog=_EPILOG,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -57,7 +50,7 @@ def _parser() -> argparse.ArgumentParser:
                         help="start value of an FMU parameter, replacing [parameters]; VALUE is read as "
                              "TOML (1.1, 3, true, \"RK45\"), else as a string; repeatable")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no summary line")
-    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
     return parser
 
 

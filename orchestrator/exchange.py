@@ -6,17 +6,16 @@ digits), ``.`` decimal point, ``\\n`` line ends.  Lines are appended in blocks o
 lines; if an append fails part-way (disk full), the file is cut back to the end of the last
 complete block, so it never ends in a half row that would later be completed.
 
-run.json: replaced atomically (temporary file in the same directory, then ``os.replace``),
-so a reader sees either the previous or the new document, never a mixture.
+run.json is replaced atomically (:func:`fourbar_common.write_json_atomic`), so a reader
+sees either the previous or the new document, never a mixture.
 """
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 from typing import Iterable, Sequence
 
-__all__ = ["ExchangeWriter", "format_row", "write_json_atomic"]
+__all__ = ["ExchangeWriter", "format_row"]
 
 
 def format_row(values: Sequence[float | int]) -> str:
@@ -87,19 +86,3 @@ class ExchangeWriter:
             fd, self._fd = self._fd, None
             os.close(fd)
 
-
-def write_json_atomic(path: str | Path, data: dict) -> None:
-    """Replace ``path`` by ``data`` as JSON, atomically (temp file + ``os.replace``)."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    text = json.dumps(data, indent=2, allow_nan=False) + "\n"
-    try:
-        with open(tmp, "w", encoding="utf-8", newline="\n") as handle:
-            handle.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise

@@ -12,28 +12,38 @@ So with L2 set at 10 s, the row at 10.00 s still shows the old geometry and the 
 ``t_{k+1} - t_k`` rather than ``step``: it makes the FMU end each step exactly on the grid
 (as ``fmpy.simulate_fmu`` does), instead of drifting by round-off.
 
-run.json is written when the run starts (``running``), after flushes (at most every
-0.2 s of wall time) and at the end (``finished``, ``failed`` or ``interrupted``, with the
-reason).  Rows already appended stay whatever happens; the FMU instance is always freed.
+run.json is written when the run starts (``running``, after exchange.csv was created
+empty, so a reader that sees the new ``run_id`` reads the new file), after flushes (at
+most every 0.2 s of wall time), by a heartbeat every ``HEARTBEAT_INTERVAL`` s of wall time
+whatever the loop does (``updated_at``; ``writer`` names the process and host), and at the
+end (``finished``, ``failed`` or ``interrupted``, with the reason).  Rows already appended
+stay whatever happens; the FMU instance is always freed.
 """
 from __future__ import annotations
 
 import os
+import socket
 import sys
+import threading
 import time
+import uuid
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Mapping
 
+from fourbar_common import write_json_atomic
+
 from .config import Case, RampEvent, StepEvent, Value, apply_overrides, load_case
-from .exchange import ExchangeWriter, format_row, write_json_atomic
+from .exchange import ExchangeWriter, format_row
 from .pacing import InterruptFlag, RealtimePacer
 
-__all__ = ["RunInterrupted", "RunResult", "run_case", "SCHEMA_VERSION"]
+__all__ = ["HEARTBEAT_INTERVAL", "RunInterrupted", "RunResult", "run_case", "SCHEMA_VERSION"]
 
 SCHEMA_VERSION = 1
 _RUN_JSON_MIN_INTERVAL = 0.2   # s of wall time between two "running" updates of run.json
+#: s of wall time: while the writer lives, run.json's ``updated_at`` is never older than this (plus a write).
+HEARTBEAT_INTERVAL = 2.0
 
 
 @dataclass(frozen=True)
@@ -127,6 +137,9 @@ class _Run:
         self.pending_v: list[list] = []
         self.noise = None
         self.pacer: RealtimePacer | None = None
+        self._record_lock = threading.Lock()
+        self._heartbeat_stop = threading.Event()
+        self._heartbeat: threading.Thread | None = None
         self.record = self._record()
 
     # -- run.json ---------------------------------------------------------------------
@@ -136,8 +149,9 @@ class _Run:
 
         md = read_model_description(str(case.fmu))
         self.md = md
+        units = {v.name: v.unit for v in md.modelVariables if v.unit}
         return {
-            "schema": SCHEMA_VERSION, "status": "running", "case": case.name,
+            "schema": SCHEMA_VERSION, "status": "running", "run_id": uuid.uuid4().hex, "case": case.name,
             "case_file": str(case.source) if case.source is not None else None,
             "description": case.description,
             "fmu": {"path": str(case.fmu), "guid": md.guid, "model_name": md.modelName},
@@ -146,22 +160,45 @@ class _Run:
             "events": [e.as_dict() for e in case.events],
             "fault_time": case.fault_time,
             "outputs": list(case.outputs),
+            "units": {name: units[name] for name in case.outputs if name in units},
             "noise": case.noise.as_dict() if case.noise is not None else None,
             "exchange": case.exchange.as_dict(),
             "rows_written": 0, "last_time": None,
             "started_at": _now(), "updated_at": None, "finished_at": None,
             "wall_time_s": 0.0, "error": None,
+            "writer": {"pid": os.getpid(), "host": socket.gethostname(), "heartbeat_s": HEARTBEAT_INTERVAL},
         }
 
     def _write_record(self, final: bool = False) -> None:
-        now = time.monotonic()
-        record = self.record
-        record.update(status=self.status, rows_written=self.rows_written, last_time=self.last_time,
-                      updated_at=_now(), wall_time_s=round(now - self.wall0, 6), error=self.error)
-        if final:
-            record["finished_at"] = record["updated_at"]
-        write_json_atomic(self.run_json_path, record)
-        self.last_json_write = now
+        with self._record_lock:
+            now = time.monotonic()
+            record = self.record
+            record.update(status=self.status, rows_written=self.rows_written, last_time=self.last_time,
+                          updated_at=_now(), wall_time_s=round(now - self.wall0, 6), error=self.error)
+            if final:
+                record["finished_at"] = record["updated_at"]
+            write_json_atomic(self.run_json_path, record)
+            self.last_json_write = now
+
+    def _start_heartbeat(self) -> None:
+        """Rewrite run.json whenever ``HEARTBEAT_INTERVAL`` s passed without a write (a thread:
+        it beats through long real-time waits and slow FMU steps alike)."""
+        def beat() -> None:
+            while not self._heartbeat_stop.wait(HEARTBEAT_INTERVAL / 4):
+                if time.monotonic() - self.last_json_write >= HEARTBEAT_INTERVAL:
+                    try:
+                        self._write_record()
+                    except OSError:      # the main thread reports write failures
+                        pass
+
+        self._heartbeat = threading.Thread(target=beat, name="run.json heartbeat", daemon=True)
+        self._heartbeat.start()
+
+    def _stop_heartbeat(self) -> None:
+        if self._heartbeat is not None:
+            self._heartbeat_stop.set()
+            self._heartbeat.join()
+            self._heartbeat = None
 
     # -- rows -------------------------------------------------------------------------
     def _flush(self, wait: bool = True) -> None:
@@ -192,8 +229,9 @@ class _Run:
             with InterruptFlag() as flag:
                 try:
                     self.out_dir.mkdir(parents=True, exist_ok=True)
-                    self._write_record()
                     self.writer = ExchangeWriter(self.exchange_path, ("time", *self.case.outputs))
+                    self._write_record()
+                    self._start_heartbeat()
                     if self.progress:
                         from tqdm import tqdm
 
@@ -243,6 +281,7 @@ class _Run:
         return ""
 
     def _finish(self) -> None:
+        self._stop_heartbeat()
         if self.bar is not None:
             self.bar.close()
         if self.writer is not None:

@@ -10,6 +10,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from fourbar_common import package_version
+
 __all__ = ["main"]
 
 _DESCRIPTION = """\
@@ -35,15 +37,6 @@ Sweep-file keys, cluster set-up and the meaning of every column: docs/sweep.md.
 exit status: 0 all scenarios done and none failed, 1 a scenario failed or no cluster,
 2 usage or sweep-file error, 130 interrupted (re-run the same command to resume).
 """
-
-
-def _version() -> str:
-    try:
-        from importlib.metadata import version
-
-        return version("fourbar-cosim")
-    except Exception:   # not installed (run from a source tree)
-        return "unknown"
 
 
 def _positive_int(text: str) -> int:
@@ -73,7 +66,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--dry-run", action="store_true",
                         help="check the sweep file and count the scenarios (done / to run); run nothing")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no summary")
-    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
     return parser
 
 

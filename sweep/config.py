@@ -3,7 +3,7 @@
 A sweep file is TOML (every key in docs/sweep.md).  It names a base case file and the
 axes of the scenarios: the fault (variable, kind, size, time, ramp duration), the noise on
 the monitored signal (standard deviation, seed) and the monitor (model, threshold, and any
-other :class:`monitor.engine.MonitorOptions` field, fixed for the whole sweep).
+other :class:`monitor.options.MonitorOptions` field, fixed for the whole sweep).
 
 Each axis is a value, an array of values (a grid axis: every combination is run) or a
 range table ``{min = .., max = .., scale = "linear" | "log"}`` (a sampled axis: ``n``

@@ -23,6 +23,8 @@ import os
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
+from fourbar_common import replace_atomically
+
 from .scenario import RESULT_FIELDS
 
 __all__ = ["COLUMNS", "RUNTIME_COLUMNS", "ResultsError", "ResultsStore", "table_from_rows"]
@@ -137,11 +139,13 @@ class ResultsStore:
         """Replace ``results.csv`` with ``rows`` (atomically), then keep it open for appends."""
         self.close()
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        tmp = self.csv_path.with_name(self.csv_path.name + ".tmp")
-        with open(tmp, "w", encoding="utf-8", newline="") as fh:
-            fh.write(",".join(COLUMNS) + "\n")
-            fh.writelines(_line(r) for r in rows)
-        os.replace(tmp, self.csv_path)
+
+        def write(tmp: Path) -> None:
+            with open(tmp, "w", encoding="utf-8", newline="") as fh:
+                fh.write(",".join(COLUMNS) + "\n")
+                fh.writelines(_line(r) for r in rows)
+
+        replace_atomically(self.csv_path, write)
 
     def append(self, row: dict[str, Any]) -> None:
         """Append one row to ``results.csv`` and flush it to the OS."""
@@ -162,9 +166,7 @@ class ResultsStore:
                 fh.write(_line(r)[:-1] + "," + _cell(reason) + "\n")
 
     def write_parquet(self, table) -> None:
-        tmp = self.parquet_path.with_name(self.parquet_path.name + ".tmp")
-        table.to_parquet(tmp, index=False)
-        os.replace(tmp, self.parquet_path)
+        replace_atomically(self.parquet_path, lambda tmp: table.to_parquet(tmp, index=False))
 
     def close(self) -> None:
         if self._fh is not None:

@@ -29,6 +29,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
+from fourbar_common import write_json_atomic
+
 from .config import Sweep, load_sweep
 from .plan import Scenario, plan_scenarios
 from .results import ResultsStore, table_from_rows
@@ -141,9 +143,7 @@ def _now() -> str:
 
 
 def _write_json(path: Path, data: dict) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=str) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
+    write_json_atomic(path, data, default=str)
 
 
 def run_sweep(sweep: Sweep | str | Path, out_dir: str | Path | None = None, *, scheduler: str | None = None,

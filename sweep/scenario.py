@@ -25,7 +25,6 @@ Scoring (times are evaluation times ``t_k``; an evaluation covers the samples in
 """
 from __future__ import annotations
 
-import math
 import os
 import socket
 import time
@@ -77,13 +76,20 @@ def failed_row(scenario: Scenario, message: str, **extra: Any) -> dict[str, Any]
 
 def score(times, mae, threshold, alarm_times, fault_time: float | None, persistence: int,
           latency_limit: float | None = None) -> dict[str, Any]:
-    """Detection figures of one monitored run (definitions in the module docstring)."""
+    """Detection figures of one monitored run (definitions in the module docstring).
+
+    Alarms are scored by :func:`monitor.score_alarms`, the monitor's own rule, so the
+    sweep and summary.json cannot disagree on a false alarm or a latency.
+    """
     import numpy as np
+
+    from monitor import score_alarms
+    from monitor.summary import before_fault
 
     t = np.asarray(times, dtype=float)
     mae = np.asarray(mae, dtype=float)
     thr = np.asarray(threshold, dtype=float)
-    alarms = sorted(float(a) for a in alarm_times)
+    scored = score_alarms(alarm_times, fault_time)
     ratio = mae / thr
     p = max(1, int(persistence))
     if ratio.size >= p:
@@ -91,23 +97,20 @@ def score(times, mae, threshold, alarm_times, fault_time: float | None, persiste
         run_end = t[p - 1:]
     else:
         runs = run_end = np.empty(0)
-    fault = math.inf if fault_time is None else float(fault_time)
-    pre = t <= fault + 1e-9
+    pre = before_fault(t, fault_time)
     post = ~pre
-    run_pre = run_end <= fault + 1e-9
+    run_pre = before_fault(run_end, fault_time)
 
     def stat(fn, values):
         return float(fn(values)) if values.size else None
 
-    detections = [a for a in alarms if a > fault + 1e-9]
-    first_detection = detections[0] if detections else None
     return {
-        "detected": (first_detection is not None) if fault_time is not None else False,
-        "detection_time": first_detection,
-        "latency": (first_detection - fault) if first_detection is not None else None,
-        "first_alarm_time": alarms[0] if alarms else None,
-        "alarms": len(alarms),
-        "false_alarms": sum(1 for a in alarms if a <= fault + 1e-9),
+        "detected": scored.detected,
+        "detection_time": scored.detection_time,
+        "latency": scored.latency,
+        "first_alarm_time": scored.alarm_times[0] if scored.alarm_times else None,
+        "alarms": scored.alarms,
+        "false_alarms": scored.false_alarms,
         "evaluations": int(t.size),
         "mae_max_pre": stat(np.max, mae[pre]), "mae_mean_pre": stat(np.mean, mae[pre]),
         "mae_max_post": stat(np.max, mae[post]), "mae_mean_post": stat(np.mean, mae[post]),
@@ -122,6 +125,8 @@ def early_score(times, mae, threshold, fault_time: float | None, persistence: in
     """``score_early``: the post-fault score over runs ending within ``latency_limit`` s of the fault."""
     import numpy as np
 
+    from monitor.summary import before_fault
+
     if fault_time is None or latency_limit is None:
         return None
     t = np.asarray(times, dtype=float)
@@ -131,7 +136,7 @@ def early_score(times, mae, threshold, fault_time: float | None, persistence: in
         return None
     runs = np.lib.stride_tricks.sliding_window_view(ratio, p).min(axis=1)
     end = t[p - 1:]
-    sel = (end > fault_time + 1e-9) & (end <= fault_time + latency_limit + 1e-9)
+    sel = ~before_fault(end, fault_time) & before_fault(end, fault_time + latency_limit)
     return float(runs[sel].max()) if sel.any() else None
 
 
@@ -181,11 +186,11 @@ def run_scenario(scenario: Scenario, base_case, run_dir: str, monitor_options: M
         alarm_times = [e["time"] for e in monitored.events if e.get("event") == "alarm"]
         figures = score(ev["time"].to_numpy(), ev["mae"].to_numpy(), ev["threshold"].to_numpy(), alarm_times,
                         scenario.fault_time, monitored.options.persistence, latency_limit)
-        threshold = monitored.summary.get("threshold") or {}
+        fit = monitored.summary.fit
         period = monitored.period
         if not keep_exchange:
             result.exchange_path.unlink(missing_ok=True)
-        return finish(status="ok", error=None, threshold_base=threshold.get("base"),
+        return finish(status="ok", error=None, threshold_base=fit.rule.base if fit is not None else None,
                       period=period.period if period is not None else None,
                       monitor_seconds=monitor_seconds, **figures)
     except Exception as exc:    # a bug or an unexpected environment problem: keep the sweep going

@@ -41,6 +41,53 @@ def test_parts_do_not_import_each_other(part):
     assert not offenders, f"{part} imports other parts: {offenders}"
 
 
+def test_the_shared_helpers_need_only_the_standard_library():
+    """fourbar_common is imported by every part, so it may import none of them (nor anything else)."""
+    stdlib = set(sys.stdlib_module_names)
+    for path in sorted((REPO / "fourbar_common").glob("*.py")):
+        assert imported_roots(path) <= stdlib | {"__future__"}, path
+
+
+def _relative_imports(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text(), filename=str(path))
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module:
+            found.add(node.module.split(".")[0])
+    return found
+
+
+@pytest.mark.parametrize("package", ("monitor", "orchestrator", "sweep"))
+def test_modules_import_each_other_without_a_circle(package):
+    """Within a package the imports (lazy ones included) form a DAG: each module can be read
+    knowing only the ones below it."""
+    graph = {p.stem: _relative_imports(p) for p in (REPO / package).glob("*.py") if p.stem != "__init__"}
+    done: set[str] = set()
+
+    def visit(name: str, path: tuple[str, ...]) -> None:
+        assert name not in path, f"{package}: import circle {' -> '.join(path + (name,))}"
+        if name in done:
+            return
+        for dep in graph.get(name, ()):
+            visit(dep, path + (name,))
+        done.add(name)
+
+    for name in graph:
+        visit(name, ())
+
+
+def test_one_place_decides_an_alarm():
+    """Only monitor.detector.Detector creates alarm events."""
+    makers = []
+    for path in sorted((REPO / "monitor").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", "") == "Event":
+                kinds = [a.value for a in node.args[1:2] if isinstance(a, ast.Constant)]
+                if "alarm" in kinds:
+                    makers.append(path.name)
+    assert makers == ["detector.py"], makers
+
+
 def test_fmu_runtime_needs_only_numpy_and_scipy():
     stdlib = set(sys.stdlib_module_names)
     files = [REPO / "fmu_src" / "fourbar_slave.py", *sorted((REPO / "fmu_src" / "fourbar_model").glob("*.py"))]

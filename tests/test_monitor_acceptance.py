@@ -39,11 +39,11 @@ def test_case1_has_no_alarm(results, model):
     r = results["case1", model]
     s = r.summary
     assert r.status == "finished" and r.exit_code == 0
-    assert s["alarms"] == 0 and s["first_alarm_time"] is None
-    assert s["false_alarms_before_fault"] == 0 and s["fault_time"] is None
-    assert s["evaluations"] == 906                          # 9.5 .. 100 s every 0.1 s
+    assert s.alarms == 0 and s.first_alarm_time is None
+    assert s.false_alarms == 0 and s.fault_time is None
+    assert s.evaluations == 906                          # 9.5 .. 100 s every 0.1 s
     # margin: clean data stays far below the threshold
-    assert s["max_mae_over_threshold"] < 0.3
+    assert s.max_mae_over_threshold < 0.3
 
 
 @pytest.mark.parametrize("model", MODELS)
@@ -51,11 +51,11 @@ def test_case2_alarms_within_half_a_second(results, model):
     r = results["case2", model]
     s = r.summary
     assert r.exit_code == 1
-    assert s["fault_time"] == 10.0
-    assert s["false_alarms_before_fault"] == 0
-    assert 10.0 <= s["first_alarm_time"] <= 10.5
-    assert 0.0 <= s["detection_latency_s"] <= 0.5
-    assert s["max_mae_before_fault"] < 0.1 * s["threshold"]["base"]     # STABLE well before the fault
+    assert s.fault_time == 10.0
+    assert s.false_alarms == 0
+    assert 10.0 <= s.first_alarm_time <= 10.5
+    assert 0.0 <= s.detection_latency <= 0.5
+    assert s.max_mae_before_fault < 0.1 * s.fit.rule.base     # STABLE well before the fault
     first = next(e for e in r.events if e["event"] == "alarm")
     assert first["message"] == ALARM_MESSAGE and first["mae"] > first["threshold"]
 
@@ -63,17 +63,17 @@ def test_case2_alarms_within_half_a_second(results, model):
 @pytest.mark.parametrize("model", MODELS)
 def test_noise_case1_has_no_alarm(results, model):
     s = results["noise1", model].summary
-    assert s["alarms"] == 0
-    assert s["max_mae_over_threshold"] < 0.8
+    assert s.alarms == 0
+    assert s.max_mae_over_threshold < 0.8
     # the validation term sees the noise: MAE of N(0, σ) is σ·sqrt(2/π) ≈ 4 mm
-    assert 0.003 < s["validation_mae"] < 0.008
+    assert 0.003 < s.validation_mae < 0.008
 
 
 @pytest.mark.parametrize("model", MODELS)
 def test_noise_case2_alarms_within_one_second(results, model):
     s = results["noise2", model].summary
-    assert s["false_alarms_before_fault"] == 0
-    assert 0.0 <= s["detection_latency_s"] <= 1.0
+    assert s.false_alarms == 0
+    assert 0.0 <= s.detection_latency <= 1.0
 
 
 def test_models_agree(results):

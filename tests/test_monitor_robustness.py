@@ -82,7 +82,8 @@ def test_follow_waits_for_the_file(case2, reference, tmp_path):
     waits = []
     script = Script(lambda: None, lambda: None, lambda: copy_run(case2, target.parent))
     r = follow(target, poll=0.01, timeout=30, sleep=script, on_wait=waits.append, **FAST)
-    assert len(waits) == 1 and "waiting for" in waits[0]
+    assert len(waits) == 2 and "waiting for" in waits[0]
+    assert waits[1].startswith("following run ") and json.loads((target.parent / "run.json").read_text())["run_id"] in waits[1]
     assert r.first_alarm_time == reference.first_alarm_time == pytest.approx(10.3)
     assert r.evaluations.equals(reference.evaluations)
 
@@ -148,8 +149,8 @@ def test_partial_last_line_is_not_read(case2_lines, reference, tmp_path, capsys)
     run_json(tmp_path, "finished")
     warnings = []
     r = replay(path, on_warning=warnings.append, **FAST)
-    assert r.summary["last_time"] == pytest.approx(49.99)
-    assert r.summary["rows"]["skipped"] == 0
+    assert r.summary.last_time == pytest.approx(49.99)
+    assert r.summary.rows.skipped == 0
     assert any("incomplete last line (11 bytes without newline)" in w for w in warnings)
     assert r.first_alarm_time == reference.first_alarm_time
     # following: the line is read once it is complete
@@ -162,7 +163,7 @@ def test_partial_last_line_is_not_read(case2_lines, reference, tmp_path, capsys)
         run_json(tmp_path, "finished")
 
     r = follow(path, poll=0.01, timeout=30, sleep=Script(complete), **FAST)
-    assert r.summary["rows"]["rows"] == 10001 and r.summary["rows"]["skipped"] == 0
+    assert r.summary.rows.rows == 10001 and r.summary.rows.skipped == 0
     assert r.evaluations.equals(reference.evaluations)
 
 
@@ -208,7 +209,7 @@ def test_nan_and_inf(case2_lines, reference, tmp_path, capsys):
     path.write_bytes(damaged(case2_lines, bad, {}))
     warnings = []
     r = replay(path, on_warning=warnings.append, **FAST)
-    assert r.summary["rows"]["non_finite"] == 4
+    assert r.summary.rows.non_finite == 4
     assert any("column x2: value 'inf' is not finite" in w for w in warnings)
     assert any("column time: value 'NaN' is not finite" in w for w in warnings)
     assert r.first_alarm_time == reference.first_alarm_time
@@ -221,9 +222,9 @@ def test_duplicate_and_decreasing_time(case2_lines, reference, tmp_path):
     path.write_bytes(damaged(case2_lines, {}, inserts))
     warnings = []
     r = replay(path, on_warning=warnings.append, **FAST)
-    assert r.summary["rows"]["duplicate_time"] == 2 and r.summary["rows"]["decreasing_time"] == 1
+    assert r.summary.rows.duplicate_time == 2 and r.summary.rows.decreasing_time == 1
     assert any("is before the previous row's time" in w for w in warnings)
-    assert r.summary["rows"]["rows"] == 10001
+    assert r.summary.rows.rows == 10001
     assert r.evaluations.equals(reference.evaluations)
 
 
@@ -263,15 +264,20 @@ def test_constant_signal(tmp_path, capsys):
 
 
 def test_bad_options(case2, capsys):
-    for argv, text in ((["--threshold", "-1"], "expected 'auto' or a positive number"),
-                       (["--threshold", "abc"], "expected 'auto' or a positive number"),
-                       (["--window", "0"], "--window: expected a positive number"),
+    """Each message names the option once, the value and what is expected; exit 2."""
+    for argv, text in ((["--threshold", "-1"], "argument --threshold: expected a positive number in the signal's "
+                                               "units or 'auto', got '-1'"),
+                       (["--threshold", "abc"], "expected a positive number in the signal's units or 'auto'"),
+                       (["--window", "0"], "argument --window: expected a positive number of seconds, got '0'"),
+                       (["--every", "x"], "argument --every: expected a positive number of seconds, got 'x'"),
                        (["--persistence", "0"], "expected an integer ≥ 1"),
                        (["--model", "arima"], "invalid choice: 'arima'"),
                        (["--train", "9", "0"], "train: expected START END with END > START")):
         code, _, err = cli([str(case2), *argv], capsys)
         assert code == 2, argv
         assert text in err, (argv, err)
+        last = err.strip().splitlines()[-1]
+        assert last.count(argv[0]) <= 1, last          # the option's name once, not twice
 
 
 # -- the file is truncated or replaced while following ----------------------------------------------
@@ -298,7 +304,7 @@ def test_truncated_while_following(case1, case2, case2_lines, reference, tmp_pat
                on_warning=warnings.append, out_dir=tmp_path / "m", plots=False, **FAST)
     assert path.stat().st_ino == inode
     assert any("replaced or truncated; starting again" in w for w in warnings)
-    assert r.summary["restarts"] == 1
+    assert r.summary.restarts == 1
     assert r.evaluations.equals(reference.evaluations)
     assert r.first_alarm_time == pytest.approx(10.3)
     logged = (tmp_path / "m" / "evaluations.csv").read_text().splitlines()
@@ -318,7 +324,7 @@ def test_replaced_while_following(case1, case2, reference, tmp_path):
 
     warnings = []
     r = follow(path, poll=0.01, timeout=30, sleep=Script(replace), on_warning=warnings.append, **FAST)
-    assert r.summary["restarts"] == 1 and any("replaced or truncated" in w for w in warnings)
+    assert r.summary.restarts == 1 and any("replaced or truncated" in w for w in warnings)
     assert r.evaluations.equals(reference.evaluations)
 
 

@@ -6,10 +6,10 @@ import logging
 import numpy as np
 import pytest
 
-from monitor import (Detector, MonitorOptions, OptionError, State, TrainingError, auto_threshold, detect,
+from monitor import (Detector, Monitor, MonitorOptions, OptionError, State, TrainingError, auto_threshold,
                      dominant_period, fit_forecaster, fixed_threshold, replay)
+from monitor.bounded import BoundedSeries
 from monitor.detector import evaluation_times, window_mae
-from monitor.engine import BoundedSeries
 from monitor.spectrum import fourier_design
 from test_monitor_support import orchestrated
 
@@ -175,15 +175,17 @@ def test_auto_threshold_rule(grid):
     assert noisy.at(est.t_center + 100) == pytest.approx(noisy.base + 100 * noisy.slope)
 
 
-def test_detect_finds_a_step_change(grid):
+def test_monitor_finds_a_step_change(grid):
     t = grid
     x = signal(t) + np.where(t > 15.0, 0.05, 0.0)
-    train = t <= 9.0
-    est = dominant_period(t[train], x[train])
-    f = fit_forecaster("harmonic", t[train], x[train], est.period)
-    d = detect(t, x, f, fixed_threshold(0.01), start=9.0, window=0.5, every=0.1, persistence=2)
-    assert d.first_alarm_time == pytest.approx(15.2)     # MAE 0.01 at 15.1 (not above), 0.02 at 15.2, 2 above
-    assert np.nanmax(d.mae[d.times <= 15.0]) < 1e-6
+    mon = Monitor(MonitorOptions(model="harmonic", threshold=0.01, window=0.5, every=0.1, persistence=2))
+    for i in range(0, t.size, 37):                      # in uneven batches, as a follower reads
+        mon.feed(t[i:i + 37], x[i:i + 37])
+    alarms = [e.time for e in mon.events if e.kind == "alarm"]
+    assert alarms[0] == pytest.approx(15.2)     # MAE 0.01 at 15.1 (not above), 0.02 at 15.2: 2 above
+    ev = mon.evaluation_frame()
+    assert ev["time"].iloc[0] == pytest.approx(9.5)      # the first window wholly after the training end
+    assert ev["mae"][ev["time"] <= 15.0 + 1e-9].max() < 1e-6
 
 
 # -- engine pieces ---------------------------------------------------------------------------------
@@ -217,4 +219,4 @@ def test_paper_refit_policy_end_to_end(tmp_path_factory, fourbar_fmu):
     kinds = [e["event"] for e in r.events]
     assert kinds[:5] == ["trained", "refit", "trained", "refit", "trained"]
     assert r.events[5]["event"] == "alarm" and r.events[5]["reason"] == "refit_limit"
-    assert r.summary["fits"][1]["train_end"] == 9.5 and r.summary["fits"][1]["model"]["n_train"] == 951
+    assert r.summary.fits[1].end == 9.5 and r.summary.fits[1].forecaster.settings()["n_train"] == 951

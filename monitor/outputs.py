@@ -1,4 +1,4 @@
-"""Output files of the monitor, in ``--out DIR`` (default ``<exchange dir>/monitor``).
+"""Output files of the monitor, in ``--out DIR`` (default: :func:`default_out_dir`).
 
 ``events.jsonl``
     One JSON object per line, written as it happens: ``time`` (simulated s), ``event``
@@ -31,14 +31,46 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from fourbar_common import write_json_atomic
+
 from .detector import ALARM_MESSAGE, Event, State
+from .errors import OutputDirError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .engine import MonitorResult
+    from .summary import MonitorResult
 
-__all__ = ["OutputWriters", "jsonable", "write_json_atomic", "write_plots", "PLOT_FILES"]
+__all__ = ["OUTPUT_FILES", "OutputWriters", "PLOT_FILES", "checked_default_out_dir", "default_out_dir", "jsonable",
+           "write_plots"]
 
 PLOT_FILES = ("history.png", "mae.png", "spectrum.png")
+#: Every file the monitor writes into its output folder.
+OUTPUT_FILES = ("events.jsonl", "evaluations.csv", "summary.json", *PLOT_FILES)
+
+
+def default_out_dir(exchange_path: str | os.PathLike[str]) -> Path:
+    """Where the outputs go without ``--out``.
+
+    ``<dir>/monitor`` for fourbar-run's ``<dir>/exchange.csv``; ``<dir>/<stem>.monitor``
+    for any other file (``case2_libcosim.csv`` → ``case2_libcosim.monitor``): a name with
+    a dot, which no Python package (so none of this project's source folders) can have.
+    """
+    path = Path(exchange_path)
+    return path.parent / ("monitor" if path.name == "exchange.csv" else f"{path.stem}.monitor")
+
+
+def checked_default_out_dir(exchange_path: str | os.PathLike[str]) -> Path:
+    """:func:`default_out_dir`, refused when it exists and holds anything the monitor did not write."""
+    out = default_out_dir(exchange_path)
+    if out.is_dir():
+        foreign = sorted(p.name for p in out.iterdir()
+                         if p.name not in OUTPUT_FILES and not (p.name.startswith(".") and p.name.endswith(".tmp")))
+        if foreign:
+            shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
+            raise OutputDirError(f"{out}: the default output folder holds files the monitor did not write "
+                                 f"({shown}); choose a folder with --out")
+    elif out.exists():
+        raise OutputDirError(f"{out}: the default output folder is a file; choose a folder with --out")
+    return out
 
 
 def jsonable(value: Any) -> Any:
@@ -61,23 +93,6 @@ def jsonable(value: Any) -> Any:
     if isinstance(value, State):
         return value.value
     return value
-
-
-def write_json_atomic(path: Path, data: Any) -> None:
-    """Write JSON to a temporary file beside ``path`` and rename it over ``path``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(jsonable(data), fh, indent=2, allow_nan=False)
-            fh.write("\n")
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
 
 
 class OutputWriters:
@@ -116,10 +131,10 @@ class OutputWriters:
     def finish(self, result: "MonitorResult", plots: bool = True) -> None:
         self._events.flush()
         self._evals.flush()
-        summary = dict(result.summary)
+        summary = result.summary.as_json()
         summary["outputs"] = {"events": "events.jsonl", "evaluations": "evaluations.csv",
                               "plots": list(PLOT_FILES) if plots and result.fits else []}
-        write_json_atomic(self.out_dir / "summary.json", summary)
+        write_json_atomic(self.out_dir / "summary.json", jsonable(summary))
         if plots and result.fits:
             write_plots(result, self.out_dir)
 
@@ -139,7 +154,7 @@ def write_plots(result: "MonitorResult", out_dir: str | os.PathLike[str]) -> lis
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     for name, fn in zip(PLOT_FILES, (_plot_history, _plot_mae, _plot_spectrum)):
-        fig = Figure(figsize=(10, 6.2), dpi=100)
+        fig = Figure(figsize=(10, 6.8), dpi=100)
         fn(fig, result)
         path = out / name
         fig.savefig(path)
@@ -147,12 +162,23 @@ def write_plots(result: "MonitorResult", out_dir: str | os.PathLike[str]) -> lis
     return paths
 
 
+def _unit(result: "MonitorResult") -> str:
+    """The monitored signal's unit from run.json (the FMU's declaration), or "" when unknown."""
+    run = result.summary.run
+    return (run.units.get(result.options.signal, "") if run is not None else "") or ""
+
+
+def _label(result: "MonitorResult", what: str) -> str:
+    unit = _unit(result)
+    return f"{what} ({unit})" if unit else what
+
+
 def _marks(ax: Any, result: "MonitorResult", label: bool = True) -> None:
     s = result.summary
-    if s.get("fault_time") is not None:
-        ax.axvline(s["fault_time"], color="0.3", ls="--", lw=1.0,
-                   label=f"fault (run.json) {s['fault_time']:g} s" if label else None)
-    times = s.get("alarm_times") or []
+    if s.fault_time is not None:
+        ax.axvline(s.fault_time, color="0.3", ls="--", lw=1.0,
+                   label=f"fault (run.json) {s.fault_time:g} s" if label else None)
+    times = [e.time for e in s.alarm_events]
     for i, t in enumerate(times[:50]):
         ax.axvline(t, color="red", lw=1.2 if i == 0 else 0.6, alpha=1.0 if i == 0 else 0.4,
                    label=(f"first alarm {t:g} s" if i == 0 else None) if label else None)
@@ -167,8 +193,8 @@ def _plot_history(fig: Any, result: "MonitorResult") -> None:
     x = h[sig].to_numpy()
     f = h["forecast"].to_numpy()
     s = result.summary
-    first = s.get("first_alarm_time")
-    fault = s.get("fault_time")
+    first = s.first_alarm_time
+    fault = s.fault_time
     if first is not None:
         lo = fit.start
         hi = max(first, fault or first) + 4.0
@@ -191,13 +217,13 @@ def _plot_history(fig: Any, result: "MonitorResult") -> None:
         _marks(ax, result)
         ax.set_xlim(a, b)
         ax.set_xlabel("time (s)")
-        ax.set_ylabel(sig)
+        ax.set_ylabel(_label(result, sig))
         ax.grid(alpha=0.3)
         ax.set_title(f"{sig}: data and forecast — {title}", fontsize=10)
     handles, labels = axes[1].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", fontsize=8, ncol=4, frameon=False)
     fig.subplots_adjust(left=0.08, right=0.98, top=0.9, bottom=0.15, hspace=0.45)
-    fig.suptitle(f"{result.exchange_path.name}: {fit.forecaster.kind} model, period {fit.estimate.period:.6g} s, "
+    fig.suptitle(f"{s.case}: {fit.forecaster.kind} model, period {fit.estimate.period:.6g} s, "
                  f"Fourier order {fit.forecaster.order}", fontsize=11)
 
 
@@ -205,7 +231,7 @@ def _plot_mae(fig: Any, result: "MonitorResult") -> None:
     ev = result.evaluations
     s = result.summary
     axes = fig.subplots(2, 1, height_ratios=[1.4, 1])
-    first = s.get("first_alarm_time")
+    first = s.first_alarm_time
     t = ev["time"].to_numpy()
     mae = ev["mae"].to_numpy()
     thr = ev["threshold"].to_numpy()
@@ -218,30 +244,31 @@ def _plot_mae(fig: Any, result: "MonitorResult") -> None:
         ax.semilogy(t[m], np.maximum(mae[m], 1e-12), color="tab:blue", lw=1.0, marker="." if span else None,
                     ms=3, label=f"MAE over the newest {result.options.window:g} s (every {result.options.every:g} s)")
         ax.semilogy(t[m], thr[m], color="red", ls="--", lw=1.2,
-                    label=f"threshold ({(s.get('threshold') or {}).get('mode', '')})")
+                    label=f"threshold ({s.fit.rule.mode})")
         above = m & (mae > thr)
         ax.semilogy(t[above], mae[above], "o", ms=2.5, color="red", label="above threshold")
         _marks(ax, result)
         if span is not None:
             ax.set_xlim(*span)
         ax.set_xlabel("time (s)")
-        ax.set_ylabel(f"MAE of {result.options.signal}")
+        ax.set_ylabel(_label(result, f"MAE of {result.options.signal}"))
         ax.grid(alpha=0.3, which="both")
         ax.set_title(f"forecast error against the threshold — {title}", fontsize=10)
     if first is not None:
-        txt = (f"t = {first:g} s    MAE: {s['first_alarm_mae']:.4g} > threshold {s['first_alarm_threshold']:.4g}\n"
+        txt = (f"t = {first:g} s    MAE: {s.first_alarm.mae:.4g} > threshold {s.first_alarm.threshold:.4g}\n"
                f"{ALARM_MESSAGE}")
-        if s.get("detection_latency_s") is not None:
-            txt += f"\ndetection latency {s['detection_latency_s']:.3g} s after the fault"
+        if s.detection_latency is not None:
+            txt += f"\ndetection latency {s.detection_latency:.3g} s after the fault"
         box = {"facecolor": "white", "edgecolor": "red", "alpha": 0.9}
     else:
-        txt = f"no alarm; largest MAE/threshold {s.get('max_mae_over_threshold') or 0:.3g}"
+        txt = f"no alarm; largest MAE/threshold {s.max_mae_over_threshold or 0:.3g}"
         box = {"facecolor": "white", "edgecolor": "green", "alpha": 0.9}
-    axes[1].text(0.01, 0.96, txt, transform=axes[1].transAxes, fontsize=8, va="top", bbox=box)
+    # below the axes, so it never hides the threshold line; the legend sits beside it
+    fig.text(0.99, 0.015, txt, fontsize=8, ha="right", va="bottom", bbox=box)
     handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", fontsize=8, ncol=3, frameon=False)
-    fig.subplots_adjust(left=0.08, right=0.98, top=0.9, bottom=0.15, hspace=0.45)
-    fig.suptitle(f"{result.exchange_path.name}: {result.options.signal}, {result.fits[0].forecaster.kind} model",
+    fig.legend(handles, labels, loc="lower left", bbox_to_anchor=(0.01, 0.0), fontsize=8, ncol=2, frameon=False)
+    fig.subplots_adjust(left=0.11, right=0.98, top=0.9, bottom=0.24, hspace=0.45)
+    fig.suptitle(f"{s.case}: {result.options.signal}, {result.fits[0].forecaster.kind} model",
                  fontsize=11)
 
 
@@ -260,9 +287,10 @@ def _plot_spectrum(fig: Any, result: "MonitorResult") -> None:
     ax.axvspan(est.fft_frequency - est.fft_bin_width / 2, est.fft_frequency + est.fft_bin_width / 2,
                color="tab:orange", alpha=0.12, label=f"FFT bin width 1/T = {est.fft_bin_width:.3f} Hz")
     ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("amplitude")
+    ax.set_ylabel(_label(result, "amplitude"))
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7, loc="upper right")
+    fig.suptitle(f"{result.summary.case}: period of {result.options.signal}", fontsize=11)
     ax.set_title(f"spectrum of {result.options.signal}, training {fit.start:g}–{fit.end:g} s", fontsize=10)
     # one period of the training data folded on the refined period, with the model
     h = result.history
@@ -275,8 +303,8 @@ def _plot_spectrum(fig: Any, result: "MonitorResult") -> None:
     ax2.plot(grid - fit.start, fit.forecaster.predict(grid), color="red", lw=1.0,
              label=f"{fit.forecaster.kind}, order {fit.forecaster.order}")
     ax2.set_xlabel(f"time modulo {est.period:.5f} s")
-    ax2.set_ylabel(result.options.signal)
+    ax2.set_ylabel(_label(result, result.options.signal))
     ax2.grid(alpha=0.3)
     ax2.legend(fontsize=7)
     ax2.set_title("one period", fontsize=10)
-    fig.subplots_adjust(left=0.08, right=0.98, top=0.93, bottom=0.09, wspace=0.25)
+    fig.subplots_adjust(left=0.08, right=0.98, top=0.88, bottom=0.09, wspace=0.25)

@@ -1,0 +1,198 @@
+"""Every setting of the monitor, in one place: defaults, choices, checks and help texts.
+
+:class:`MonitorOptions` (what is computed) and :class:`FollowOptions` (how a growing file is
+read) are frozen dataclasses.  Each field carries an :class:`Rule` in its metadata: the check
+(:meth:`MonitorOptions.validated` collects every problem into one
+:class:`~monitor.errors.OptionError`), the parser of a command-line value, and, for the
+fields the command line exposes, the flag, the help text and the argument group.
+:func:`add_arguments` builds the ``fourbar-monitor`` arguments from these fields, so the
+command line and the Python API cannot disagree on a default, a choice or a message.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import MISSING, asdict, dataclass, field, fields, replace
+from typing import Any, Callable, Mapping
+
+from .errors import OptionError
+from .forecasters import MODELS
+
+__all__ = ["FollowOptions", "MonitorOptions", "REFIT_POLICIES", "Rule", "add_arguments", "merged"]
+
+REFIT_POLICIES = ("none", "paper")
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+@dataclass(frozen=True)
+class Rule:
+    """What one option accepts.
+
+    ``accepts(value)`` decides; ``expected`` is the phrase of the message ("expected
+    <expected>, got <value>"); ``parse`` turns command-line text into a value (it may raise
+    ``ValueError``); ``choices`` lists the accepted values of a choice.
+    """
+
+    accepts: Callable[[Any], bool]
+    expected: str
+    parse: Callable[[str], Any] = float
+    choices: tuple[str, ...] | None = None
+    metavar: str | None = None
+
+    def problem(self, name: str, value: Any) -> str | None:
+        return None if self.accepts(value) else f"{name}: expected {self.expected}, got {value!r}"
+
+    def argparse_type(self) -> Callable[[str], Any]:
+        """An argparse ``type``: the message names the value once; argparse adds the flag."""
+        def convert(text: str) -> Any:
+            try:
+                value = self.parse(text)
+            except ValueError:
+                value = None
+            if value is None or not self.accepts(value):
+                raise argparse.ArgumentTypeError(f"expected {self.expected}, got {text!r}")
+            return value
+        return convert
+
+
+def positive(unit: str) -> Rule:
+    return Rule(lambda v: _is_number(v) and v > 0, f"a positive number {unit}".rstrip())
+
+
+def at_least(low: int) -> Rule:
+    return Rule(lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= low,
+                f"an integer ≥ {low}", parse=int)
+
+
+def choice(values: tuple[str, ...]) -> Rule:
+    return Rule(lambda v: v in values, f"one of {', '.join(values)}", parse=str, choices=values)
+
+
+def _parse_threshold(text: str) -> float | str:
+    return "auto" if text.strip().lower() == "auto" else float(text)
+
+
+THRESHOLD = Rule(lambda v: v == "auto" or (_is_number(v) and v > 0),
+                 "a positive number in the signal's units or 'auto'", parse=_parse_threshold,
+                 metavar="LEVEL|auto")
+TRAIN = Rule(lambda v: (isinstance(v, (tuple, list)) and len(v) == 2 and all(_is_number(x) for x in v)
+                        and v[1] > v[0]),
+             "START END with END > START (seconds)", metavar="START END")
+SIGNAL = Rule(lambda v: isinstance(v, str) and bool(v) and v != "time", "a column name other than 'time'", parse=str)
+NON_NEGATIVE = Rule(lambda v: _is_number(v) and v >= 0, "a number ≥ 0")
+FRACTION = Rule(lambda v: isinstance(v, float) and 0.2 <= v <= 0.9, "a fraction in [0.2, 0.9]")
+TIMEOUT = Rule(lambda v: _is_number(v) and v >= 0, "a number of seconds ≥ 0 (0 = no limit)")
+
+
+def option(default: Any, rule: Rule, help: str = "", *, flag: str | None = None, group: str = "") -> Any:
+    """A dataclass field with its rule; ``flag`` exposes it on the command line."""
+    return field(default=default, metadata={"rule": rule, "help": help, "flag": flag, "group": group})
+
+
+@dataclass(frozen=True)
+class _Checked:
+    def validated(self):
+        """Check every field; raise one :class:`OptionError` listing all problems."""
+        problems = [p for f in fields(self) if (p := f.metadata["rule"].problem(f.name, getattr(self, f.name)))]
+        if problems:
+            raise OptionError(f"invalid {self._what}:\n  " + "\n  ".join(problems))
+        return self._normalised()
+
+    def _normalised(self):
+        return self
+
+    def as_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
+
+
+@dataclass(frozen=True)
+class MonitorOptions(_Checked):
+    """Every setting of what the monitor computes (units: seconds and the signal's unit).
+
+    ``auto_k``, ``auto_floor``, ``auto_z`` and ``validation_fraction`` parametrise the auto
+    threshold (:func:`monitor.detector.auto_threshold`); ``chunk_seconds`` is the forecast
+    cache's chunk; ``history_points`` and ``evaluation_points`` bound the kept series.
+    """
+
+    _what = "monitor options"
+
+    signal: str = option("x2", SIGNAL, "column to monitor", flag="--signal", group="model")
+    train: tuple[float, float] = option((0.0, 9.0), TRAIN, "training window in s (the paper's: 0 9)",
+                                        flag="--train", group="model")
+    model: str = option("prophet", choice(MODELS), "prophet (the paper's) or harmonic (least-squares Fourier "
+                        "series, fast)", flag="--model", group="model")
+    order: int = option(30, at_least(1), "Fourier order of the model", flag="--order", group="model")
+    threshold: float | str = option("auto", THRESHOLD, "MAE threshold in the signal's units, or 'auto' from the "
+                                    "training data", flag="--threshold", group="detection")
+    window: float = option(0.5, positive("of seconds"), "evaluation window: the newest WINDOW s of data",
+                           flag="--window", group="detection")
+    every: float = option(0.1, positive("of seconds"), "evaluation cadence in s of data time",
+                          flag="--every", group="detection")
+    persistence: int = option(2, at_least(1), "consecutive evaluations above the threshold before an alarm",
+                              flag="--persistence", group="detection")
+    refit: str = option("none", choice(REFIT_POLICIES), "none: fit once; paper: refit on the latest "
+                        "--refit-samples samples until the first evaluation passes (the paper's policy)",
+                        flag="--refit", group="detection")
+    refit_samples: int = option(1000, at_least(32), "samples per refit", flag="--refit-samples", group="detection")
+    max_refits: int = option(10, at_least(0))
+    seed: int = option(0, at_least(0))
+    auto_k: float = option(2.0, positive(""))
+    auto_floor: float = option(0.01, NON_NEGATIVE)
+    auto_z: float = option(4.0, positive(""))
+    validation_fraction: float = option(2 / 3, FRACTION)
+    chunk_seconds: float = option(20.0, positive("of seconds"))
+    history_points: int = option(20000, at_least(100))
+    evaluation_points: int = option(20000, at_least(100))
+
+    def _normalised(self) -> "MonitorOptions":
+        return replace(self, train=(float(self.train[0]), float(self.train[1])))
+
+
+@dataclass(frozen=True)
+class FollowOptions(_Checked):
+    """How :func:`monitor.follow` reads a growing file."""
+
+    _what = "follow options"
+
+    poll: float = option(0.2, positive("of seconds"), "with --follow: seconds between reads of the file",
+                         flag="--poll", group="following")
+    timeout: float = option(60.0, TIMEOUT, "with --follow: give up after this many seconds without the file or "
+                            "without new rows when run.json does not say the run ended and its writer cannot "
+                            "be checked; 0 = wait for ever", flag="--timeout", group="following")
+
+
+def merged(base: Any, settings: Mapping[str, Any]) -> Any:
+    """``base`` with ``settings`` (field names) applied, validated; unknown names are an error."""
+    known = [f.name for f in fields(base)]
+    unknown = sorted(set(settings) - set(known))
+    if unknown:
+        raise OptionError(f"unknown {base._what[:-1]}(s): {', '.join(unknown)}; known: {', '.join(known)}")
+    values = dict(settings)
+    if isinstance(values.get("train"), list):
+        values["train"] = tuple(values["train"])
+    return replace(base, **values).validated()
+
+
+def add_arguments(groups: Mapping[str, Any], cls: type) -> None:
+    """Add the command-line arguments of ``cls``'s flagged fields to the argparse ``groups``."""
+    for f in fields(cls):
+        flag = f.metadata.get("flag")
+        if not flag:
+            continue
+        rule: Rule = f.metadata["rule"]
+        default = f.default if f.default is not MISSING else None
+        shown = " ".join(map(str, default)) if isinstance(default, tuple) else default
+        kwargs: dict[str, Any] = {"dest": f.name, "default": default,
+                                  "help": f"{f.metadata['help']} (default: {shown})"}
+        if isinstance(default, tuple):
+            kwargs.update(nargs=len(default), metavar=tuple(rule.metavar.split()),
+                          type=Rule(_is_number, "a finite time in seconds").argparse_type())
+        elif rule.choices:
+            kwargs.update(choices=rule.choices)
+        else:
+            kwargs.update(type=rule.argparse_type(), metavar=rule.metavar)
+        groups[f.metadata["group"]].add_argument(flag, **kwargs)
