@@ -262,7 +262,9 @@ class MonitorResult:
 
     @property
     def exit_code(self) -> int:
-        """0 no alarm, 1 alarm or failed run, 130 interrupted."""
+        """0 no alarm, 1 alarm or failed run, 3 the run was cut off (its writer died), 130 interrupted."""
         if self.status == "interrupted":
             return 130
-        return 1 if (self.alarmed or self.status in ("run_failed", "run_lost")) else 0
+        if self.status == "run_lost":
+            return 3
+        return 1 if (self.alarmed or self.status == "run_failed") else 0

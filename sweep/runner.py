@@ -18,7 +18,6 @@ writes the same files from the rows so far and raises :class:`SweepInterrupted`.
 """
 from __future__ import annotations
 
-import json
 import logging
 import os
 import sys

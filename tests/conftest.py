@@ -13,7 +13,6 @@ from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
 
 # A job started in the background by a non-interactive shell (as CI or `make test &` may
 # be) inherits SIGINT *ignored*, and so does every child; Python then installs no
@@ -26,6 +25,7 @@ if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
 # The tests load pythonfmu FMUs with plain FMPy and libcosim too; without this guard the
 # test process can abort at exit after all tests passed (orchestrator/pythonfmu_exit.py).
 from orchestrator.pythonfmu_exit import install_exit_hook  # noqa: E402
+from support import REPO
 
 install_exit_hook()
 

@@ -10,8 +10,8 @@ import sys
 from pathlib import Path
 
 import pytest
+from support import REPO
 
-REPO = Path(__file__).resolve().parents[1]
 PARTS = ("fmu_src", "orchestrator", "monitor")
 # What the FMU's run-time code (shipped in resources/) may import besides the stdlib.
 FMU_RUNTIME_ALLOWED = {"numpy", "scipy", "pythonfmu", "fourbar_model"}

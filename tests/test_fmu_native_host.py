@@ -9,7 +9,6 @@ preloaded, PYTHONHOME and PYTHONPATH; docs/fmi_hosts.md), which the last test sh
 from __future__ import annotations
 
 import glob
-import os
 import shutil
 import subprocess
 from pathlib import Path

@@ -19,7 +19,7 @@ import pandas as pd
 import pytest
 
 from monitor import ALARM_MESSAGE, replay
-from test_monitor_support import FOURBAR_MONITOR, FOURBAR_RUN, REPO, case_with_fmu
+from support import FOURBAR_MONITOR, FOURBAR_RUN, case_file
 
 
 def _read_until(stream, text: str, timeout: float) -> list[str]:
@@ -43,7 +43,7 @@ def _read_until(stream, text: str, timeout: float) -> list[str]:
 @pytest.mark.slow
 @pytest.mark.timeout(600)
 def test_follow_live_run_matches_replay(tmp_path, fourbar_fmu):
-    case = case_with_fmu(REPO / "cases" / "case2_fault_L2.toml", fourbar_fmu, tmp_path / "case2.toml")
+    case = case_file("case2_fault_L2", fourbar_fmu, tmp_path / "case2.toml")
     run_dir = tmp_path / "live"
     exchange = run_dir / "exchange.csv"
     mon_dir = tmp_path / "followed"

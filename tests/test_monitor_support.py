@@ -9,19 +9,14 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import shutil
 import subprocess
-import sys
 import threading
 from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
-BIN = Path(sys.executable).parent
-FOURBAR_RUN = str(BIN / "fourbar-run")
-FOURBAR_MONITOR = str(BIN / "fourbar-monitor")
+from support import FOURBAR_MONITOR, FOURBAR_RUN, REPO, case_file  # noqa: F401 - re-exported to the monitor tests
 NOISE_STD = 0.005   # m, σ of the x2 sensor noise in the acceptance criteria
 
 NOISE_SEED = 7
@@ -30,22 +25,12 @@ _lock = threading.Lock()
 _runs: dict[str, Path] = {}
 
 
-def case_with_fmu(src: Path, fmu: Path, dest: Path, name: str | None = None, extra: str = "") -> Path:
-    """Copy a case file with its ``fmu`` set to the FMU under test (optionally a new
-    ``name`` and ``extra`` TOML appended)."""
-    text = src.read_text(encoding="utf-8")
-    text = re.sub(r'(?m)^fmu\s*=.*$', f'fmu = "{fmu.as_posix()}"', text)
-    if name is not None:
-        text = re.sub(r'(?m)^name\s*=.*$', f'name = "{name}"', text)
-    dest.write_text(text + extra, encoding="utf-8")
-    return dest
 
 
 def noise_case(name: str, fmu: Path, dest: Path, fault: bool) -> Path:
     """Table 1's Case 1 or 2 (the shipped case file) with σ = 5 mm sensor noise on x2."""
-    src = REPO / "cases" / ("case2_fault_L2.toml" if fault else "case1_normal.toml")
     noise = f"\n[noise]\nseed = {NOISE_SEED}\nstd = {{ x2 = {NOISE_STD!r} }}\n"
-    return case_with_fmu(src, fmu, dest, name=name, extra=noise)
+    return case_file("case2_fault_L2" if fault else "case1_normal", fmu, dest, name=name, extra=noise)
 
 
 def orchestrated(tmp_path_factory: pytest.TempPathFactory, fmu: Path, name: str) -> Path:
@@ -54,8 +39,8 @@ def orchestrated(tmp_path_factory: pytest.TempPathFactory, fmu: Path, name: str)
         if not _runs:
             base = tmp_path_factory.mktemp("orchestrated")
             cases = {
-                "case1": case_with_fmu(REPO / "cases" / "case1_normal.toml", fmu, base / "case1.toml"),
-                "case2": case_with_fmu(REPO / "cases" / "case2_fault_L2.toml", fmu, base / "case2.toml"),
+                "case1": case_file("case1_normal", fmu, base / "case1.toml"),
+                "case2": case_file("case2_fault_L2", fmu, base / "case2.toml"),
                 "noise1": noise_case("noise1", fmu, base / "noise1.toml", fault=False),
                 "noise2": noise_case("noise2", fmu, base / "noise2.toml", fault=True),
             }

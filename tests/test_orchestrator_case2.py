@@ -12,16 +12,15 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from orchestrator import run_case
-from orchestrator_support import shipped_case
+from support import case_file
 
-REPO = Path(__file__).resolve().parents[1]
 COLUMNS = ["x2", "y2", "x3", "y3", "x4", "y4"]
 
 
 @pytest.fixture(scope="module")
 def case2_run(fourbar_fmu, tmp_path_factory):
     tmp = tmp_path_factory.mktemp("case2")
-    path = shipped_case("case2_fault_L2", fourbar_fmu, tmp)
+    path = case_file("case2_fault_L2", fourbar_fmu, tmp)
     result = run_case(path, tmp / "out")
     text = result.exchange_path.read_text()
     return result, text
@@ -124,7 +123,7 @@ def test_native_fmu_reproduces_the_case2_exchange_file(fourbar_fmu, native_fmu, 
     """``fourbar-run --fmu build/FourBarNative.fmu`` writes Case 2's exchange file to <= 1e-9 m."""
     from orchestrator.cli import main
 
-    path = shipped_case("case2_fault_L2", fourbar_fmu, tmp_path)
+    path = case_file("case2_fault_L2", fourbar_fmu, tmp_path)
     tight = ["--set", "rtol=1e-12", "--set", "atol=1e-12", "--quiet"]
     assert main([str(path), "--out", str(tmp_path / "py"), *tight]) == 0
     assert main([str(path), "--fmu", str(native_fmu), "--out", str(tmp_path / "native"), *tight]) == 0
@@ -143,7 +142,7 @@ def test_native_fmu_reproduces_the_case2_exchange_file(fourbar_fmu, native_fmu, 
 def test_fmu_option_names_a_missing_file(tmp_path, fourbar_fmu, capsys):
     from orchestrator.cli import main
 
-    path = shipped_case("case2_fault_L2", fourbar_fmu, tmp_path)
+    path = case_file("case2_fault_L2", fourbar_fmu, tmp_path)
     assert main([str(path), "--fmu", str(tmp_path / "nothere.fmu"), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "fmu (from --fmu)" in err and "file not found" in err and "Traceback" not in err

@@ -15,9 +15,9 @@ import pytest
 
 from orchestrator import (Case, ConfigError, RampEvent, StepEvent, apply_overrides, load_case)
 from orchestrator.cli import main
-from orchestrator_support import shipped_case
+from support import case_file
+from support import REPO
 
-REPO = Path(__file__).resolve().parents[1]
 TABLE1 = {"L1": 3.0, "L2": 1.0, "L3": 4.0, "L4": 2.5, "m2": 1.0, "m3": 1.0, "m4": 1.0, "g": 9.81,
           "theta2_start": 0.5235987755982988, "omega2_start": 0.0, "rtol": 1e-9, "atol": 1e-6}
 
@@ -34,9 +34,9 @@ def test_shipped_cases_reproduce_table1(name):
 
 
 def test_shipped_cases_load(fourbar_fmu, tmp_path):
-    case1 = load_case(shipped_case("case1_normal", fourbar_fmu, tmp_path))
-    case2 = load_case(shipped_case("case2_fault_L2", fourbar_fmu, tmp_path))
-    case3 = load_case(shipped_case("case3_ramp_noise", fourbar_fmu, tmp_path))
+    case1 = load_case(case_file("case1_normal", fourbar_fmu, tmp_path))
+    case2 = load_case(case_file("case2_fault_L2", fourbar_fmu, tmp_path))
+    case3 = load_case(case_file("case3_ramp_noise", fourbar_fmu, tmp_path))
     assert case1.events == () and case1.fault_time is None and case1.noise is None
     assert case2.events == (StepEvent(time=10.0, variable="L2", value=1.1),)
     assert case2.fault_time == 10.0
@@ -52,7 +52,7 @@ def test_shipped_cases_load(fourbar_fmu, tmp_path):
 
 
 def test_overrides_are_validated_like_the_file(fourbar_fmu, tmp_path):
-    case = load_case(shipped_case("case2_fault_L2", fourbar_fmu, tmp_path))
+    case = load_case(case_file("case2_fault_L2", fourbar_fmu, tmp_path))
     changed = apply_overrides(case, overrides={"L2": 1.05, "integrator": "RK45"}, stop=20.0, realtime=2.0)
     assert changed.parameters["L2"] == 1.05 and changed.parameters["integrator"] == "RK45"
     assert changed.experiment.stop == 20.0 and changed.exchange.realtime_factor == 2.0
@@ -248,7 +248,7 @@ def test_every_problem_is_listed_at_once(fourbar_fmu, tmp_path, capsys):
     (["--frobnicate"], "unrecognized arguments: --frobnicate"),
 ])
 def test_bad_command_line_gets_exit_2(argv_tail, expected, fourbar_fmu, tmp_path, capsys):
-    path = shipped_case("case2_fault_L2", fourbar_fmu, tmp_path)
+    path = case_file("case2_fault_L2", fourbar_fmu, tmp_path)
     out = tmp_path / "out"
     code = main([str(path), "--out", str(out), *argv_tail])
     err = capsys.readouterr().err
@@ -274,7 +274,7 @@ def test_help_and_version(capsys):
 
 
 def test_cli_summary_line_and_set(fourbar_fmu, tmp_path, capsys):
-    path = shipped_case("case1_normal", fourbar_fmu, tmp_path)
+    path = case_file("case1_normal", fourbar_fmu, tmp_path)
     out = tmp_path / "out"
     code = main([str(path), "--out", str(out), "--stop", "0.5", "--set", "L2=1.05"])
     captured = capsys.readouterr()
@@ -296,7 +296,7 @@ def test_importing_the_cli_is_light():
 
 
 def test_case_dataclass_round_trip(fourbar_fmu, tmp_path):
-    case = load_case(shipped_case("case3_ramp_noise", fourbar_fmu, tmp_path))
+    case = load_case(case_file("case3_ramp_noise", fourbar_fmu, tmp_path))
     assert isinstance(case, Case)
     assert apply_overrides(case) == case       # as_dict -> validate gives the same case back
     assert case.as_dict()["events"] == [{"type": "ramp", "variable": "L2", "from": 1.0, "to": 1.05,

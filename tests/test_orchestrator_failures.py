@@ -6,10 +6,8 @@ from __future__ import annotations
 
 import errno
 import json
-import re
 import subprocess
 import sys
-from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -17,9 +15,9 @@ import pytest
 from orchestrator import run_case
 from orchestrator.cli import main
 from orchestrator.exchange import ExchangeWriter
-from orchestrator_support import shipped_case
+from support import case_file
+from support import REPO
 
-REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture
@@ -49,7 +47,7 @@ value = 10.0
 
 
 def test_failing_fmu_keeps_rows_and_reports_its_message(fourbar_fmu, tmp_path, capsys, instance_calls):
-    path = shipped_case("case1_normal", fourbar_fmu, tmp_path, L2_TO_10)
+    path = case_file("case1_normal", fourbar_fmu, tmp_path, extra=L2_TO_10)
     out = tmp_path / "out"
     code = main([str(path), "--out", str(out), "--stop", "3"])
     err = capsys.readouterr().err
@@ -76,7 +74,7 @@ def test_failing_fmu_keeps_rows_and_reports_its_message(fourbar_fmu, tmp_path, c
 
 def test_failed_initialisation_is_reported(fourbar_fmu, tmp_path, capsys, instance_calls):
     """A start value the FMU refuses (L2 < 0) fails fmi2ExitInitializationMode: header only, failed."""
-    path = shipped_case("case1_normal", fourbar_fmu, tmp_path)
+    path = case_file("case1_normal", fourbar_fmu, tmp_path)
     out = tmp_path / "out"
     assert main([str(path), "--out", str(out), "--stop", "1", "--set", "L2=-1"]) == 1
     err = capsys.readouterr().err
@@ -104,7 +102,7 @@ def test_disk_full_keeps_complete_lines(fourbar_fmu, tmp_path, monkeypatch, inst
         return original(self, data)
 
     monkeypatch.setattr(ExchangeWriter, "_write", failing_write)
-    path = shipped_case("case1_normal", fourbar_fmu, tmp_path)
+    path = case_file("case1_normal", fourbar_fmu, tmp_path)
     result = run_case(path, tmp_path / "out", stop=5.0)
     assert result.status == "failed" and not result.ok
     assert "No space left on device" in result.error and "exchange.csv" in result.error
@@ -119,7 +117,7 @@ def test_disk_full_keeps_complete_lines(fourbar_fmu, tmp_path, monkeypatch, inst
 
 
 def test_unwritable_output_directory_is_a_run_failure(fourbar_fmu, tmp_path, capsys):
-    path = shipped_case("case1_normal", fourbar_fmu, tmp_path)
+    path = case_file("case1_normal", fourbar_fmu, tmp_path)
     blocker = tmp_path / "file"
     blocker.write_text("a file, not a directory\n")
     assert main([str(path), "--out", str(blocker / "out"), "--stop", "0.1"]) == 1
@@ -136,7 +134,7 @@ def test_fmu_logging_after_a_run_is_safe(fourbar_fmu, tmp_path):
 import gc, numpy as np
 from fmpy import simulate_fmu
 from orchestrator import run_case
-path = {str(shipped_case('case1_normal', fourbar_fmu, tmp_path))!r}
+path = {str(case_file('case1_normal', fourbar_fmu, tmp_path))!r}
 for i in range(2):
     assert run_case(path, {str(tmp_path / 'out')!r}, stop=0.2).ok
     gc.collect()

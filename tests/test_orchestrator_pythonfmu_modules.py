@@ -11,7 +11,7 @@ import subprocess
 import sys
 import zipfile
 
-from orchestrator_support import shipped_case
+from support import case_file
 
 
 def patched_copy(fmu, dest):
@@ -32,8 +32,8 @@ def test_each_build_runs_its_own_code(fourbar_fmu, tmp_path, repo_root):
     other = patched_copy(fourbar_fmu, tmp_path / "Patched.fmu")
     (tmp_path / "a").mkdir()
     (tmp_path / "b").mkdir()
-    case_a = shipped_case("case1_normal", fourbar_fmu, tmp_path / "a", stop=0.1)
-    case_b = shipped_case("case1_normal", other, tmp_path / "b", stop=0.1)
+    case_a = case_file("case1_normal", fourbar_fmu, tmp_path / "a", stop=0.1)
+    case_b = case_file("case1_normal", other, tmp_path / "b", stop=0.1)
     code = f"""
 import pandas as pd
 from orchestrator import run_case
@@ -52,7 +52,7 @@ for i, case in enumerate([{str(case_a)!r}, {str(case_b)!r}, {str(case_a)!r}]):
 def test_runs_of_the_same_build_keep_its_modules(fourbar_fmu, tmp_path, repo_root):
     # A sweep worker runs the same FMU hundreds of times, each from a fresh extraction:
     # identical Python files are not imported again.
-    case = shipped_case("case1_normal", fourbar_fmu, tmp_path, stop=0.05)
+    case = case_file("case1_normal", fourbar_fmu, tmp_path, stop=0.05)
     code = f"""
 import sys
 from orchestrator import run_case

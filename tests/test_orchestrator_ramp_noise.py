@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import re
 from pathlib import Path
 
 import numpy as np
@@ -14,9 +13,8 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from orchestrator import ExchangeSettings, Noise, load_case, run_case
-from orchestrator_support import shipped_case
+from support import case_file
 
-REPO = Path(__file__).resolve().parents[1]
 COLUMNS = ["x2", "y2", "x3", "y3", "x4", "y4"]
 STOP = 40.0          # s: covers before (0-20 s), during (20-30 s) and after the ramp; 100 s adds nothing here
 STD = 0.005          # m, cases/case3_ramp_noise.toml
@@ -31,7 +29,7 @@ def _table(path: Path) -> np.ndarray:
 @pytest.fixture(scope="module")
 def case3(fourbar_fmu, tmp_path_factory):
     tmp = tmp_path_factory.mktemp("case3")
-    case = load_case(shipped_case("case3_ramp_noise", fourbar_fmu, tmp))
+    case = load_case(case_file("case3_ramp_noise", fourbar_fmu, tmp))
     result = run_case(case, tmp / "out", stop=STOP)
     assert result.ok, result.error
     return case, result, _table(result.exchange_path)

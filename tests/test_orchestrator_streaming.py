@@ -8,7 +8,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import re
 import signal
 import subprocess
 import sys
@@ -19,9 +18,9 @@ from pathlib import Path
 import pytest
 
 from orchestrator import ExchangeSettings, load_case, run_case
-from orchestrator_support import shipped_case
+from support import case_file
+from support import REPO
 
-REPO = Path(__file__).resolve().parents[1]
 FOURBAR_RUN = [sys.executable, "-m", "orchestrator.cli"]
 
 
@@ -46,7 +45,7 @@ def check_rows(complete: bytes, step: float = 0.01) -> int:
 
 def test_concurrent_reader_never_sees_a_partial_row(fourbar_fmu, tmp_path):
     # Many small appends (every 0.05 s of simulated time) at 8x real time: ~1.5 s of run.
-    path = shipped_case("case2_fault_L2", fourbar_fmu, tmp_path, flush_interval=0.05)
+    path = case_file("case2_fault_L2", fourbar_fmu, tmp_path, flush_interval=0.05)
     out = tmp_path / "out"
     exchange, run_json = out / "exchange.csv", out / "run.json"
     proc = subprocess.Popen([*FOURBAR_RUN, str(path), "--out", str(out), "--stop", "12", "--realtime", "8"],
@@ -119,7 +118,7 @@ def pacing_fmu(request):
 @pytest.mark.parametrize("factor, stop", [(1.0, 1.0), (4.0, 4.0)])
 def test_realtime_pacing(factor, stop, pacing_fmu, tmp_path):
     """1 s of wall time for `stop` simulated seconds at `factor`; no block released early."""
-    case = load_case(shipped_case("case1_normal", pacing_fmu, tmp_path))
+    case = load_case(case_file("case1_normal", pacing_fmu, tmp_path))
     case = dataclasses.replace(case, exchange=ExchangeSettings(flush_interval=0.1, realtime_factor=factor))
     out = tmp_path / "out"
     out.mkdir()
@@ -157,7 +156,7 @@ def test_realtime_pacing(factor, stop, pacing_fmu, tmp_path):
 
 
 def test_ctrl_c_keeps_rows_and_exits_130(fourbar_fmu, tmp_path):
-    path = shipped_case("case2_fault_L2", fourbar_fmu, tmp_path)
+    path = case_file("case2_fault_L2", fourbar_fmu, tmp_path)
     out = tmp_path / "out"
     proc = subprocess.Popen([*FOURBAR_RUN, str(path), "--out", str(out), "--realtime", "2"], cwd=REPO,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -202,7 +201,7 @@ def interrupt_once_rows_appear():
 
 threading.Thread(target=interrupt_once_rows_appear, daemon=True).start()
 try:
-    run_case({str(shipped_case('case1_normal', fourbar_fmu, tmp_path))!r}, {str(out)!r}, realtime=5.0)
+    run_case({str(case_file('case1_normal', fourbar_fmu, tmp_path))!r}, {str(out)!r}, realtime=5.0)
 except RunInterrupted as exc:
     assert isinstance(exc, KeyboardInterrupt)
     print(exc.result.status, exc.result.rows_written)

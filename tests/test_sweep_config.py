@@ -17,21 +17,13 @@ import pytest
 from sweep import SweepError, load_sweep, plan_scenarios, score
 from sweep.cli import main
 from sweep.results import COLUMNS, ResultsStore, table_from_rows
+from support import REPO, case_file
 
-REPO = Path(__file__).resolve().parents[1]
 
-
-def write_case(tmp_path: Path, fmu: Path) -> Path:
-    """cases/case1_normal.toml pointing at the FMU under test."""
-    text = (REPO / "cases" / "case1_normal.toml").read_text()
-    text = text.replace('fmu = "../build/FourBar.fmu"', f'fmu = "{fmu}"')
-    path = tmp_path / "case1_normal.toml"
-    path.write_text(text)
-    return path
 
 
 def write_sweep(tmp_path: Path, fmu: Path, body: str, name: str = "s.toml") -> Path:
-    case = write_case(tmp_path, fmu)
+    case = case_file("case1_normal", fmu, tmp_path)
     path = tmp_path / name
     path.write_text(f'case = "{case}"\n' + body)
     return path
@@ -39,7 +31,7 @@ def write_sweep(tmp_path: Path, fmu: Path, body: str, name: str = "s.toml") -> P
 
 def smoke(tmp_path: Path, fmu: Path) -> Path:
     """sweeps/smoke.toml with its base case pointing at the FMU under test."""
-    case = write_case(tmp_path, fmu)
+    case = case_file("case1_normal", fmu, tmp_path)
     text = (REPO / "sweeps" / "smoke.toml").read_text()
     text = text.replace('case = "../cases/case1_normal.toml"', f'case = "{case}"')
     path = tmp_path / "smoke.toml"

@@ -24,16 +24,10 @@ import pytest
 
 from sweep import RUNTIME_COLUMNS, load_sweep, plan_scenarios, run_sweep
 from sweep.cli import main
+from support import REPO, case_file
 
-REPO = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.slow
 
-
-def write_case(directory: Path, fmu: Path) -> Path:
-    text = (REPO / "cases" / "case1_normal.toml").read_text()
-    path = directory / "case1_normal.toml"
-    path.write_text(text.replace('fmu = "../build/FourBar.fmu"', f'fmu = "{fmu}"'))
-    return path
 
 
 def comparable(table: pd.DataFrame) -> pd.DataFrame:
@@ -44,7 +38,7 @@ def comparable(table: pd.DataFrame) -> pd.DataFrame:
 @pytest.fixture(scope="module")
 def smoke_file(tmp_path_factory, fourbar_fmu) -> Path:
     directory = tmp_path_factory.mktemp("sweep_files")
-    case = write_case(directory, fourbar_fmu)
+    case = case_file("case1_normal", fourbar_fmu, directory)
     text = (REPO / "sweeps" / "smoke.toml").read_text()
     path = directory / "smoke.toml"
     path.write_text(text.replace('case = "../cases/case1_normal.toml"', f'case = "{case}"'))

@@ -1,0 +1,33 @@
+"""What many test modules share: the repository's paths and the one case-file helper."""
+from __future__ import annotations
+
+import json
+import re
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+FOURBAR_RUN = str(BIN / "fourbar-run")
+FOURBAR_MONITOR = str(BIN / "fourbar-monitor")
+
+
+def case_file(case: str, fmu: Path, dest: Path, *, name: str | None = None, extra: str = "", **settings) -> Path:
+    """``cases/<case>.toml`` copied with its ``fmu`` set to the FMU under test; returns the copy.
+
+    ``dest`` is a directory (the copy is ``dest/<case>.toml``) or a file path.  ``name``
+    replaces the case's name; ``settings`` replace existing ``key = value`` lines (e.g.
+    ``flush_interval=0.5``); ``extra`` TOML is appended.
+    """
+    text = (REPO / "cases" / f"{case}.toml").read_text(encoding="utf-8")
+    text, count = re.subn(r"(?m)^fmu\s*=.*$", f"fmu = {json.dumps(Path(fmu).as_posix())}", text)
+    assert count == 1, f"cases/{case}.toml: no fmu line"
+    if name is not None:
+        text, count = re.subn(r"(?m)^name\s*=.*$", f"name = {json.dumps(name)}", text)
+        assert count == 1, f"cases/{case}.toml: no name line"
+    for key, value in settings.items():
+        text, count = re.subn(rf"(?m)^{key} = \S+", f"{key} = {value!r}", text)
+        assert count == 1, f"cases/{case}.toml: no {key} line"
+    path = dest / f"{case}.toml" if dest.is_dir() else dest
+    path.write_text(text + extra, encoding="utf-8")
+    return path
