@@ -22,8 +22,8 @@ TABLE1 = dict(L1=3.0, L2=1.0, L3=4.0, L4=2.5, m2=1.0, m3=1.0, m4=1.0, g=9.81)
 
 
 def main(argv=None) -> int:
-    from orchestrator.pythonfmu_exit import install_exit_hook
-    install_exit_hook()   # pythonfmu 0.7.0 can abort the process at exit otherwise
+    from orchestrator import install_pythonfmu_exit_guard
+    install_pythonfmu_exit_guard()   # pythonfmu 0.7.0 can abort the process at exit otherwise
     from fmpy import simulate_fmu
     from reference_theta2 import simulate as reference
 

@@ -160,8 +160,8 @@ class InProcess:
 
 
 def main(argv=None) -> int:
-    from orchestrator.pythonfmu_exit import install_exit_hook
-    install_exit_hook()   # pythonfmu 0.7.0 can abort the process at exit otherwise
+    from orchestrator import install_pythonfmu_exit_guard
+    install_pythonfmu_exit_guard()   # pythonfmu 0.7.0 can abort the process at exit otherwise
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fmu", default=str(REPO / "build" / "FourBar.fmu"))
     parser.add_argument("--repeat", type=int, default=5)

@@ -28,8 +28,8 @@ START_VALUES = {"L1": 3.0, "L2": 1.0, "L3": 4.0, "L4": 2.5, "m2": 1.0, "m3": 1.0
 
 
 def main(argv=None) -> int:
-    from orchestrator.pythonfmu_exit import install_exit_hook
-    install_exit_hook()   # pythonfmu 0.7.0 can abort the process at exit otherwise
+    from orchestrator import install_pythonfmu_exit_guard
+    install_pythonfmu_exit_guard()   # pythonfmu 0.7.0 can abort the process at exit otherwise
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeat", type=int, default=5, help="timed runs of each (default: %(default)s)")
     parser.add_argument("--fmu", default=str(REPO / "build" / "FourBar.fmu"), help="the FourBar FMU")

@@ -76,8 +76,8 @@ def run_case2(fmu: str | Path, stop_time: float = 100.0, step: float = 0.01,
 
 
 def main() -> None:
-    from orchestrator.pythonfmu_exit import install_exit_hook
-    install_exit_hook()   # pythonfmu 0.7.0 can abort the process at exit otherwise
+    from orchestrator import install_pythonfmu_exit_guard
+    install_pythonfmu_exit_guard()   # pythonfmu 0.7.0 can abort the process at exit otherwise
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fmu", default=str(Path(__file__).resolve().parents[1] / "build" / "FourBar.fmu"))
     parser.add_argument("--out", default="case2_libcosim.csv", help="CSV file to write ('' for none)")

@@ -13,8 +13,7 @@ import shutil
 import threading
 from typing import Any, Callable, Iterable, Sequence
 
-from .pythonfmu_exit import install_exit_hook, release_library
-from .pythonfmu_modules import forget_other_fmu_modules
+from .pythonfmu_workarounds import forget_other_fmu_modules, install_exit_guard, release_library
 
 __all__ = ["FmuError", "FmuInstance"]
 
@@ -108,7 +107,7 @@ class FmuInstance:
 
         self._call_error = FMICallException
 
-        install_exit_hook()     # also guards FMUs that FMPy loads elsewhere in this process
+        install_exit_guard()    # also guards FMUs that FMPy loads elsewhere in this process
         self._unzipdir = extract(str(self.path))
         self._env = next(_ENV_IDS)
         _ROUTES[self._env] = self
@@ -134,22 +133,19 @@ class FmuInstance:
         slave, self._slave = self._slave, None
         try:
             if slave is not None:
+                release_library(slave.dll)      # pythonfmu_workarounds; an instance keeps its own reference
                 if self._instantiated:
                     if clean and self._failed_status is None:
                         try:
                             slave.terminate()
                         except Exception:   # a failing terminate must not hide the run's result
                             pass
-                    if self._failed_status == _FATAL:
-                        # FMI 2.0 allows no call after fmi2Fatal, fmi2FreeInstance included, and
-                        # pythonfmu's slaves corrupt the interpreter's heap if freed then (a later
-                        # segfault in the garbage collector).  The instance is left allocated.
-                        release_library(slave.dll)
-                    else:
-                        release_library(slave.dll)      # see pythonfmu_exit; the instance keeps
-                        slave.freeInstance()            # its own reference until freed here
+                    # FMI 2.0 allows no call after fmi2Fatal, fmi2FreeInstance included, and
+                    # pythonfmu's slaves corrupt the interpreter's heap if freed then (a later
+                    # segfault in the garbage collector).  The instance is left allocated.
+                    if self._failed_status != _FATAL:
+                        slave.freeInstance()
                 else:
-                    release_library(slave.dll)
                     slave.freeLibrary()
         finally:
             _ROUTES.pop(self._env, None)

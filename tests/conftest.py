@@ -23,11 +23,11 @@ if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 # The tests load pythonfmu FMUs with plain FMPy and libcosim too; without this guard the
-# test process can abort at exit after all tests passed (orchestrator/pythonfmu_exit.py).
-from orchestrator.pythonfmu_exit import install_exit_hook  # noqa: E402
+# test process can abort at exit after all tests passed (orchestrator/pythonfmu_workarounds.py).
+from orchestrator import install_pythonfmu_exit_guard  # noqa: E402
 from support import REPO
 
-install_exit_hook()
+install_pythonfmu_exit_guard()
 
 
 @pytest.fixture(scope="session")
