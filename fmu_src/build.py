@@ -67,6 +67,8 @@ def _complete_model_description(xml: bytes) -> bytes:
     for index, sv in enumerate(variables.findall("ScalarVariable"), start=1):
         var = BY_NAME[sv.get("name")]
         real = sv.find("Real")
+        if real is not None and var.minimum is not None:
+            real.set("min", repr(var.minimum))
         if real is not None and var.unit:
             real.set("unit", var.unit)
             if var.display_unit:

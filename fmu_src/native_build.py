@@ -136,6 +136,8 @@ def model_description(guid: str, source_files) -> bytes:
             attrs["start"] = repr(float(var.start)) if var.type == "Real" else str(var.start)
         if var.unit:
             attrs["unit"] = var.unit
+        if var.minimum is not None:
+            attrs["min"] = repr(var.minimum)
         if var.display_unit:
             attrs["displayUnit"] = var.display_unit
         ET.SubElement(sv, var.type, attrs)

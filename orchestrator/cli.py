@@ -105,13 +105,19 @@ def _run(case: str, *, out, stop, realtime, overrides, quiet: bool, fmu=None) ->
     except KeyboardInterrupt:
         print("fourbar-run: interrupted before the run started", file=sys.stderr)
         return 130
+    if result.start_values_rejected:     # a case error the FMU found: the model description cannot say it
+        print(f"fourbar-run: error: {result.case.name}: the FMU refused the case's start values: {result.error}; "
+              f"status in {result.run_json_path}", file=sys.stderr)
+        return 2
     if not result.ok:
         where = (f"after {result.rows_written} rows (last t = {result.last_time!r} s)" if result.rows_written
                  else "before the first row")
         print(f"fourbar-run: error: {result.case.name}: run failed {where}: {result.error}", file=sys.stderr)
-        if result.exchange_path.exists():
+        if result.rows_written:
             print(f"fourbar-run: rows kept in {result.exchange_path}; status in {result.run_json_path}",
                   file=sys.stderr)
+        else:
+            print(f"fourbar-run: no rows were written; status in {result.run_json_path}", file=sys.stderr)
         return 1
     if not quiet:
         exp = result.case.experiment

@@ -548,7 +548,9 @@ class _Validator(ProblemReporter):
                 except (TypeError, ValueError):
                     continue
                 if op(float(result), limit):
-                    self.problem(where, value, f"expected {text} {limit:g} (declared {'min' if text == '>=' else 'max'} "
+                    # a positive min no one would type (the smallest normal double) says "> 0"
+                    need = "> 0" if text == ">=" and 0.0 < limit <= 1e-300 else f"{text} {limit:g}"
+                    self.problem(where, value, f"expected {need} (declared {'min' if text == '>=' else 'max'} "
                                                f"of {var.name} in {self.fmu_name})")
                     return None
         return result

@@ -13,7 +13,7 @@ import shutil
 import threading
 from typing import Any, Callable, Iterable, Sequence
 
-from .pythonfmu_workarounds import forget_other_fmu_modules, install_exit_guard, release_library
+from .pythonfmu_workarounds import clean_message, forget_other_fmu_modules, install_exit_guard, release_library
 
 __all__ = ["FmuError", "FmuInstance"]
 
@@ -158,7 +158,7 @@ class FmuInstance:
         self._log_count += 1
         text = message.decode("utf-8", "replace") if message else ""
         cat = category.decode("utf-8", "replace") if category else ""
-        self.log.append((self._log_count, int(status), cat, text))
+        self.log.append((self._log_count, int(status), cat, clean_message(text)))
 
     def _describe(self, what: str, since: int) -> str:
         """``what`` followed by the FMU's warnings/errors logged since message ``since``."""

@@ -37,11 +37,30 @@ import atexit
 import ctypes
 import hashlib
 import os
+import re
 import sys
 import threading
 from pathlib import Path
 
-__all__ = ["forget_other_fmu_modules", "install_exit_guard", "release_library", "release_loaded_libraries"]
+__all__ = ["clean_message", "forget_other_fmu_modules", "install_exit_guard", "release_library",
+           "release_loaded_libraries"]
+
+_WRAPPER = re.compile(r"Fatal py exception encountered: \[\w+\] PyObject_CallMethod\s*")
+_EXCEPTION = re.compile(r"^\w+(?:Error|Exception)\((['\"])(.*)\1\)\s*$", re.S)
+
+
+def clean_message(text: str) -> str:
+    """An FMU log message without pythonfmu's wrapper around a slave's exception.
+
+    pythonfmu logs ``Fatal py exception encountered: [exitInitializationMode]
+    PyObject_CallMethod\nValueError('...')``; what the user needs is the ``...``.
+    Other messages are returned unchanged.
+    """
+    stripped = _WRAPPER.sub("", text)
+    if stripped == text:
+        return text
+    match = _EXCEPTION.match(stripped.strip())
+    return match.group(2) if match else stripped.strip()
 
 
 

@@ -60,6 +60,7 @@ class RunResult:
     wall_time_s: float           # the whole run_case call, FMU loading included
     sim_wall_time_s: float | None  # from reading the first row to writing the last one
     error: str | None = None
+    start_values_rejected: bool = False   # the FMU refused the start values (fmi2ExitInitializationMode)
 
     @property
     def ok(self) -> bool:
@@ -137,6 +138,8 @@ class _Run:
         self.pending_v: list[list] = []
         self.noise = None
         self.pacer: RealtimePacer | None = None
+        self.initialized = False
+        self.setting_start_values = False
         self._record_lock = threading.Lock()
         self._heartbeat_stop = threading.Event()
         self._heartbeat: threading.Thread | None = None
@@ -301,7 +304,9 @@ class _Run:
         return RunResult(case=self.case, status=self.status, out_dir=self.out_dir,
                          exchange_path=self.exchange_path, run_json_path=self.run_json_path,
                          rows_written=self.rows_written, last_time=self.last_time,
-                         wall_time_s=time.monotonic() - self.wall0, sim_wall_time_s=sim_wall, error=self.error)
+                         wall_time_s=time.monotonic() - self.wall0, sim_wall_time_s=sim_wall, error=self.error,
+                         start_values_rejected=(self.status == "failed" and self.setting_start_values
+                                                and not self.initialized))
 
     def _loop(self, fmu, flag: InterruptFlag) -> None:
         case = self.case
@@ -311,10 +316,12 @@ class _Run:
         t_last = exp.time(n)
 
         fmu.setup_experiment(start, max(exp.stop, t_last), exp.tolerance)
+        self.setting_start_values = True      # a failure from here to initialized: the values were refused
         if case.parameters:
             fmu.set_values(case.parameters.items())
         fmu.enter_initialization_mode()
         fmu.exit_initialization_mode()
+        self.initialized = True
 
         if case.noise is not None:
             from .noise import NoiseSource

@@ -73,16 +73,17 @@ def test_failing_fmu_keeps_rows_and_reports_its_message(fourbar_fmu, tmp_path, c
 
 
 def test_failed_initialisation_is_reported(fourbar_fmu, tmp_path, capsys, instance_calls):
-    """A start value the FMU refuses (L2 < 0) fails fmi2ExitInitializationMode: header only, failed."""
+    """A start value the FMU refuses (an unknown integrator: no model description can say which
+    strings are allowed) fails fmi2ExitInitializationMode: header only, failed, exit 2."""
     path = case_file("case1_normal", fourbar_fmu, tmp_path)
     out = tmp_path / "out"
-    assert main([str(path), "--out", str(out), "--stop", "1", "--set", "L2=-1"]) == 1
+    assert main([str(path), "--out", str(out), "--stop", "1", "--set", "integrator=Euler"]) == 2
     err = capsys.readouterr().err
-    assert "L2 = -1.0 m: must be a finite positive number" in err
+    assert "integrator = 'Euler': must be one of DOP853, RK45" in err
     record = json.loads((out / "run.json").read_text())
     assert record["status"] == "failed" and record["rows_written"] == 0
     assert record["error"].startswith("fmi2ExitInitializationMode returned fatal")
-    assert "L2 = -1.0 m: must be a finite positive number" in record["error"]
+    assert "integrator = 'Euler': must be one of DOP853, RK45" in record["error"]
     assert (out / "exchange.csv").read_text() == "time,x2,y2,x3,y3,x4,y4\n"
     # FMI 2.0 allows no call after fmi2Fatal, not even fmi2FreeInstance (and freeing a
     # pythonfmu slave then corrupts the heap): the instance must be left alone.
@@ -149,3 +150,29 @@ print("rows", len(result))
     assert "rows 21" in done.stdout
     # The FMU's message still reaches FMPy's default printer (the orchestrator routes it there).
     assert "applied L2 1 -> 1.1 at t = 0.1 s" in done.stdout
+
+
+@pytest.mark.parametrize("setting, text, runs", [
+    ("L2=0", "parameters.L2 (from --set L2) = 0: expected > 0 (declared min of L2", False),
+    ("m2=-1", "parameters.m2 (from --set m2) = -1: expected > 0 (declared min of m2", False),
+    ("integrator=Euler", "the FMU refused the case's start values", True),
+])
+def test_invalid_start_values_are_a_case_error(setting, text, runs, either_fmu, tmp_path):
+    """Exit 2 (an input error) with the FMU's own words, no pythonfmu wrapper text, and no claim
+    of kept rows.  Lengths and masses are rejected before anything runs: both FMUs declare
+    min > 0.  FMI 2.0 cannot declare the allowed values of a String, so the integrator is
+    refused by the FMU at fmi2ExitInitializationMode, before the first row."""
+    from support import FOURBAR_RUN
+
+    out = tmp_path / "out"
+    proc = subprocess.run([FOURBAR_RUN, str(case_file("case1_normal", either_fmu, tmp_path)), "--set", setting,
+                           "--out", str(out), "--stop", "1"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert text in proc.stderr
+    assert "Fatal py exception" not in proc.stderr and "PyObject_CallMethod" not in proc.stderr
+    assert "rows kept" not in proc.stderr
+    if runs:
+        assert "integrator = 'Euler'" in proc.stderr and "DOP853" in proc.stderr
+        assert json.loads((out / "run.json").read_text())["rows_written"] == 0
+    else:
+        assert not out.exists()                 # rejected before anything ran

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-__all__ = ["Variable", "VARIABLES", "BY_NAME", "PARAMETER_NAMES", "INTEGRATOR_NAMES", "UNITS"]
+__all__ = ["POSITIVE", "Variable", "VARIABLES", "BY_NAME", "PARAMETER_NAMES", "INTEGRATOR_NAMES", "UNITS"]
 
 
 class Variable(NamedTuple):
@@ -27,14 +27,19 @@ class Variable(NamedTuple):
     unit: str | None        # a unit of UNITS (Real only)
     description: str
     display_unit: str | None = None
+    minimum: float | None = None    # declared min (FMI: inclusive); POSITIVE means "> 0"
 
 
-def _tunable(name, start, unit, doc):
-    return Variable(name, "Real", "parameter", "tunable", start, unit, doc)
+#: The smallest positive normal double: as an (inclusive) FMI min it says "greater than zero".
+POSITIVE = 2.2250738585072014e-308
 
 
-def _fixed(name, start, unit, doc, display=None):
-    return Variable(name, "Real", "parameter", "fixed", start, unit, doc, display)
+def _tunable(name, start, unit, doc, minimum=None):
+    return Variable(name, "Real", "parameter", "tunable", start, unit, doc, None, minimum)
+
+
+def _fixed(name, start, unit, doc, display=None, minimum=None):
+    return Variable(name, "Real", "parameter", "fixed", start, unit, doc, display, minimum)
 
 
 def _output(name, unit, doc, display=None):
@@ -43,19 +48,20 @@ def _output(name, unit, doc, display=None):
 
 #: Every variable, in value-reference order.
 VARIABLES: tuple[Variable, ...] = (
-    _tunable("L1", 3.0, "m", "Ground link length: distance between the crank and rocker pivots [m]"),
-    _tunable("L2", 1.0, "m", "Crank (link 2) length [m]"),
-    _tunable("L3", 4.0, "m", "Coupler (link 3) length [m]"),
-    _tunable("L4", 2.5, "m", "Rocker (link 4) length [m]"),
-    _tunable("m2", 1.0, "kg", "Crank (link 2) mass, uniform slender rod [kg]"),
-    _tunable("m3", 1.0, "kg", "Coupler (link 3) mass, uniform slender rod [kg]"),
-    _tunable("m4", 1.0, "kg", "Rocker (link 4) mass, uniform slender rod [kg]"),
+    _tunable("L1", 3.0, "m", "Ground link length: distance between the crank and rocker pivots [m]", POSITIVE),
+    _tunable("L2", 1.0, "m", "Crank (link 2) length [m]", POSITIVE),
+    _tunable("L3", 4.0, "m", "Coupler (link 3) length [m]", POSITIVE),
+    _tunable("L4", 2.5, "m", "Rocker (link 4) length [m]", POSITIVE),
+    _tunable("m2", 1.0, "kg", "Crank (link 2) mass, uniform slender rod [kg]", POSITIVE),
+    _tunable("m3", 1.0, "kg", "Coupler (link 3) mass, uniform slender rod [kg]", POSITIVE),
+    _tunable("m4", 1.0, "kg", "Rocker (link 4) mass, uniform slender rod [kg]", POSITIVE),
     _tunable("g", 9.81, "m/s2", "Gravitational acceleration, acting along -y [m/s2]"),
     _fixed("theta2_start", math.radians(30.0), "rad", "Initial crank angle from +x, counter-clockwise [rad]",
            "deg"),
     _fixed("omega2_start", 0.0, "rad/s", "Initial crank angular velocity [rad/s]"),
-    _fixed("rtol", 1e-9, "1", "Relative tolerance of the Runge-Kutta error control [-]"),
-    _fixed("atol", 1e-6, "1", "Absolute tolerance of the Runge-Kutta error control [rad, rad/s]"),
+    _fixed("rtol", 1e-9, "1", "Relative tolerance of the Runge-Kutta error control [-]", minimum=POSITIVE),
+    _fixed("atol", 1e-6, "1", "Absolute tolerance of the Runge-Kutta error control [rad, rad/s]",
+           minimum=POSITIVE),
     Variable("integrator", "String", "parameter", "fixed", "DOP853", None,
              "Explicit Runge-Kutta method: DOP853 or RK45"),
     _output("x2", "m", "x of the crank's centre [m]"),
