@@ -6,7 +6,7 @@ parameter L2 with an override manipulator once the execution has reached t = 10.
 exactly as FMPy's `simulate_fmu(..., input=...)` does), records x2, y2, x3, y3, x4, y4
 with a time-series observer and writes them as CSV.
 
-    .venv/bin/python examples/libcosim_case2.py [--fmu build/FourBar.fmu] [--out case2_libcosim.csv]
+    .venv/bin/python examples/libcosim_case2.py [--fmu build/FourBar.fmu] [--out out/examples/case2_libcosim.csv]
 
 libcosim steps the FMU in one of its worker threads; pythonfmu's binary takes the GIL of
 this interpreter for every call, so nothing else is needed inside a Python process.
@@ -80,7 +80,8 @@ def main() -> None:
     install_pythonfmu_exit_guard()   # pythonfmu 0.7.0 can abort the process at exit otherwise
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fmu", default=str(Path(__file__).resolve().parents[1] / "build" / "FourBar.fmu"))
-    parser.add_argument("--out", default="case2_libcosim.csv", help="CSV file to write ('' for none)")
+    parser.add_argument("--out", default="out/examples/case2_libcosim.csv",
+                        help="CSV file to write ('' for none; the default is under out/, which make clean removes)")
     args = parser.parse_args()
 
     log_output_level(CosimLogLevel.WARNING)   # libcosim logs every FMI call at the default level
@@ -94,6 +95,7 @@ def main() -> None:
         i = int(round(t / 0.01))
         print(f"  t = {result['time'][i]:6.2f} s  " + "  ".join(f"{n} = {result[n][i]: .6f}" for n in OUTPUTS))
     if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         np.savetxt(args.out, np.column_stack([result[n] for n in names]), delimiter=",",
                    header=",".join(names), comments="", fmt="%.17g")
         print(f"wrote {args.out}")

@@ -56,6 +56,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="address of a running Dask scheduler, e.g. tcp://host:8786 (default: start a "
                              "local cluster); its workers need this package, the FMU and DIR at the same paths")
+    parser.add_argument("--dashboard", metavar="ADDRESS", nargs="?", const=":8787", default=None,
+                        help="serve the local cluster's Dask dashboard (task stream, worker load) at ADDRESS "
+                             "(default when given without one: :8787) and print its link; off by default")
     parser.add_argument("--workers", metavar="N", type=_positive_int,
                         help="worker processes of the local cluster (default: one per core)")
     parser.add_argument("--out", metavar="DIR", help="output directory (default: out/sweeps/<sweep name>)")
@@ -81,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
               "cluster's own workers are used (start them with `dask worker`)", file=sys.stderr)
         return 2
     return _sweep(args.sweep, scheduler=args.scheduler, workers=args.workers, out=args.out, limit=args.limit,
-                  retry_failed=args.retry_failed, dry_run=args.dry_run, quiet=args.quiet)
+                  retry_failed=args.retry_failed, dry_run=args.dry_run, quiet=args.quiet, dashboard=args.dashboard)
 
 
 def _err(message: str) -> None:
@@ -92,7 +95,7 @@ def _percent(x: float | None) -> str:
     return "none" if x is None else f"{100 * x:.3g} %"
 
 
-def _sweep(path: str, *, scheduler, workers, out, limit, retry_failed: bool, dry_run: bool, quiet: bool) -> int:
+def _sweep(path: str, *, scheduler, workers, out, limit, retry_failed: bool, dry_run: bool, quiet: bool, dashboard: str | None = None) -> int:
     from .config import SweepError, load_sweep
     from .results import ResultsError
 
@@ -119,7 +122,8 @@ def _sweep(path: str, *, scheduler, workers, out, limit, retry_failed: bool, dry
 
     try:
         result = run_sweep(sweep, out, scheduler=scheduler, workers=workers, limit=limit, retry_failed=retry_failed,
-                           progress=not quiet and sys.stderr.isatty(), on_start=started)
+                           progress=not quiet and sys.stderr.isatty(), on_start=started,
+                           dashboard=dashboard, on_dashboard=lambda link: _err(f"Dask dashboard: {link}"))
     except ResultsError as exc:
         _err(f"error: {exc}")
         return 2

@@ -85,10 +85,11 @@ def default_workers() -> int:
 
 @contextmanager
 def open_client(scheduler: str | None = None, workers: int | None = None, *,
-                timeout: float = 20.0) -> Iterator[Any]:
+                timeout: float = 20.0, dashboard: str | None = None) -> Iterator[Any]:
     """A Dask client: on ``scheduler`` (an address), else on a new ``LocalCluster`` of
-    ``workers`` processes (default :func:`default_workers`) with one thread each.
-    Client and cluster are closed on exit."""
+    ``workers`` processes (default :func:`default_workers`) with one thread each, serving
+    its dashboard at ``dashboard`` (e.g. ``":8787"``; None: no dashboard).
+    Client and cluster are closed on exit; ``client.dashboard_link`` says where it is."""
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
@@ -104,7 +105,7 @@ def open_client(scheduler: str | None = None, workers: int | None = None, *,
     n = workers or default_workers()
     try:
         with _children_ignore_sigint():
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard,
                                    silence_logs=logging.CRITICAL)
     except (OSError, TimeoutError) as exc:
         raise ClusterError(f"cannot start a local Dask cluster of {n} worker processes: {exc}") from None
@@ -147,7 +148,8 @@ def _write_json(path: Path, data: dict) -> None:
 
 def run_sweep(sweep: Sweep | str | Path, out_dir: str | Path | None = None, *, scheduler: str | None = None,
               workers: int | None = None, client: Any = None, progress: bool = False, limit: int | None = None,
-              retry_failed: bool = False, on_start: Callable[[int, int, Path], None] | None = None) -> SweepResult:
+              retry_failed: bool = False, on_start: Callable[[int, int, Path], None] | None = None,
+              dashboard: str | None = None, on_dashboard: Callable[[str], None] | None = None) -> SweepResult:
     """Run the scenarios of ``sweep`` that have no row yet in ``out_dir``; return the table.
 
     ``out_dir`` defaults to ``out/sweeps/<sweep name>``.  The cluster is ``client`` (an
@@ -155,7 +157,9 @@ def run_sweep(sweep: Sweep | str | Path, out_dir: str | Path | None = None, *, s
     else a new LocalCluster of ``workers`` processes.  ``limit`` runs at most that many of
     the pending scenarios (the rest stay for the next call); ``retry_failed`` runs failed
     scenarios again.  ``progress`` shows a tqdm bar on stderr; ``on_start(to_run, done,
-    out_dir)`` is called once the results already there have been read.
+    out_dir)`` is called once the results already there have been read.  ``dashboard``
+    serves a new local cluster's Dask dashboard at that address (``on_dashboard(link)``
+    is told where); a scheduler given by address has its own.
 
     Raises :class:`~sweep.config.SweepError` (invalid sweep file),
     :class:`~sweep.results.ResultsError` (an unusable results.csv), :class:`ClusterError`
@@ -175,13 +179,14 @@ def run_sweep(sweep: Sweep | str | Path, out_dir: str | Path | None = None, *, s
     try:
         return _sweep_locked(sweep, out, store, plan, by_id, notes, wall0, scheduler=scheduler, workers=workers,
                              client=client, progress=progress, limit=limit, retry_failed=retry_failed,
-                             on_start=on_start)
+                             on_start=on_start, dashboard=dashboard,
+                             on_dashboard=on_dashboard)
     finally:
         store.unlock()
 
 
 def _sweep_locked(sweep: Sweep, out: Path, store: ResultsStore, plan, by_id, notes, wall0, *, scheduler, workers,
-                  client, progress, limit, retry_failed, on_start) -> SweepResult:
+                  client, progress, limit, retry_failed, on_start, dashboard=None, on_dashboard=None) -> SweepResult:
     existing = store.load()
     kept: dict[str, dict] = {}
     stale: dict[str, list[dict]] = {}
@@ -227,7 +232,9 @@ def _sweep_locked(sweep: Sweep, out: Path, store: ResultsStore, plan, by_id, not
             if client is not None:
                 _run_on(client, sweep, pending, out, store, new_rows, progress, snapshot)
             else:
-                with open_client(scheduler, workers) as own:
+                with open_client(scheduler, workers, dashboard=dashboard) as own:
+                    if on_dashboard is not None and dashboard is not None:
+                        on_dashboard(own.dashboard_link)
                     _run_on(own, sweep, pending, out, store, new_rows, progress, snapshot)
     except KeyboardInterrupt:
         interrupted = True
