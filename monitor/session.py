@@ -107,13 +107,13 @@ class _Session:
         if self._writers is not None:
             self._writers.restart()
 
-    def drain(self) -> bool:
-        """Read everything available now; True if anything was read."""
+    def drain(self) -> tuple[bool, bool]:
+        """Read everything available now; returns (anything read, file missing)."""
         any_progress = False
         while True:
             _, progressed, missing = self.poll()
             if missing or not progressed:
-                return any_progress
+                return any_progress, missing
             any_progress = True
 
     def close(self) -> None:
@@ -217,8 +217,7 @@ def replay(exchange_path: str | os.PathLike[str], *, options: MonitorOptions | N
         elif run is not None and run.status == "running":
             session.warn(f"{run.path}: the run is still running; replaying the rows written so far "
                          "(use --follow to follow it)")
-        session.drain()
-        if session.reader.poll().missing:
+        if session.drain()[1]:
             raise ExchangeMissingError(f"{path}: the exchange file disappeared while being read")
         session.reject_empty(run)
         note = session.reader.skip_summary()
@@ -291,7 +290,7 @@ def follow(exchange_path: str | os.PathLike[str], *, options: MonitorOptions | N
                     if run is not None and (following is None or run.identity != following.identity):
                         following = run
                         say(f"following {run.describe()}")
-                    if session.drain():
+                    if session.drain()[0]:
                         last_progress = time.monotonic()
                 if run is not None and run.updated_at != heartbeat:
                     heartbeat = run.updated_at
