@@ -6,8 +6,9 @@ command line (``orchestrator.cli:main``).  ``install_pythonfmu_exit_guard`` is f
 programs that load pythonfmu FMUs (see :mod:`orchestrator.pythonfmu_workarounds`).  Importing this package imports only the
 standard library; FMPy and numpy are loaded when a case is read or run.
 """
-from .config import (Case, ConfigError, ExchangeSettings, Experiment, Noise, RampEvent, StepEvent,
-                     apply_overrides, load_case)
+from .case import Case, ExchangeSettings, Experiment, FmuDescription, Noise, RampEvent, StepEvent
+from .config import apply_overrides, load_case
+from .validation import ConfigError
 from .pythonfmu_workarounds import install_exit_guard as install_pythonfmu_exit_guard
 from .run import RunInterrupted, RunResult, run_case
 
@@ -16,6 +17,7 @@ __all__ = [
     "ConfigError",
     "ExchangeSettings",
     "Experiment",
+    "FmuDescription",
     "Noise",
     "RampEvent",
     "RunInterrupted",

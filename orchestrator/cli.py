@@ -88,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(case: str, *, out, stop, realtime, overrides, quiet: bool, fmu=None) -> int:
-    from .config import ConfigError
+    from .validation import ConfigError
     from .run import RunInterrupted, run_case
 
     try:

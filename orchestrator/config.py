@@ -1,9 +1,10 @@
-"""Case files: the typed, validated description of one co-simulation run.
+"""Case files: read a TOML case file and check it into a :class:`~orchestrator.case.Case`.
 
 A case file is TOML (schema in docs/orchestrator.md and docs/contracts.md).  ``load_case``
 reads it, checks every key against the schema *and* against the FMU's model description,
 and either returns a frozen :class:`Case` or raises one :class:`ConfigError` that lists
 every problem found, each naming the file, the field, the value and what was expected.
+The checks common to case and sweep files live in :mod:`orchestrator.validation`.
 
 Time grid.  The communication points are ``t_k = start + k*step`` for ``k = 0 .. n``,
 ``n = (stop - start)/step``, which must be a whole number.  Events must lie on that grid
@@ -17,34 +18,15 @@ model description has to be read.
 from __future__ import annotations
 
 import difflib
-import json
 import math
-import re
-import tomllib
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Union
+from typing import Any, Mapping
 
-__all__ = [
-    "Case",
-    "ConfigError",
-    "ProblemReporter",
-    "read_toml",
-    "show_value",
-    "DEFAULT_OUTPUTS",
-    "Experiment",
-    "ExchangeSettings",
-    "Noise",
-    "RampEvent",
-    "StepEvent",
-    "apply_overrides",
-    "load_case",
-]
+from .case import (DEFAULT_OUTPUTS, Case, Event, ExchangeSettings, Experiment, FmuDescription, Noise,
+                   RampEvent, StepEvent, Value, describe_fmu)
+from .validation import ConfigError, ProblemReporter, kind_of, read_toml
 
-#: Outputs written when a case has no ``[outputs]`` table (the paper's order).
-DEFAULT_OUTPUTS = ("x2", "y2", "x3", "y3", "x4", "y4")
-#: A time is on the grid when ``(time - start)/step`` is within this of a whole number.
-GRID_TOLERANCE = 1e-6
+__all__ = ["apply_overrides", "load_case"]
 
 _TOP_KEYS = ("name", "description", "fmu", "experiment", "parameters", "events", "outputs", "noise", "exchange")
 _EXPERIMENT_KEYS = ("start", "stop", "step", "tolerance")
@@ -53,162 +35,6 @@ _RAMP_KEYS = ("type", "variable", "from", "to", "start", "end")
 _OUTPUT_KEYS = ("variables",)
 _NOISE_KEYS = ("seed", "std")
 _EXCHANGE_KEYS = ("flush_interval", "realtime_factor")
-_NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
-
-Value = Union[float, int, bool, str]
-
-
-class ConfigError(ValueError):
-    """A case file (or an override of it) is invalid; ``problems`` lists every problem.
-
-    ``str(error)`` is the complete report: one line per problem, each starting with the
-    case file's name.
-    """
-
-    #: What kind of file the report is about ("invalid case <file>: ...").
-    subject = "case"
-
-    def __init__(self, source: str | None, problems: list[str] | tuple[str, ...]):
-        self.source = source
-        self.problems = tuple(problems)
-        prefix = f"{source}: " if source else ""
-        count = len(self.problems)
-        head = f"invalid {self.subject} {source or '(no file)'}: {count} problem{'s' if count != 1 else ''}"
-        super().__init__("\n".join([head] + [f"  {prefix}{p}" for p in self.problems]))
-
-
-@dataclass(frozen=True)
-class Experiment:
-    """Simulated time span and communication grid, in seconds."""
-
-    start: float
-    stop: float
-    step: float
-    tolerance: float | None = None   # relative tolerance passed to fmi2SetupExperiment (None: FMU's own)
-
-    @property
-    def n_steps(self) -> int:
-        """Number of communication steps; the run writes ``n_steps + 1`` rows."""
-        return round((self.stop - self.start) / self.step)
-
-    def time(self, k: int) -> float:
-        """Communication point ``k``: ``start + k*step`` (integer count, no accumulated drift)."""
-        return self.start + k * self.step
-
-    def index(self, t: float) -> int | None:
-        """Grid index of time ``t``, or None when ``t`` is not on the grid."""
-        x = (t - self.start) / self.step
-        k = round(x)
-        return k if abs(x - k) <= GRID_TOLERANCE else None
-
-    def as_dict(self) -> dict:
-        return {"start": self.start, "stop": self.stop, "step": self.step, "tolerance": self.tolerance}
-
-
-@dataclass(frozen=True)
-class StepEvent:
-    """Set ``variable`` to ``value`` at ``time`` (s): applied after the row at ``time`` is read."""
-
-    time: float
-    variable: str
-    value: Value
-
-    @property
-    def first_time(self) -> float:
-        return self.time
-
-    def as_dict(self) -> dict:
-        return {"type": "step", "time": self.time, "variable": self.variable, "value": self.value}
-
-
-@dataclass(frozen=True)
-class RampEvent:
-    """Move Real ``variable`` linearly from ``from_`` to ``to`` over [``start``, ``end``] (s).
-
-    The value ``from_*(1-f) + to*f``, ``f = (t - start)/(end - start)``, is set at every
-    communication point of the ramp, ends included.
-    """
-
-    variable: str
-    from_: float
-    to: float
-    start: float
-    end: float
-
-    @property
-    def first_time(self) -> float:
-        return self.start
-
-    def value_at(self, fraction: float) -> float:
-        """Ramp value at ``fraction`` in [0, 1]; exactly ``from_`` at 0 and ``to`` at 1."""
-        return self.from_ * (1.0 - fraction) + self.to * fraction
-
-    def as_dict(self) -> dict:
-        return {"type": "ramp", "variable": self.variable, "from": self.from_, "to": self.to,
-                "start": self.start, "end": self.end}
-
-
-Event = Union[StepEvent, RampEvent]
-
-
-@dataclass(frozen=True)
-class Noise:
-    """Gaussian measurement noise added to written values only (the FMU never sees it).
-
-    ``std`` maps an output name to its standard deviation in the output's unit.  Draws:
-    ``numpy.random.default_rng(seed).standard_normal`` row by row, one number per noisy
-    output in the order of ``outputs``.
-    """
-
-    seed: int
-    std: Mapping[str, float]
-
-    def as_dict(self) -> dict:
-        return {"seed": self.seed, "std": dict(self.std)}
-
-
-@dataclass(frozen=True)
-class ExchangeSettings:
-    """How the exchange file is written."""
-
-    flush_interval: float = 1.0    # simulated seconds between appends
-    realtime_factor: float = 0.0   # 0: as fast as possible; 1: wall clock; 20: 20x faster
-
-    def as_dict(self) -> dict:
-        return {"flush_interval": self.flush_interval, "realtime_factor": self.realtime_factor}
-
-
-@dataclass(frozen=True)
-class Case:
-    """One validated scenario: FMU, experiment, start values, events, outputs, noise, exchange."""
-
-    name: str
-    fmu: Path                      # absolute path of the .fmu
-    experiment: Experiment
-    parameters: Mapping[str, Value] = field(default_factory=dict)
-    events: tuple[Event, ...] = ()
-    outputs: tuple[str, ...] = DEFAULT_OUTPUTS
-    noise: Noise | None = None
-    exchange: ExchangeSettings = ExchangeSettings()
-    description: str = ""
-    source: Path | None = None     # the case file, when loaded from one
-
-    @property
-    def fault_time(self) -> float | None:
-        """Earliest event time (a step's time or a ramp's start), None without events."""
-        return min((e.first_time for e in self.events), default=None)
-
-    def as_dict(self) -> dict:
-        """The case as a TOML-shaped dict (what run.json records and what overrides edit)."""
-        data = {"name": self.name, "description": self.description, "fmu": str(self.fmu),
-                "experiment": {k: v for k, v in self.experiment.as_dict().items() if v is not None},
-                "parameters": dict(self.parameters),
-                "events": [e.as_dict() for e in self.events],
-                "outputs": {"variables": list(self.outputs)},
-                "exchange": self.exchange.as_dict()}
-        if self.noise is not None:
-            data["noise"] = self.noise.as_dict()
-        return data
 
 
 # ---------------------------------------------------------------------------- loading
@@ -235,11 +61,12 @@ def apply_overrides(case: Case, *, overrides: Mapping[str, Value] | None = None,
     """A new :class:`Case` with the overrides applied, validated again in full.
 
     Also the way to check a :class:`Case` built or modified in code (all arguments None).
+    The case's FMU description is reused while the FMU file is unchanged.
     """
     raw, origins = _merge_overrides(case.as_dict(), overrides, stop, realtime, fmu)
     label = str(case.source) if case.source is not None else f"case {case.name!r}"
     base = case.source.parent if case.source is not None else Path.cwd()
-    return _Validator(raw, label, base, origins, source=case.source).case()
+    return _Validator(raw, label, base, origins, source=case.source, known=case.fmu_description).case()
 
 
 def _merge_overrides(raw: dict, overrides, stop, realtime, fmu=None) -> tuple[dict, dict[str, str]]:
@@ -270,70 +97,6 @@ def _merge_overrides(raw: dict, overrides, stop, realtime, fmu=None) -> tuple[di
     return raw, origins
 
 
-def show_value(value: Any) -> str:
-    """A value as it would be written in TOML."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, float):
-        return repr(value)
-    if isinstance(value, (dict, list, tuple)):
-        text = json.dumps(value, default=str)
-        return text if len(text) <= 60 else text[:57] + "..."
-    return repr(value)
-
-
-def read_toml(path: Path, what: str, error: type[ConfigError] = ConfigError) -> dict:
-    """Parse the TOML file ``path`` (a ``what``, e.g. "case file"); raise ``error`` naming the
-    file when it is missing, unreadable or not TOML."""
-    label = str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise error(label, [f"{what} not found"]) from None
-    except IsADirectoryError:
-        raise error(label, [f"is a directory; expected a {what} (TOML)"]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise error(label, [f"cannot read the {what}: {exc}"]) from None
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise error(label, [f"not valid TOML: {exc}"]) from None
-
-
-class ProblemReporter:
-    """Collects validation problems as ``field = value: what was expected`` lines.
-
-    Shared by the case loader here and the sweep loader (``sweep.config``); a subclass
-    sets ``self.problems = []`` and may override :meth:`field` to say where a key came from.
-    """
-
-    problems: list[str]
-
-    def field(self, name: str) -> str:
-        return name
-
-    def problem(self, name: str, value: Any, expected: str) -> None:
-        self.problems.append(f"{self.field(name)} = {show_value(value)}: {expected}")
-
-    def missing(self, name: str, expected: str) -> None:
-        self.problems.append(f"{self.field(name)}: missing; expected {expected}")
-
-    def unknown_keys(self, table: dict, allowed: tuple[str, ...], where: str) -> None:
-        for key in table:
-            if key not in allowed:
-                close = difflib.get_close_matches(key, allowed, n=1)
-                hint = f"did you mean {close[0]!r}? " if close else ""
-                place = f"{where}.{key}" if where else key
-                self.problems.append(f"{place}: unknown key; {hint}expected one of: {', '.join(allowed)}")
-
-
-def _kind(value: Any) -> str:
-    return {bool: "a boolean", int: "an integer", float: "a float", str: "a string",
-            dict: "a table", list: "an array"}.get(type(value), type(value).__name__)
-
-
 def _role(var) -> str:
     """'a parameter (fixed)', 'an output (continuous)', ... for messages."""
     article = "an" if var.causality[0] in "aeiou" else "a"
@@ -343,14 +106,17 @@ def _role(var) -> str:
 class _Validator(ProblemReporter):
     """Collects every problem of one raw case dict, then builds the Case or raises."""
 
-    def __init__(self, raw: dict, label: str, base_dir: Path, origins: dict[str, str], source: Path | None):
+    def __init__(self, raw: dict, label: str, base_dir: Path, origins: dict[str, str], source: Path | None,
+                 known: FmuDescription | None = None):
         self.raw = raw
+        self.known = known      # an FMU description to reuse if it is still current
         self.label = label
         self.base_dir = base_dir
         self.origins = origins
         self.source = source
         self.problems: list[str] = []
         self.md = None          # fmpy ModelDescription, when the FMU could be read
+        self.description: FmuDescription | None = None
         self.fmu_name = "the FMU"
         self.variables: dict = {}
 
@@ -359,35 +125,6 @@ class _Validator(ProblemReporter):
         origin = self.origins.get(name)
         return f"{name} (from {origin})" if origin else name
 
-    def table(self, name: str, required: bool = False) -> dict | None:
-        value = self.raw.get(name)
-        if value is None:
-            if required:
-                self.missing(name, f"a [{name}] table")
-            return None
-        if not isinstance(value, dict):
-            self.problem(name, value, f"expected a [{name}] table, got {_kind(value)}")
-            return None
-        return value
-
-    def number(self, name: str, value: Any, unit: str, *, minimum: float | None = None,
-               positive: bool = False) -> float | None:
-        """A finite float (TOML integers accepted) with optional bounds, else a problem."""
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self.problem(name, value, f"expected a number{unit and ' in ' + unit}, got {_kind(value)}")
-            return None
-        value = float(value)
-        if not math.isfinite(value):
-            self.problem(name, value, "expected a finite number")
-            return None
-        if positive and value <= 0.0:
-            self.problem(name, value, f"expected a number > 0{unit and ' ' + unit}")
-            return None
-        if minimum is not None and value < minimum:
-            self.problem(name, value, f"expected a number >= {minimum:g}{unit and ' ' + unit}")
-            return None
-        return value
-
     # -- sections -----------------------------------------------------------------
     def case(self) -> Case:
         raw = self.raw
@@ -395,10 +132,7 @@ class _Validator(ProblemReporter):
             raise ConfigError(self.label, ["expected a TOML table at the top level"])
         self.unknown_keys(raw, _TOP_KEYS, "")
         name = self.name()
-        description = raw.get("description", "")
-        if not isinstance(description, str):
-            self.problem("description", description, f"expected a string, got {_kind(description)}")
-            description = ""
+        description = self.text("description", raw.get("description", "")) or ""
         fmu = self.fmu()
         experiment = self.experiment()
         parameters = self.parameters()
@@ -410,15 +144,10 @@ class _Validator(ProblemReporter):
             raise ConfigError(self.label, self.problems)
         return Case(name=name, fmu=fmu, experiment=experiment, parameters=parameters, events=events,
                     outputs=outputs, noise=noise, exchange=exchange, description=description,
-                    source=self.source)
+                    source=self.source, fmu_description=self.description)
 
     def name(self) -> str:
-        name = self.raw.get("name")
-        if not isinstance(name, str) or not _NAME_PATTERN.match(name):
-            self.problem("name", name, "expected a non-empty string of letters, digits, '_', '-', '.' "
-                                       "(it names the output directory out/<name>)")
-            return "invalid"
-        return name
+        return self.identifier("name", self.raw.get("name"), "the output directory out/<name>") or "invalid"
 
     def fmu(self) -> Path:
         value = self.raw.get("fmu")
@@ -426,16 +155,16 @@ class _Validator(ProblemReporter):
             self.missing("fmu", "the path of an FMI 2.0 co-simulation FMU, relative to the case file")
             return Path()
         if not isinstance(value, str) or not value:
-            self.problem("fmu", value, f"expected a path string, got {_kind(value)}")
+            self.problem("fmu", value, f"expected a path string, got {kind_of(value)}")
             return Path()
         path = (self.base_dir / value).resolve()
         if not path.is_file():
             self.problem("fmu", value, f"file not found (resolved to {path}); "
                                        "build it with `python build_fmu.py`; variables not checked")
             return path
-        from fmpy import read_model_description   # heavy import, only when a file is there
         try:
-            md = read_model_description(str(path))
+            description = describe_fmu(path, self.known)
+            md = description.model
         except Exception as exc:   # fmpy raises zipfile/XML/ValidationError/bare Exception
             detail = " ".join(str(exc).split())
             self.problem("fmu", value, f"not a readable FMU ({type(exc).__name__}: {detail}); variables not checked")
@@ -445,9 +174,10 @@ class _Validator(ProblemReporter):
             self.problem("fmu", value, f"expected an FMI 2.0 co-simulation FMU, got FMI {md.fmiVersion} "
                                        f"with {kinds}; variables not checked")
             return path
+        self.description = description
         self.md = md
         self.fmu_name = path.name
-        self.variables = {v.name: v for v in md.modelVariables}
+        self.variables = description.variables
         return path
 
     def experiment(self) -> Experiment | None:
@@ -473,10 +203,7 @@ class _Validator(ProblemReporter):
         if stop <= start:
             self.problem("experiment.stop", stop, f"expected a time after experiment.start = {start!r} s")
             return None
-        count = (stop - start) / step
-        if abs(count - round(count)) > GRID_TOLERANCE:
-            self.problem("experiment.stop", stop,
-                         f"(stop - start)/step = {count:.9g} is not a whole number of steps of {step!r} s")
+        if self.whole_steps("experiment.stop", stop, stop - start, step, "(stop - start)/step") is None:
             return None
         return Experiment(start=start, stop=stop, step=step, tolerance=tolerance)
 
@@ -488,7 +215,7 @@ class _Validator(ProblemReporter):
         """
         shown = name if shown is None else shown
         if not isinstance(name, str):
-            self.problem(where, shown, f"expected a variable name (string), got {_kind(name)}")
+            self.problem(where, shown, f"expected a variable name (string), got {kind_of(name)}")
             return None
         if self.md is None:
             return None
@@ -523,17 +250,17 @@ class _Validator(ProblemReporter):
             result = self.number(where, value, unit)
         elif vtype in ("Integer", "Enumeration"):
             if isinstance(value, bool) or not isinstance(value, int):
-                self.problem(where, value, f"{var.name} is {vtype}; expected an integer, got {_kind(value)}")
+                self.problem(where, value, f"{var.name} is {vtype}; expected an integer, got {kind_of(value)}")
                 return None
             result = value
         elif vtype == "Boolean":
             if not isinstance(value, bool):
-                self.problem(where, value, f"{var.name} is Boolean; expected true or false, got {_kind(value)}")
+                self.problem(where, value, f"{var.name} is Boolean; expected true or false, got {kind_of(value)}")
                 return None
             return value
         elif vtype == "String":
             if not isinstance(value, str):
-                self.problem(where, value, f"{var.name} is String; expected a string, got {_kind(value)}")
+                self.problem(where, value, f"{var.name} is String; expected a string, got {kind_of(value)}")
                 return None
             return value
         else:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Sequence
 
-from .config import Noise
+from .case import Noise
 
 __all__ = ["NoiseSource"]
 

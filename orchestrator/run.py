@@ -34,7 +34,8 @@ from typing import Mapping
 
 from fourbar_common import write_json_atomic
 
-from .config import Case, RampEvent, StepEvent, Value, apply_overrides, load_case
+from .case import Case, RampEvent, StepEvent, Value
+from .config import apply_overrides, load_case
 from .exchange import ExchangeWriter, format_row
 from .pacing import InterruptFlag, RealtimePacer
 
@@ -148,11 +149,10 @@ class _Run:
     # -- run.json ---------------------------------------------------------------------
     def _record(self) -> dict:
         case = self.case
-        from fmpy import read_model_description   # validated already; cheap (reads the XML)
-
-        md = read_model_description(str(case.fmu))
+        described = case.fmu_description      # set by the validation run_case just did
+        md = described.model
         self.md = md
-        units = {v.name: v.unit for v in md.modelVariables if v.unit}
+        units = described.units(case.outputs)
         return {
             "schema": SCHEMA_VERSION, "status": "running", "run_id": uuid.uuid4().hex, "case": case.name,
             "case_file": str(case.source) if case.source is not None else None,
@@ -163,7 +163,7 @@ class _Run:
             "events": [e.as_dict() for e in case.events],
             "fault_time": case.fault_time,
             "outputs": list(case.outputs),
-            "units": {name: units[name] for name in case.outputs if name in units},
+            "units": units,
             "noise": case.noise.as_dict() if case.noise is not None else None,
             "exchange": case.exchange.as_dict(),
             "rows_written": 0, "last_time": None,

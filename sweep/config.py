@@ -20,12 +20,12 @@ from __future__ import annotations
 
 import difflib
 import math
-import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping, Union
 
-from orchestrator.config import ConfigError, ProblemReporter, read_toml, show_value as _show
+from orchestrator.validation import (GRID_TOLERANCE, ConfigError, ProblemReporter, is_number, kind_of, read_toml,
+                                     show_value)
 
 __all__ = [
     "FaultSpec",
@@ -46,9 +46,6 @@ _REPORT_KEYS = ("latency_limit",)
 _OUTPUT_KEYS = ("keep_exchange", "monitor_plots")
 _RANGE_KEYS = ("min", "max", "scale")
 _KINDS = ("step", "ramp")
-_NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
-#: A sampled fault time or ramp duration is rounded to the case's communication grid.
-_GRID_TOLERANCE = 1e-6
 
 
 class SweepError(ConfigError):
@@ -166,17 +163,6 @@ class Sweep:
         }
 
 
-# ---------------------------------------------------------------------------- helpers
-
-def _kind(value: Any) -> str:
-    return {bool: "a boolean", int: "an integer", float: "a float", str: "a string",
-            dict: "a table", list: "an array"}.get(type(value), type(value).__name__)
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-
-
 class _Validator(ProblemReporter):
     """Collects every problem of one raw sweep dict, then builds the Sweep or raises."""
 
@@ -186,53 +172,6 @@ class _Validator(ProblemReporter):
         self.problems: list[str] = []
         self.notes: list[str] = []
         self.ranges: list[str] = []        # keys given as range tables
-
-    def table(self, key: str, required: bool = False) -> dict:
-        value = self.raw.get(key)
-        if value is None:
-            if required:
-                self.missing(key, f"a [{key}] table")
-            return {}
-        if not isinstance(value, dict):
-            self.problem(key, value, f"expected a [{key}] table, got {_kind(value)}")
-            return {}
-        return value
-
-    # -- values -------------------------------------------------------------------------
-    def number(self, key: str, value: Any, unit: str = "", *, minimum: float | None = None,
-               positive: bool = False, nonzero: bool = False) -> float | None:
-        u = f" {unit}" if unit else ""
-        if not _is_number(value):
-            what = _kind(value) if not isinstance(value, (int, float)) or isinstance(value, bool) else "a non-finite number"
-            self.problem(key, value, f"expected a finite number{u and ' in' + u}, got {what}")
-            return None
-        value = float(value)
-        if positive and value <= 0:
-            self.problem(key, value, f"expected a number > 0{u}")
-            return None
-        if minimum is not None and value < minimum:
-            self.problem(key, value, f"expected a number >= {minimum:g}{u}")
-            return None
-        if nonzero and value == 0:
-            self.problem(key, value, "expected a non-zero change (use fault.no_fault = true for runs "
-                                     "without a fault)")
-            return None
-        return value
-
-    def integer(self, key: str, value: Any, *, minimum: int = 0) -> int | None:
-        if isinstance(value, bool) or not isinstance(value, int):
-            self.problem(key, value, f"expected an integer >= {minimum}, got {_kind(value)}")
-            return None
-        if value < minimum:
-            self.problem(key, value, f"expected an integer >= {minimum}")
-            return None
-        return value
-
-    def boolean(self, key: str, value: Any) -> bool | None:
-        if not isinstance(value, bool):
-            self.problem(key, value, f"expected true or false, got {_kind(value)}")
-            return None
-        return value
 
     def axis(self, key: str, value: Any, check, *, allow_range: bool = True, integer: bool = False,
              unit: str = "") -> Axis | None:
@@ -277,11 +216,11 @@ class _Validator(ProblemReporter):
         hi = check(f"{key}.max", hi) if hi is not None else None
         if lo is None or hi is None or scale is None:
             return None
-        if not (_is_number(lo) and _is_number(hi)):
+        if not (is_number(lo) and is_number(hi)):
             self.problem(key, table, "expected numbers for min and max of a sampled range")
             return None
         if not lo < hi:
-            self.problem(f"{key}.max", hi, f"expected a value above {key}.min = {_show(lo)}")
+            self.problem(f"{key}.max", hi, f"expected a value above {key}.min = {show_value(lo)}")
             return None
         if scale == "log" and not (lo > 0):
             self.problem(f"{key}.min", lo, 'expected a number > 0 with scale = "log"')
@@ -292,13 +231,8 @@ class _Validator(ProblemReporter):
     def sweep(self) -> Sweep:
         raw = self.raw
         self.unknown_keys(raw, _TOP_KEYS, "")
-        name = raw.get("name", self.path.stem)
-        if not isinstance(name, str) or not _NAME_PATTERN.match(name):
-            self.problem("name", name, "expected letters, digits, '_', '-', '.' (it names out/sweeps/<name>)")
-        description = raw.get("description", "")
-        if not isinstance(description, str):
-            self.problem("description", description, f"expected a string, got {_kind(description)}")
-            description = ""
+        name = self.identifier("name", raw.get("name", self.path.stem), "the output directory out/sweeps/<name>")
+        description = self.text("description", raw.get("description", "")) or ""
 
         case, md = self.base_case()
         stop = self.stop(case)
@@ -310,10 +244,10 @@ class _Validator(ProblemReporter):
         fault = self.fault(case, md, experiment, train_end)
         noise = self.noise()
         sample = self.sample()
-        report = self.table("report")
+        report = self.table("report") or {}
         self.unknown_keys(report, _REPORT_KEYS, "report")
         latency_limit = self.number("report.latency_limit", report.get("latency_limit", 2.0), "s", positive=True)
-        output = self.table("output")
+        output = self.table("output") or {}
         self.unknown_keys(output, _OUTPUT_KEYS, "output")
         keep_exchange = self.boolean("output.keep_exchange", output.get("keep_exchange", True))
         monitor_plots = self.boolean("output.monitor_plots", output.get("monitor_plots", False))
@@ -344,25 +278,23 @@ class _Validator(ProblemReporter):
             self.missing("case", "the path of the base case file, relative to the sweep file")
             return None, None
         if not isinstance(value, str) or not value:
-            self.problem("case", value, f"expected a path string, got {_kind(value)}")
+            self.problem("case", value, f"expected a path string, got {kind_of(value)}")
             return None, None
         from orchestrator import ConfigError, load_case
 
         path = (self.path.parent / value).resolve()
         fmu = self.raw.get("fmu")
         if fmu is not None and (not isinstance(fmu, str) or not fmu):
-            self.problem("fmu", fmu, f"expected a path string (relative to the sweep file), got {_kind(fmu)}")
+            self.problem("fmu", fmu, f"expected a path string (relative to the sweep file), got {kind_of(fmu)}")
             fmu = None
         try:
             case = load_case(path, fmu=None if fmu is None else self.path.parent / fmu)
         except ConfigError as exc:
             for p in exc.problems:
-                where = "fmu" if p.startswith("fmu") and fmu is not None else f"case = {_show(value)}: {path.name}"
+                where = "fmu" if p.startswith("fmu") and fmu is not None else f"case = {show_value(value)}: {path.name}"
                 self.problems.append(f"{where}: {p}")
             return None, None
-        from fmpy import read_model_description
-
-        return case, read_model_description(str(case.fmu))
+        return case, case.fmu_description.model
 
     def stop(self, case) -> float | None:
         if "stop" not in self.raw:
@@ -374,10 +306,8 @@ class _Validator(ProblemReporter):
         if stop <= exp.start:
             self.problem("stop", stop, f"expected a time after the case's experiment.start = {exp.start!r} s")
             return None
-        count = (stop - exp.start) / exp.step
-        if abs(count - round(count)) > _GRID_TOLERANCE:
-            self.problem("stop", stop, f"not on the case's communication grid: (stop - start)/step = {count:.9g} "
-                                       f"is not a whole number of steps of {exp.step!r} s")
+        if self.whole_steps("stop", stop, stop - exp.start, exp.step,
+                            "not on the case's communication grid: (stop - start)/step") is None:
             return None
         return stop
 
@@ -389,7 +319,7 @@ class _Validator(ProblemReporter):
         train = table.get("train") if isinstance(table, dict) else None
         if train is None:
             return float(MonitorOptions.train[1])
-        if isinstance(train, list) and len(train) == 2 and all(_is_number(v) for v in train):
+        if isinstance(train, list) and len(train) == 2 and all(is_number(v) for v in train):
             return float(train[1])
         return None      # reported by the monitor's own check
 
@@ -398,7 +328,7 @@ class _Validator(ProblemReporter):
         from monitor import OptionError
         from monitor.forecasters import MODELS
 
-        table = self.table("monitor")
+        table = self.table("monitor") or {}
         fields = tuple(MonitorOptions.__dataclass_fields__)
         self.unknown_keys(table, fields, "monitor")
         ok = True
@@ -420,7 +350,7 @@ class _Validator(ProblemReporter):
         def threshold_check(key, item):
             if item == "auto":
                 return item
-            if not _is_number(item) or item <= 0:
+            if not is_number(item) or item <= 0:
                 self.problem(key, item, "expected a positive number in the signal's unit, or \"auto\"")
                 return None
             return float(item)
@@ -441,7 +371,7 @@ class _Validator(ProblemReporter):
             for line in lines:
                 line = line.strip()
                 key, _, rest = line.partition(":")
-                shown = _show(options.get(key)) if key in options else "(default)"
+                shown = show_value(options.get(key)) if key in options else "(default)"
                 self.problems.append(f"monitor.{key} = {shown}:{rest}")
             ok = False
         except TypeError as exc:       # a wrong type the dataclass could not even take
@@ -456,7 +386,7 @@ class _Validator(ProblemReporter):
 
     def fault(self, case, md, experiment, train_end) -> FaultSpec | None:
         table = self.table("fault", required=True)
-        if not table and "fault" not in self.raw:
+        if table is None:
             return None
         self.unknown_keys(table, _FAULT_KEYS, "fault")
         ok = True
@@ -467,7 +397,7 @@ class _Validator(ProblemReporter):
             self.missing("fault.variable", "the name of a tunable parameter of the FMU, e.g. \"L2\"")
             ok = False
         elif not isinstance(variable, str):
-            self.problem("fault.variable", variable, f"expected a variable name (string), got {_kind(variable)}")
+            self.problem("fault.variable", variable, f"expected a variable name (string), got {kind_of(variable)}")
             ok = False
         elif md is not None:
             tunable = {v.name: v for v in md.modelVariables
@@ -544,9 +474,7 @@ class _Validator(ProblemReporter):
             if d is None:
                 return None
             if grid is not None and not key.endswith((".min", ".max")):
-                count = d / grid.step
-                if abs(count - round(count)) > _GRID_TOLERANCE:
-                    self.problem(key, d, f"expected a whole number of communication steps of {grid.step!r} s")
+                if self.whole_steps(key, d, d, grid.step, "ramp_duration/step") is None:
                     return None
             return d
 
@@ -559,7 +487,7 @@ class _Validator(ProblemReporter):
         if kinds is not None and "ramp" in kinds and stop is not None and times is not None and durations:
             t_max = times.max if isinstance(times, Range) else max(times)
             d_max = durations.max if isinstance(durations, Range) else max(durations)
-            if t_max + d_max > stop + _GRID_TOLERANCE * grid.step:
+            if t_max + d_max > stop + GRID_TOLERANCE * grid.step:
                 self.problem("fault.ramp_duration", table.get("ramp_duration"),
                              f"a ramp starting at {t_max!r} s and lasting {d_max!r} s ends after stop = "
                              f"{stop!r} s")
@@ -572,14 +500,18 @@ class _Validator(ProblemReporter):
 
     def relative_change(self, key: str, value: Any) -> float | None:
         """A relative change: finite, non-zero (no_fault = true gives fault-free runs), > -1."""
-        change = self.number(key, value, nonzero=True)
+        change = self.number(key, value)
+        if change == 0.0:
+            self.problem(key, change, "expected a non-zero change (use fault.no_fault = true for runs "
+                                      "without a fault)")
+            return None
         if change is not None and change <= -1.0:
             self.problem(key, change, "expected a change > -1 (-100 %)")
             return None
         return change
 
     def noise(self) -> NoiseSpec | None:
-        table = self.table("noise")
+        table = self.table("noise") or {}
         self.unknown_keys(table, _NOISE_KEYS, "noise")
         std = self.axis("noise.std", table.get("std", 0.0), lambda k, v: self.number(k, v, minimum=0.0))
         seed = self.axis("noise.seed", table.get("seed", 1), lambda k, v: self.integer(k, v, minimum=0),
@@ -592,7 +524,7 @@ class _Validator(ProblemReporter):
         if "sample" not in self.raw:
             return None
         table = self.table("sample")
-        if not isinstance(self.raw["sample"], dict):
+        if table is None:
             return None
         self.unknown_keys(table, _SAMPLE_KEYS, "sample")
         n = seed = None

@@ -88,6 +88,20 @@ def test_one_place_decides_an_alarm():
     assert makers == ["detector.py"], makers
 
 
+def test_case_and_sweep_validators_share_one_toolkit():
+    """The checks both file kinds need (tables, numbers, integers, booleans, names, the grid)
+    are defined once, in orchestrator/validation.py; the two validators only use them."""
+    shared = {"table", "number", "integer", "boolean", "text", "identifier", "whole_steps", "unknown_keys",
+              "problem", "missing", "show_value", "kind_of", "is_number", "read_toml", "grid_steps"}
+    definitions: dict[str, list[str]] = {}
+    for path in (REPO / "orchestrator" / "validation.py", REPO / "orchestrator" / "config.py",
+                 REPO / "orchestrator" / "case.py", REPO / "sweep" / "config.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.FunctionDef) and node.name in shared:
+                definitions.setdefault(node.name, []).append(path.name)
+    assert definitions == {name: ["validation.py"] for name in shared}, definitions
+
+
 def test_fmu_runtime_needs_only_numpy_and_scipy():
     stdlib = set(sys.stdlib_module_names)
     files = [REPO / "fmu_src" / "fourbar_slave.py", *sorted((REPO / "fmu_src" / "fourbar_model").glob("*.py"))]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import re
 import subprocess
 import sys
@@ -301,6 +302,41 @@ def test_case_dataclass_round_trip(fourbar_fmu, tmp_path):
     assert apply_overrides(case) == case       # as_dict -> validate gives the same case back
     assert case.as_dict()["events"] == [{"type": "ramp", "variable": "L2", "from": 1.0, "to": 1.05,
                                          "start": 20.0, "end": 30.0}]
+
+
+def test_the_model_description_is_read_once_per_run(fourbar_fmu, tmp_path, monkeypatch):
+    """Validation keeps what it read of the FMU (GUID, variables): loading a case and running it
+    parses the model description once, and a rebuilt FMU file is read again."""
+    import fmpy
+    from orchestrator import run_case
+
+    calls = []
+    real = fmpy.read_model_description
+
+    def counting(filename, *args, **kwargs):
+        calls.append(str(filename))
+        return real(filename, *args, **kwargs)
+
+    monkeypatch.setattr(fmpy, "read_model_description", counting)
+    case = load_case(case_file("case1_normal", fourbar_fmu, tmp_path))
+    assert case.fmu_description.guid == real(str(fourbar_fmu)).guid
+    assert "L2" in case.fmu_description.variables
+    result = run_case(case, tmp_path / "out", stop=0.05)
+    assert result.status == "finished"
+    assert len(calls) == 1, calls                  # load_case only; overrides and run.json reuse it
+    record = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert record["fmu"]["guid"] == case.fmu_description.guid and record["units"]["x2"] == "m"
+    # the same file with a new modification time counts as rebuilt: read again
+    copy = tmp_path / "copy.fmu"
+    copy.write_bytes(Path(fourbar_fmu).read_bytes())
+    moved = apply_overrides(case, fmu=copy)
+    assert len(calls) == 2 and moved.fmu_description.path == copy.resolve()
+    stamp = copy.stat()
+    os.utime(copy, ns=(stamp.st_atime_ns, stamp.st_mtime_ns + 1_000_000_000))
+    touched = apply_overrides(moved)
+    assert len(calls) == 3
+    apply_overrides(touched, overrides={"L2": 1.05})  # unchanged since: reused
+    assert len(calls) == 3
 
 
 def test_chained_ramps_sharing_an_end_point_are_accepted(fourbar_fmu, tmp_path):

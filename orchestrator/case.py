@@ -1,0 +1,222 @@
+"""The typed description of one co-simulation run: :class:`Case` and its parts.
+
+A :class:`Case` is what :func:`orchestrator.load_case` returns after checking a case file
+against the schema and the FMU (see :mod:`orchestrator.config`).  It also keeps what that
+check read from the FMU (:class:`FmuDescription`), so nothing downstream parses the model
+description again.
+
+Time grid.  The communication points are ``t_k = start + k*step`` for ``k = 0 .. n``,
+``n = (stop - start)/step``, a whole number.  Events lie on that grid.
+
+Standard library only at import time; FMPy is imported when an FMU is described.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Any, Mapping, Union
+
+from .validation import grid_steps
+
+__all__ = [
+    "DEFAULT_OUTPUTS",
+    "Case",
+    "Event",
+    "ExchangeSettings",
+    "Experiment",
+    "FmuDescription",
+    "Noise",
+    "RampEvent",
+    "StepEvent",
+    "Value",
+    "describe_fmu",
+]
+
+#: Outputs written when a case has no ``[outputs]`` table (the paper's order).
+DEFAULT_OUTPUTS = ("x2", "y2", "x3", "y3", "x4", "y4")
+
+Value = Union[float, int, bool, str]
+
+
+def _stamp(path: Path) -> tuple[int, int]:
+    st = os.stat(path)
+    return st.st_mtime_ns, st.st_size
+
+
+@dataclass(frozen=True)
+class FmuDescription:
+    """What was read from an FMU file: FMPy's model description, and the file's
+    modification time and size when it was read (so a rebuilt FMU is read again)."""
+
+    path: Path
+    stamp: tuple[int, int]
+    model: Any                     # fmpy.model_description.ModelDescription
+
+    @property
+    def guid(self) -> str:
+        return self.model.guid
+
+    @cached_property
+    def variables(self) -> dict[str, Any]:
+        """Model variables by name (FMPy ``ScalarVariable`` objects)."""
+        return {v.name: v for v in self.model.modelVariables}
+
+    def units(self, names) -> dict[str, str]:
+        """The declared unit of each of ``names`` that has one."""
+        return {n: self.variables[n].unit for n in names if n in self.variables and self.variables[n].unit}
+
+    def is_current(self) -> bool:
+        """True while the file is the one that was read (same modification time and size)."""
+        try:
+            return _stamp(self.path) == self.stamp
+        except OSError:
+            return False
+
+
+def describe_fmu(path: Path, known: FmuDescription | None = None) -> FmuDescription:
+    """The description of the FMU at ``path``: ``known`` when it describes the same,
+    unchanged file, else read now (FMPy's exceptions propagate)."""
+    path = Path(path)
+    if known is not None and known.path == path and known.is_current():
+        return known
+    from fmpy import read_model_description     # heavy import, only when a file is read
+
+    stamp = _stamp(path)
+    return FmuDescription(path=path, stamp=stamp, model=read_model_description(str(path)))
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """Simulated time span and communication grid, in seconds."""
+
+    start: float
+    stop: float
+    step: float
+    tolerance: float | None = None   # relative tolerance passed to fmi2SetupExperiment (None: FMU's own)
+
+    @property
+    def n_steps(self) -> int:
+        """Number of communication steps; the run writes ``n_steps + 1`` rows."""
+        return round((self.stop - self.start) / self.step)
+
+    def time(self, k: int) -> float:
+        """Communication point ``k``: ``start + k*step`` (integer count, no accumulated drift)."""
+        return self.start + k * self.step
+
+    def index(self, t: float) -> int | None:
+        """Grid index of time ``t``, or None when ``t`` is not on the grid."""
+        return grid_steps(t - self.start, self.step)
+
+    def as_dict(self) -> dict:
+        return {"start": self.start, "stop": self.stop, "step": self.step, "tolerance": self.tolerance}
+
+
+@dataclass(frozen=True)
+class StepEvent:
+    """Set ``variable`` to ``value`` at ``time`` (s): applied after the row at ``time`` is read."""
+
+    time: float
+    variable: str
+    value: Value
+
+    @property
+    def first_time(self) -> float:
+        return self.time
+
+    def as_dict(self) -> dict:
+        return {"type": "step", "time": self.time, "variable": self.variable, "value": self.value}
+
+
+@dataclass(frozen=True)
+class RampEvent:
+    """Move Real ``variable`` linearly from ``from_`` to ``to`` over [``start``, ``end``] (s).
+
+    The value ``from_*(1-f) + to*f``, ``f = (t - start)/(end - start)``, is set at every
+    communication point of the ramp, ends included.
+    """
+
+    variable: str
+    from_: float
+    to: float
+    start: float
+    end: float
+
+    @property
+    def first_time(self) -> float:
+        return self.start
+
+    def value_at(self, fraction: float) -> float:
+        """Ramp value at ``fraction`` in [0, 1]; exactly ``from_`` at 0 and ``to`` at 1."""
+        return self.from_ * (1.0 - fraction) + self.to * fraction
+
+    def as_dict(self) -> dict:
+        return {"type": "ramp", "variable": self.variable, "from": self.from_, "to": self.to,
+                "start": self.start, "end": self.end}
+
+
+Event = Union[StepEvent, RampEvent]
+
+
+@dataclass(frozen=True)
+class Noise:
+    """Gaussian measurement noise added to written values only (the FMU never sees it).
+
+    ``std`` maps an output name to its standard deviation in the output's unit.  Draws:
+    ``numpy.random.default_rng(seed).standard_normal`` row by row, one number per noisy
+    output in the order of ``outputs``.
+    """
+
+    seed: int
+    std: Mapping[str, float]
+
+    def as_dict(self) -> dict:
+        return {"seed": self.seed, "std": dict(self.std)}
+
+
+@dataclass(frozen=True)
+class ExchangeSettings:
+    """How the exchange file is written."""
+
+    flush_interval: float = 1.0    # simulated seconds between appends
+    realtime_factor: float = 0.0   # 0: as fast as possible; 1: wall clock; 20: 20x faster
+
+    def as_dict(self) -> dict:
+        return {"flush_interval": self.flush_interval, "realtime_factor": self.realtime_factor}
+
+
+@dataclass(frozen=True)
+class Case:
+    """One validated scenario: FMU, experiment, start values, events, outputs, noise, exchange."""
+
+    name: str
+    fmu: Path                      # absolute path of the .fmu
+    experiment: Experiment
+    parameters: Mapping[str, Value] = field(default_factory=dict)
+    events: tuple[Event, ...] = ()
+    outputs: tuple[str, ...] = DEFAULT_OUTPUTS
+    noise: Noise | None = None
+    exchange: ExchangeSettings = ExchangeSettings()
+    description: str = ""
+    source: Path | None = None     # the case file, when loaded from one
+    #: What validation read from ``fmu``; set by load_case/apply_overrides, not compared.
+    fmu_description: FmuDescription | None = field(default=None, compare=False, repr=False)
+
+    @property
+    def fault_time(self) -> float | None:
+        """Earliest event time (a step's time or a ramp's start), None without events."""
+        return min((e.first_time for e in self.events), default=None)
+
+    def as_dict(self) -> dict:
+        """The case as a TOML-shaped dict (what run.json records and what overrides edit)."""
+        data = {"name": self.name, "description": self.description, "fmu": str(self.fmu),
+                "experiment": {k: v for k, v in self.experiment.as_dict().items() if v is not None},
+                "parameters": dict(self.parameters),
+                "events": [e.as_dict() for e in self.events],
+                "outputs": {"variables": list(self.outputs)},
+                "exchange": self.exchange.as_dict()}
+        if self.noise is not None:
+            data["noise"] = self.noise.as_dict()
+        return data
+
