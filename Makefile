@@ -13,7 +13,7 @@ DEMO_SPEED := $(if $(filter 1,$(REALTIME)),1,$(SPEEDUP))
 GENERATED   := fmu_src/fourbar_model/equations.py $(addprefix fmu_src/native/,fourbar_equations.c fourbar_equations.h rk_tableaus.c fourbar_variables.h)
 FMU_SOURCES := build_fmu.py $(filter-out $(GENERATED),$(wildcard fmu_src/*.py fmu_src/fourbar_model/*.py fmu_src/native/*.[ch]))
 
-.PHONY: demo test check fmu benchmarks clean help
+.PHONY: demo test check fmu benchmarks figures clean help
 
 help:
 	@echo "make demo       build the FMU, run Case 2 with orchestrator and monitor, print the verdict"
@@ -21,6 +21,7 @@ help:
 	@echo "make test       run the test suite (all of it; what CI runs)"
 	@echo "make check      the fast lane: every test not marked slow (about a minute)"
 	@echo "make benchmarks measure speed and accuracy (writes docs/benchmarks.md figures to stdout)"
+	@echo "make figures    compare the detection/accuracy figures quoted in README and docs with a fresh run"
 	@echo "make fmu        build $(FMU) and build/FourBarNative.fmu (when a C compiler exists)"
 
 $(STAMP): pyproject.toml
@@ -45,6 +46,9 @@ check: $(FMU)
 
 benchmarks: $(FMU)
 	$(BIN)/python benchmarks/run_all.py --write docs/benchmarks.md
+
+figures: $(FMU)
+	$(BIN)/python benchmarks/doc_figures.py --check
 
 clean:
 	rm -rf build out .pytest_cache $(GENERATED)
