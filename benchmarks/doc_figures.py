@@ -28,7 +28,6 @@ import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -257,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
     stale = [f for f in findings if not f.ok]
     if args.check:
         print(f"{len(findings) - len(stale)} of {len(findings)} quoted figures current"
-              + (f"; rewrite with: python benchmarks/doc_figures.py --write" if stale else ""))
+              + ("; rewrite with: python benchmarks/doc_figures.py --write" if stale else ""))
         return 1 if stale else 0
     return 0
 
