@@ -46,6 +46,7 @@ check: $(FMU)
 
 benchmarks: $(FMU)
 	$(BIN)/python benchmarks/run_all.py --write docs/benchmarks.md
+	$(BIN)/python benchmarks/doc_figures.py --write
 
 figures: $(FMU)
 	$(BIN)/python benchmarks/doc_figures.py --check

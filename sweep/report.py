@@ -186,7 +186,10 @@ _DASHES = ("-", "--", ":", "-.")
 
 class _Styles:
     """Colour by noise level; marker (detection plot) and line style (ROC) by the rest of the
-    series key (model, threshold, fault kind), so curves that coincide stay visible."""
+    series key (model, threshold, fault kind).  Series that coincide (e.g. every one at a
+    detection rate of 1.0) stay visible because they are layered: the first series is drawn
+    widest and lowest, each later one narrower and on top, with smaller markers, so equal
+    curves show as nested lines and concentric rings, at their exact values."""
 
     def __init__(self, rc, keys: list[dict[str, Any]]):
         self.colors = rc["axes.prop_cycle"].by_key()["color"]
@@ -211,6 +214,12 @@ class _Styles:
     def dash(self, key):
         return _DASHES[self.rest.index(self._rest(key)) % len(_DASHES)]
 
+    @staticmethod
+    def layer(i: int, n: int) -> dict[str, float]:
+        """Line width, marker size and z-order of series ``i`` of ``n``."""
+        f = 1.0 - i / (n - 1) if n > 1 else 0.0       # 1 for the first, 0 for the last
+        return {"lw": 1.5 + 3.0 * f, "markersize": 6.0 + 6.0 * f, "zorder": 2 + i}
+
 
 def _key(series: dict[str, Any]) -> dict[str, Any]:
     return {c: series.get(c) for c in ("noise_std", "model", "threshold", "kind", "ramp_duration")}
@@ -226,21 +235,22 @@ def plot_detection(summary: dict[str, Any], path, *, title: str = "") -> Any:
     series = [s for s in summary["series"] if s["sizes"]]
     styles = _Styles(rc, [_key(s) for s in series])
     any_latency = False
-    for s in series:
+    for i, s in enumerate(series):
         key = _key(s)
         color, marker = styles.color(key), styles.marker(key)
         hollow = {"markerfacecolor": "none"} if marker in ("o", "s", "^", "D", "v") else {}
+        layer = styles.layer(i, len(series))
         x = [100 * e["relative_change"] for e in s["sizes"]]
         nf = s["no_fault"]
         note = f" (fault-free runs with an alarm: {nf['runs_with_alarms']}/{nf['n']})" if nf["n"] else ""
-        ax_p.plot(x, [e["p_detected"] for e in s["sizes"]], "-", marker=marker, color=color, markersize=7,
-                  label=s["series"] + note, **hollow)
+        ax_p.plot(x, [e["p_detected"] for e in s["sizes"]], "-", marker=marker, color=color,
+                  label=s["series"] + note, **layer, **hollow)
         ax_p.plot(x, [e["p_within_limit"] for e in s["sizes"]], "--", marker=marker, color=color, alpha=0.6,
-                  markersize=5, **hollow)
+                  **dict(layer, lw=max(1.0, layer["lw"] - 1.0), markersize=layer["markersize"] - 2), **hollow)
         lat = [(xi, e["median_latency"]) for xi, e in zip(x, s["sizes"]) if e["median_latency"] is not None]
         if lat:
             any_latency = True
-            ax_l.plot(*zip(*lat), "-", marker=marker, color=color, markersize=7, **hollow)
+            ax_l.plot(*zip(*lat), "-", marker=marker, color=color, **layer, **hollow)
     plain = FuncFormatter(lambda v, _: f"{v:g}")
     for ax in (ax_p, ax_l):
         ax.set_xscale("log")
@@ -298,13 +308,15 @@ def plot_roc(table, path, *, title: str = "", unit: str = "", latency_limit: flo
     rc, fig, (ax,) = _figure(1, width=7.0)
     curves = roc_points(table, unit)
     styles = _Styles(rc, [dict(r["key"]) for r in curves])
-    for r in curves:
+    for i, r in enumerate(curves):
         key = dict(r["key"])
         color = styles.color(key)
-        ax.step(r["fpr"], r["tpr"], where="post", color=color, ls=styles.dash(key), lw=1.8,
+        layer = styles.layer(i, len(curves))
+        ax.step(r["fpr"], r["tpr"], where="post", color=color, ls=styles.dash(key), lw=layer["lw"],
+                zorder=layer["zorder"],
                 label=f"{r['series']}: AUC {r['auc']:.3f} ({r['n_pos']} faulty / {r['n_neg']} healthy spans)")
-        ax.plot(*r["operating"], marker=styles.marker(key), color=color, markersize=9, markerfacecolor="none",
-                markeredgewidth=2, ls="none")
+        ax.plot(*r["operating"], marker=styles.marker(key), color=color, markersize=layer["markersize"] + 3,
+                markerfacecolor="none", markeredgewidth=2, ls="none", zorder=10 + i)
     ax.plot([0, 1], [0, 1], color="grey", lw=1, ls=":")
     ax.set_xlim(-0.02, 1.02)
     ax.set_ylim(-0.02, 1.02)

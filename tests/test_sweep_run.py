@@ -184,3 +184,30 @@ def test_new_latency_limit_rescores_without_running(first_run, smoke_file, clust
     assert (table["score_early"][faults] <= before["score_early"][faults]).all()
     same = [c for c in table.columns if c not in ("score_early", "latency_limit")]
     pdt.assert_frame_equal(table[same], before[same])
+
+
+def _pixels_of(png: Path, color: str, box: tuple[float, float, float, float]) -> int:
+    """Pixels within 0.12 (per channel, of 1) of ``color`` in ``box`` = (x0, x1, y0, y1),
+    fractions of the image's width and height from its top left corner."""
+    import numpy as np
+    from matplotlib.image import imread
+
+    img = imread(png)[..., :3]
+    h, w = img.shape[:2]
+    x0, x1, y0, y1 = box
+    part = img[int(y0 * h):int(y1 * h), int(x0 * w):int(x1 * w)]
+    rgb = np.array([int(color[i:i + 2], 16) for i in (1, 3, 5)]) / 255
+    return int((np.abs(part - rgb).max(axis=-1) < 0.12).sum())
+
+
+def test_series_that_coincide_stay_visible(first_run):
+    """In the smoke sweep both noise levels detect every fault (a detection rate of 1.0 along
+    the top of detection.png's left panel) and have the same ROC curve (along roc.png's top
+    edge).  Both colours must show there.  Drawn one over the other, the first series left
+    0 and 103 pixels in those bands; layered, it leaves about 1700 and 2400."""
+    blue, orange = "#1f77b4", "#ff7f0e"        # matplotlib's first two colours: no noise, noise
+    bands = {"detection_plot": (0.0, 0.5, 0.08, 0.25), "roc_plot": (0.1, 0.95, 0.03, 0.2)}
+    for key, box in bands.items():
+        png = Path(first_run.files[key])
+        for color in (blue, orange):
+            assert _pixels_of(png, color, box) >= 300, (png.name, color)
