@@ -282,7 +282,7 @@ def _plot_spectrum(fig: Any, result: "MonitorResult") -> None:
     ax.axvline(est.fft_frequency, color="tab:orange", ls="--",
                label=f"FFT peak {est.fft_frequency:.4f} Hz → {est.fft_period:.4f} s")
     ax.axvline(est.frequency, color="red", lw=1.0,
-               label=f"refined {est.frequency:.6f} Hz → {est.period:.6f} s ± {est.period_stderr:.1g}")
+               label=f"refined {est.frequency:.6f} Hz → {est.period:.6f} s ± {est.period_stderr:.1g} s")
     ax.axvspan(est.fft_frequency - est.fft_bin_width / 2, est.fft_frequency + est.fft_bin_width / 2,
                color="tab:orange", alpha=0.12, label=f"FFT bin width 1/T = {est.fft_bin_width:.3f} Hz")
     ax.set_xlabel("frequency (Hz)")
