@@ -125,7 +125,7 @@ class Summary:
 
     @property
     def period(self) -> PeriodEstimate | None:
-        return self.fits[0].estimate if self.fits else None
+        return self.fit.estimate if self.fit is not None else None
 
     @property
     def validation_mae(self) -> float | None:
@@ -142,7 +142,7 @@ class Summary:
 
     @property
     def first_alarm_time(self) -> float | None:
-        return self.alarm_events[0].time if self.alarm_events else None
+        return self.first_alarm.time if self.first_alarm is not None else None
 
     @property
     def fault_time(self) -> float | None:

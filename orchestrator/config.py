@@ -115,15 +115,22 @@ class _Validator(ProblemReporter):
         self.origins = origins
         self.source = source
         self.problems: list[str] = []
-        self.md = None          # fmpy ModelDescription, when the FMU could be read
-        self.description: FmuDescription | None = None
+        self.description: FmuDescription | None = None   # when the FMU could be read
         self.fmu_name = "the FMU"
-        self.variables: dict = {}
 
     # -- helpers ------------------------------------------------------------------
     def field(self, name: str) -> str:
         origin = self.origins.get(name)
         return f"{name} (from {origin})" if origin else name
+
+    @property
+    def md(self):
+        """FMPy's model description of the case's FMU, None when it could not be read."""
+        return self.description.model if self.description is not None else None
+
+    @property
+    def variables(self) -> dict:
+        return self.description.variables if self.description is not None else {}
 
     # -- sections -----------------------------------------------------------------
     def case(self) -> Case:
@@ -175,9 +182,7 @@ class _Validator(ProblemReporter):
                                        f"with {kinds}; variables not checked")
             return path
         self.description = description
-        self.md = md
         self.fmu_name = path.name
-        self.variables = description.variables
         return path
 
     def experiment(self) -> Experiment | None:

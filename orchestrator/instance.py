@@ -13,6 +13,7 @@ import shutil
 import threading
 from typing import Any, Callable, Iterable, Sequence
 
+from .case import FmuDescription
 from .pythonfmu_workarounds import clean_message, forget_other_fmu_modules, install_exit_guard, release_library
 
 __all__ = ["FmuError", "FmuInstance"]
@@ -64,16 +65,16 @@ class FmuError(RuntimeError):
 class FmuInstance:
     """Context manager around ``fmpy.fmi2.FMU2Slave`` for one run.
 
-    ``model_description`` is the one FMPy read from ``path``.  On leaving the context the
+    ``description`` is what case validation read from the FMU file.  On leaving the context the
     instance is terminated (only after a clean run, as FMI 2.0 allows), freed, and the
     extracted directory removed, whatever happened.
     """
 
-    def __init__(self, path, model_description, instance_name: str, log_size: int = 200):
-        self.path = path
-        self.md = model_description
+    def __init__(self, description: FmuDescription, instance_name: str, log_size: int = 200):
+        self.path = description.path
+        self.md = description.model
         self.instance_name = instance_name
-        self.variables = {v.name: v for v in model_description.modelVariables}
+        self.variables = description.variables
         self.log = collections.deque(maxlen=log_size)   # (sequence number, status, category, message)
         self._log_count = 0
         self._slave = None

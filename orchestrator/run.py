@@ -151,7 +151,6 @@ class _Run:
         case = self.case
         described = case.fmu_description      # set by the validation run_case just did
         md = described.model
-        self.md = md
         units = described.units(case.outputs)
         return {
             "schema": SCHEMA_VERSION, "status": "running", "run_id": uuid.uuid4().hex, "case": case.name,
@@ -240,7 +239,7 @@ class _Run:
 
                         self.bar = tqdm(total=self.case.experiment.n_steps + 1, unit="row", desc=self.case.name,
                                         file=sys.stderr, dynamic_ncols=True, leave=False)
-                    with FmuInstance(self.case.fmu, self.md, self.case.name) as fmu:
+                    with FmuInstance(self.case.fmu_description, self.case.name) as fmu:
                         self._loop(fmu, flag)
                     self.status = "finished"
                 except FmuError as exc:

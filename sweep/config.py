@@ -136,9 +136,13 @@ class Sweep:
     latency_limit: float = 2.0  # s: "detected within" for the headline figure
     keep_exchange: bool = True
     monitor_plots: bool = False
-    fmu_guid: str = ""
     description: str = ""
     notes: tuple[str, ...] = field(default=())   # things the CLI should tell the user
+
+    @property
+    def fmu_guid(self) -> str:
+        """GUID of the FMU the scenarios run (rows made with another build are not reused)."""
+        return self.case.fmu_description.guid
 
     def as_dict(self) -> dict:
         """JSON-shaped description (written to ``sweep.json`` in the output directory)."""
@@ -234,14 +238,14 @@ class _Validator(ProblemReporter):
         name = self.identifier("name", raw.get("name", self.path.stem), "the output directory out/sweeps/<name>")
         description = self.text("description", raw.get("description", "")) or ""
 
-        case, md = self.base_case()
+        case = self.base_case()
         stop = self.stop(case)
         experiment = None
         if case is not None and stop is not None:
             experiment = replace(case.experiment, stop=stop)
-        monitor = self.monitor(case, md)
+        monitor = self.monitor(case)
         train_end = self.train_end()
-        fault = self.fault(case, md, experiment, train_end)
+        fault = self.fault(case, experiment, train_end)
         noise = self.noise()
         sample = self.sample()
         report = self.table("report") or {}
@@ -269,17 +273,18 @@ class _Validator(ProblemReporter):
         case = replace(case, experiment=experiment, events=(), noise=None)
         return Sweep(name=name, source=self.path, case_path=case.source, case=case, stop=stop, fault=fault,
                      noise=noise, monitor=monitor, sample=sample, latency_limit=latency_limit,
-                     keep_exchange=keep_exchange, monitor_plots=monitor_plots, fmu_guid=md.guid,
+                     keep_exchange=keep_exchange, monitor_plots=monitor_plots,
                      description=description, notes=tuple(self.notes))
 
     def base_case(self):
+        """The base case (validated by the orchestrator, with its FMU description), or None."""
         value = self.raw.get("case")
         if value is None:
             self.missing("case", "the path of the base case file, relative to the sweep file")
-            return None, None
+            return None
         if not isinstance(value, str) or not value:
             self.problem("case", value, f"expected a path string, got {kind_of(value)}")
-            return None, None
+            return None
         from orchestrator import ConfigError, load_case
 
         path = (self.path.parent / value).resolve()
@@ -293,8 +298,8 @@ class _Validator(ProblemReporter):
             for p in exc.problems:
                 where = "fmu" if p.startswith("fmu") and fmu is not None else f"case = {show_value(value)}: {path.name}"
                 self.problems.append(f"{where}: {p}")
-            return None, None
-        return case, case.fmu_description.model
+            return None
+        return case
 
     def stop(self, case) -> float | None:
         if "stop" not in self.raw:
@@ -323,7 +328,7 @@ class _Validator(ProblemReporter):
             return float(train[1])
         return None      # reported by the monitor's own check
 
-    def monitor(self, case, md) -> MonitorSpec | None:
+    def monitor(self, case) -> MonitorSpec | None:
         from monitor import MonitorOptions
         from monitor import OptionError
         from monitor.forecasters import MODELS
@@ -380,11 +385,11 @@ class _Validator(ProblemReporter):
         if not ok or models is None or thresholds is None:
             return None
         unit = ""
-        if md is not None:
-            unit = next((v.unit or "" for v in md.modelVariables if v.name == signal), "")
+        if case is not None:
+            unit = case.fmu_description.units([signal]).get(signal, "")
         return MonitorSpec(signal=signal, model=models, threshold=thresholds, options=options, unit=unit)
 
-    def fault(self, case, md, experiment, train_end) -> FaultSpec | None:
+    def fault(self, case, experiment, train_end) -> FaultSpec | None:
         table = self.table("fault", required=True)
         if table is None:
             return None
@@ -399,8 +404,8 @@ class _Validator(ProblemReporter):
         elif not isinstance(variable, str):
             self.problem("fault.variable", variable, f"expected a variable name (string), got {kind_of(variable)}")
             ok = False
-        elif md is not None:
-            tunable = {v.name: v for v in md.modelVariables
+        elif case is not None:
+            tunable = {v.name: v for v in case.fmu_description.model.modelVariables
                        if v.type == "Real" and (v.causality == "input"
                                                 or (v.causality == "parameter" and v.variability == "tunable"))}
             var = tunable.get(variable)
