@@ -23,27 +23,35 @@ _EPILOG = """\
 what it does:
   Reads the exchange file written by fourbar-run (time,x2,y2,...; a last line without a
   newline is ignored until it is complete). On the training window (default 0-9 s) it finds
-  the period of the signal (FFT, then a least-squares refinement), fits the model (Prophet
-  with one custom seasonality at that period, or a least-squares Fourier series) and sets
-  the threshold. Then every --every seconds of data it compares the newest --window seconds
-  with the forecast (mean absolute error); --persistence evaluations above the threshold
-  raise the alarm and print the paper's message:
+  the period of the signal (FFT, then a least-squares refinement) and fits the model
+  (Prophet with one custom seasonality at that period, or a least-squares Fourier series).
+  An alarm prints the paper's message:
     "Undefined signal is detected or the estimation is out of work. Please check the system"
 
-threshold 'auto' (default):
+detector 'cusum' (default):
+  Every sample's residual against the forecast, kept in phase with the data by a tracker
+  that learns only from data --guard s old, is divided by the noise scale learnt from
+  held-out training data (at least --noise-floor x the amplitude) and fed to a two-sided
+  CUSUM per signal. Its limit h is set from --false-alarm-rate (per hour of data). An alarm
+  latches and clears after --clear-after s without a new crossing: one episode per fault.
+  Several --signal columns are monitored jointly (one phase, one alarm).
+
+detector 'mae' (the paper's rule):
+  Every --every s the newest --window s are compared with the forecast (mean absolute
+  error); --persistence evaluations above the threshold raise the alarm. Threshold 'auto':
   max(k*V, 1% of the amplitude) + z*G*|t - t_c|*sigma_P/P   with k = 2, z = 4
   V: largest windowed MAE of a model fitted on the first 2/3 of the training window and
-  scored on the rest; the second term covers the forecast drift that the period's
-  uncertainty sigma_P allows (negligible on clean data). Details: docs/monitor.md.
+  scored on the rest. Details: docs/monitor.md.
 
 outputs (in --out; default <exchange dir>/monitor beside fourbar-run's run.json, else
 <exchange dir>/<exchange name>.monitor; nothing is written when the input is rejected):
-  events.jsonl  evaluations.csv  summary.json  history.png  mae.png  spectrum.png
+  events.jsonl  evaluations.csv  summary.json  history.png  statistic.png  spectrum.png
 
 examples:
   fourbar-monitor out/case2_fault_L2/exchange.csv
   fourbar-monitor out/case2_fault_L2/exchange.csv --follow        # while fourbar-run runs
-  fourbar-monitor exchange.csv --model harmonic --threshold 0.01 --window 0.3
+  fourbar-monitor exchange.csv --signal x2,x3,x4 --false-alarm-rate 0.001
+  fourbar-monitor exchange.csv --detector mae --model harmonic --threshold 0.01 --window 0.3
 
 exit status: 0 no alarm, 1 alarm or failed run, 2 usage/input error, 3 the run was cut off
 (its writer died: run.json still says running), 130 interrupted
@@ -110,28 +118,39 @@ class _Printer:
     def event(self, e: Any) -> None:
         from .detector import ALARM_MESSAGE
 
+        name = self.args.statistic_name
         if e.kind == "trained":
             if self.args.quiet:
                 return
             d = e.data
-            thr = f"threshold {d['threshold_base']:.4g}"
-            if d.get("threshold_slope_per_s"):
-                thr += f" + {d['threshold_slope_per_s']:.2g}/s·|t − t_c|"
+            if d.get("detector") == "cusum":
+                sig = ", ".join(f"{k} {v:.3g}" for k, v in d["noise_sigma"].items())
+                thr = (f"CUSUM k {d['cusum_k']:.3g}, h {d['cusum_h']:.4g} (≥ {d['arl0_hours']:.3g} h between false "
+                       f"alarms); noise scale {sig}")
+            else:
+                thr = f"threshold {d['threshold_base']:.4g}"
+                if d.get("threshold_slope_per_s"):
+                    thr += f" + {d['threshold_slope_per_s']:.2g}/s·|t − t_c|"
             self._line(f"t={e.time:8.2f} s  TRAINED  period {d['period_s']:.6g} s (FFT {d['period_fft_s']:.4g} s); "
                        f"{d['model']} order {d['order']} fitted in {d['fit_seconds']:.2f} s; {thr}")
         elif e.kind == "alarm":
-            why = " (refit limit reached)" if e.data.get("reason") == "refit_limit" else ""
-            self._line(f"t={e.time:8.2f} s  ALARM    MAE {e.mae:.5g} > threshold {e.threshold:.5g}{why}\n"
+            d = e.data
+            if d.get("reason") == "cusum":
+                why = f" on {d['signal']} ({d['side']}), change began ≈ {d['onset']:.2f} s; episode {d['episode']}"
+            else:
+                why = " (refit limit reached)" if d.get("reason") == "refit_limit" else ""
+            self._line(f"t={e.time:8.2f} s  ALARM    {name} {e.statistic:.5g} > threshold {e.threshold:.5g}{why}\n"
                        f"           {ALARM_MESSAGE}")
         elif not self.args.quiet:
-            mae = "" if e.mae is None else f"  MAE {e.mae:.5g}  threshold {e.threshold:.5g}"
-            self._line(f"t={e.time:8.2f} s  {e.kind.upper():8s}{mae}  {e.message}")
+            stat = "" if e.statistic is None else f"  {name} {e.statistic:.5g}  threshold {e.threshold:.5g}"
+            self._line(f"t={e.time:8.2f} s  {e.kind.upper():8s}{stat}  {e.message}")
 
-    def evaluation(self, t: float, mae: float, threshold: float, state: Any) -> None:
+    def evaluation(self, t: float, statistic: float, threshold: float, state: Any) -> None:
         if self.args.quiet:
             return
         if self.args.verbose or t >= self.next_status - 1e-9:
-            self._line(f"t={t:8.2f} s  {state.value:8s} MAE {mae:.5g}  threshold {threshold:.5g}")
+            self._line(f"t={t:8.2f} s  {state.value:8s} {self.args.statistic_name} {statistic:.5g}  "
+                       f"threshold {threshold:.5g}")
             step = self.args.status_every
             self.next_status = (math.floor(t / step + 1e-9) + 1) * step
 
@@ -152,7 +171,8 @@ def _verdict(result: Any, out_dir: Path) -> str:
     s = result.summary
     first = s.first_alarm
     if first is not None:
-        head = f"ALARM at t = {first.time:g} s (MAE {first.mae:.4g} > {first.threshold:.4g})"
+        name = "CUSUM" if s.options.detector == "cusum" else "MAE"
+        head = f"ALARM at t = {first.time:g} s ({name} {first.statistic:.4g} > {first.threshold:.4g})"
         if s.fault_time is not None:
             lat = s.detection_latency
             head += (f"; fault at {s.fault_time:g} s (run.json): " +
@@ -162,8 +182,8 @@ def _verdict(result: Any, out_dir: Path) -> str:
             head += "; run.json records no fault: false alarm"
     else:
         head = "no alarm"
-        if s.max_mae_over_threshold is not None:
-            head += f" (largest MAE/threshold {s.max_mae_over_threshold:.3g})"
+        if s.max_statistic_over_threshold is not None:
+            head += f" (largest statistic/limit {s.max_statistic_over_threshold:.3g})"
         if s.fault_time is not None:
             head += f"; fault at {s.fault_time:g} s (run.json) NOT detected"
     if result.status == "interrupted":
@@ -186,6 +206,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:            # --help, --version (0) or a usage error (2)
         return int(exc.code or 0)
     out, err = sys.stdout, sys.stderr
+    args.statistic_name = "CUSUM" if args.detector == "cusum" else "MAE"
     if args.status_every is None:
         args.status_every = 1.0 if args.follow else 10.0
     printer = _Printer(args, out, err)
@@ -202,9 +223,14 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         if not args.quiet:
             mode = "following" if args.follow else "replaying"
-            print(f"fourbar-monitor: {mode} {exchange} (signal {args.signal}, model {args.model}, threshold "
-                  f"{args.threshold}, window {args.window:g} s every {args.every:g} s, persistence "
-                  f"{args.persistence})", file=out, flush=True)
+            if args.detector == "cusum":
+                how = (f"detector cusum, {args.false_alarm_rate:g} false alarms/h, design shift "
+                       f"{args.design_shift:g} sigma")
+            else:
+                how = (f"detector mae, threshold {args.threshold}, window {args.window:g} s every {args.every:g} s, "
+                       f"persistence {args.persistence}")
+            print(f"fourbar-monitor: {mode} {exchange} (signal {args.signal}, model {args.model}, {how})",
+                  file=out, flush=True)
         common = dict(out_dir=out_dir, plots=not args.no_plots, on_event=printer.event,
                       on_evaluation=printer.evaluation, on_warning=printer.warning, **settings)
         if args.follow:

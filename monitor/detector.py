@@ -58,7 +58,9 @@ from .spectrum import PeriodEstimate, dominant_period, fourier_design, fit_fouri
 
 __all__ = [
     "ALARM_MESSAGE",
+    "Crossing",
     "Detector",
+    "SequentialDetector",
     "Event",
     "State",
     "ThresholdRule",
@@ -85,13 +87,13 @@ class Event:
     time: float
     kind: str                 # trained | stable | refit | alarm | clear
     state: State
-    mae: float | None = None
+    statistic: float | None = None     # the detector's statistic: the MAE (mae) or the CUSUM (cusum)
     threshold: float | None = None
     message: str = ""
     data: dict[str, Any] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
-        d = {"time": self.time, "event": self.kind, "state": self.state.value, "mae": self.mae,
+        d = {"time": self.time, "event": self.kind, "state": self.state.value, "statistic": self.statistic,
              "threshold": self.threshold, "message": self.message}
         d.update(self.data)
         return d
@@ -310,3 +312,76 @@ class Detector:
         if self.first_alarm is None:
             self.first_alarm = ev
         return ev
+
+
+@dataclass(frozen=True)
+class Crossing:
+    """A CUSUM statistic passed its limit: at ``time``, on ``signal``, side ``+`` or ``-``.
+
+    ``onset`` is the CUSUM's estimate of when the change began: the last time that
+    statistic was zero.
+    """
+
+    time: float
+    signal: str
+    side: str
+    statistic: float
+    threshold: float
+    onset: float
+
+
+class SequentialDetector:
+    """Latched alarms for the sequential (CUSUM) detector: one alarm episode per fault.
+
+    ``STABLE`` → ``ALARM`` at the first :class:`Crossing` (event ``alarm``; the statistics
+    restart from zero).  The alarm latches: further crossings extend the episode.  It
+    clears (event ``clear``, → ``STABLE``) at the first evaluation ``clear_after`` s after
+    the episode's last crossing, i.e. after that long a stretch in which the restarted
+    statistics stayed below their limit: a growing fault or a deviation seen once per cycle
+    keeps re-crossing and never flaps.  ``events`` receives each event.
+    """
+
+    def __init__(self, *, clear_after: float, emit: Callable[[list[Event]], None]):
+        if not (clear_after > 0):
+            raise OptionError(f"clear_after: expected a positive number of seconds, got {clear_after!r}")
+        self.clear_after = float(clear_after)
+        self._emit = emit
+        self.state = State.TRAINING
+        self.alarms = 0
+        self.first_alarm: Event | None = None
+        self.crossings = 0
+        self._last_crossing: float | None = None
+        self._quiet_since = -np.inf
+
+    def trained(self, time: float, threshold: float, info: dict[str, Any]) -> None:
+        self.state = State.STABLE
+        self._quiet_since = float(time)
+        self._emit([Event(time, "trained", State.TRAINING, None, threshold, "model fitted", dict(info)),
+                    Event(time, "stable", State.STABLE, None, threshold, "state 1: monitoring with the fitted model")])
+
+    def crossing(self, c: Crossing) -> None:
+        self.crossings += 1
+        self._last_crossing = c.time
+        if self.state is State.ALARM:
+            return
+        self.state = State.ALARM
+        self.alarms += 1
+        ev = Event(c.time, "alarm", State.ALARM, c.statistic, c.threshold, ALARM_MESSAGE,
+                   {"reason": "cusum", "signal": c.signal, "side": c.side, "onset": c.onset,
+                    "episode": self.alarms})
+        if self.first_alarm is None:
+            self.first_alarm = ev
+        self._emit([ev])
+
+    def tick(self, time: float) -> None:
+        """An evaluation time passed: clear a latched alarm after ``clear_after`` s without a crossing."""
+        if self.state is State.ALARM and self._last_crossing is not None \
+                and time - self._last_crossing >= self.clear_after - 1e-9:
+            self.state = State.STABLE
+            self._quiet_since = float(time)
+            self._emit([Event(time, "clear", State.STABLE, None, None,
+                              f"no CUSUM crossing for {self.clear_after:g} s: alarm episode {self.alarms} ended")])
+
+    def quiet_since(self, time: float) -> bool:
+        """True when there has been no alarm from ``time`` until now (data there are healthy)."""
+        return self.state is State.STABLE and time >= self._quiet_since - 1e-9

@@ -18,9 +18,12 @@ from typing import Any, Callable, Mapping
 from .errors import OptionError
 from .forecasters import MODELS
 
-__all__ = ["FollowOptions", "MonitorOptions", "REFIT_POLICIES", "Rule", "add_arguments", "merged"]
+__all__ = ["DETECTORS", "FollowOptions", "MonitorOptions", "REFIT_POLICIES", "Rule", "add_arguments", "merged",
+           "split_signals"]
 
 REFIT_POLICIES = ("none", "paper")
+#: ``cusum``: the sequential detector (default); ``mae``: the paper's windowed-MAE rule.
+DETECTORS = ("cusum", "mae")
 
 
 def _is_number(value: Any) -> bool:
@@ -81,7 +84,21 @@ THRESHOLD = Rule(lambda v: v == "auto" or (_is_number(v) and v > 0),
 TRAIN = Rule(lambda v: (isinstance(v, (tuple, list)) and len(v) == 2 and all(_is_number(x) for x in v)
                         and v[1] > v[0]),
              "START END with END > START (seconds)", metavar="START END")
-SIGNAL = Rule(lambda v: isinstance(v, str) and bool(v) and v != "time", "a column name other than 'time'", parse=str)
+def split_signals(value: str) -> tuple[str, ...]:
+    """``"x2, y2"`` → ``("x2", "y2")``: the columns named by the ``signal`` option."""
+    return tuple(part.strip() for part in str(value).split(","))
+
+
+def _signals_ok(value: Any) -> bool:
+    if not isinstance(value, str) or not value.strip():
+        return False
+    names = split_signals(value)
+    return all(names) and "time" not in names and len(set(names)) == len(names)
+
+
+SIGNAL = Rule(_signals_ok, "one column name or several separated by commas (not 'time', no repeats)", parse=str,
+              metavar="COL[,COL...]")
+RATE = Rule(lambda v: _is_number(v) and 1e-6 <= v <= 100, "a rate per hour in [1e-6, 100]")
 NON_NEGATIVE = Rule(lambda v: _is_number(v) and v >= 0, "a number ≥ 0")
 FRACTION = Rule(lambda v: isinstance(v, float) and 0.2 <= v <= 0.9, "a fraction in [0.2, 0.9]")
 TIMEOUT = Rule(lambda v: _is_number(v) and v >= 0, "a number of seconds ≥ 0 (0 = no limit)")
@@ -120,21 +137,41 @@ class MonitorOptions(_Checked):
 
     _what = "monitor options"
 
-    signal: str = option("x2", SIGNAL, "column to monitor", flag="--signal", group="model")
+    signal: str = option("x2", SIGNAL, "column(s) to monitor, e.g. x2 or x2,x3,y4 (monitored jointly)",
+                         flag="--signal", group="model")
     train: tuple[float, float] = option((0.0, 9.0), TRAIN, "training window in s (the paper's: 0 9)",
                                         flag="--train", group="model")
     model: str = option("prophet", choice(MODELS), "prophet (the paper's) or harmonic (least-squares Fourier "
                         "series, fast)", flag="--model", group="model")
     order: int = option(30, at_least(1), "Fourier order of the model", flag="--order", group="model")
-    threshold: float | str = option("auto", THRESHOLD, "MAE threshold in the signal's units, or 'auto' from the "
+    detector: str = option("cusum", choice(DETECTORS), "cusum: sequential detector on the phase-locked forecast "
+                           "residuals, designed by --false-alarm-rate; mae: the paper's windowed MAE against a "
+                           "threshold", flag="--detector", group="detection")
+    false_alarm_rate: float = option(0.01, RATE, "cusum: false alarms per hour of data the detector is designed for",
+                                     flag="--false-alarm-rate", group="detection")
+    design_shift: float = option(0.5, positive("in noise standard deviations"), "cusum: the mean shift, in noise "
+                                 "standard deviations, the CUSUM is tuned to (reference k = shift/2)",
+                                 flag="--design-shift", group="detection")
+    noise_floor: float = option(1e-3, NON_NEGATIVE, "cusum: smallest noise scale, as a fraction of the training "
+                                "amplitude (the scale of a noise-free signal)", flag="--noise-floor", group="detection")
+    guard: float = option(3.0, NON_NEGATIVE, "cusum: phase tracking learns only from data at least GUARD s old "
+                          "and quiet since", flag="--guard", group="detection")
+    track_time: float = option(15.0, positive("of seconds"), "cusum: time constant of the phase tracker; phase "
+                               "drifts slower than this are followed", flag="--track-time", group="detection")
+    clear_after: float = option(30.0, positive("of seconds"), "cusum: a latched alarm clears after this long "
+                                "without a CUSUM crossing", flag="--clear-after", group="detection")
+    tracker_block: float = option(1.0, positive("of seconds"))
+    rate_prior: float = option(3e-5, NON_NEGATIVE)
+    threshold: float | str = option("auto", THRESHOLD, "mae: MAE threshold in the signal's units, or 'auto' from the "
                                     "training data", flag="--threshold", group="detection")
-    window: float = option(0.5, positive("of seconds"), "evaluation window: the newest WINDOW s of data",
+    window: float = option(0.5, positive("of seconds"), "mae: evaluation window: the newest WINDOW s of data",
                            flag="--window", group="detection")
-    every: float = option(0.1, positive("of seconds"), "evaluation cadence in s of data time",
+    every: float = option(0.1, positive("of seconds"), "evaluation cadence in s of data time (cusum: "
+                          "the statistic is recorded at this cadence; it is updated at every sample)",
                           flag="--every", group="detection")
-    persistence: int = option(2, at_least(1), "consecutive evaluations above the threshold before an alarm",
+    persistence: int = option(2, at_least(1), "mae: consecutive evaluations above the threshold before an alarm",
                               flag="--persistence", group="detection")
-    refit: str = option("none", choice(REFIT_POLICIES), "none: fit once; paper: refit on the latest "
+    refit: str = option("none", choice(REFIT_POLICIES), "mae: none: fit once; paper: refit on the latest "
                         "--refit-samples samples until the first evaluation passes (the paper's policy)",
                         flag="--refit", group="detection")
     refit_samples: int = option(1000, at_least(32), "samples per refit", flag="--refit-samples", group="detection")
@@ -148,8 +185,29 @@ class MonitorOptions(_Checked):
     history_points: int = option(20000, at_least(100))
     evaluation_points: int = option(20000, at_least(100))
 
+    @property
+    def signals(self) -> tuple[str, ...]:
+        return split_signals(self.signal)
+
+    def validated(self) -> "MonitorOptions":
+        checked = super().validated()
+        problems = []
+        if checked.detector == "mae" and len(checked.signals) > 1:
+            problems.append(f"signal: the paper's MAE rule watches one column, got {checked.signal!r}; use "
+                            "detector cusum to monitor several jointly")
+        if checked.detector == "cusum":
+            if checked.threshold != "auto":
+                problems.append(f"threshold: {checked.threshold!r} is an MAE level, used only by detector mae "
+                                "(the CUSUM is set by false_alarm_rate)")
+            if checked.refit != "none":
+                problems.append(f"refit: {checked.refit!r} is the paper's policy for detector mae")
+        if problems:
+            raise OptionError("invalid monitor options:\n  " + "\n  ".join(problems))
+        return checked
+
     def _normalised(self) -> "MonitorOptions":
-        return replace(self, train=(float(self.train[0]), float(self.train[1])))
+        return replace(self, train=(float(self.train[0]), float(self.train[1])),
+                       signal=",".join(split_signals(self.signal)))
 
 
 @dataclass(frozen=True)

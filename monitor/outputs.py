@@ -2,16 +2,17 @@
 
 ``events.jsonl``
     One JSON object per line, written as it happens: ``time`` (simulated s), ``event``
-    (``trained`` | ``stable`` | ``refit`` | ``alarm`` | ``clear``), ``state``, ``mae``,
-    ``threshold``, ``message`` (the paper's sentence for an alarm), and for ``trained`` the
+    (``trained`` | ``stable`` | ``refit`` | ``alarm`` | ``clear``), ``state``, ``statistic``
+    (the MAE or the CUSUM statistic), ``threshold``, ``message`` (the paper's sentence for an alarm), and for ``trained`` the
     period, model and threshold settings; ``wall`` is the wall-clock time (ISO 8601).
 ``evaluations.csv``
-    ``time,mae,threshold,state``: every evaluation, written as it happens.
+    ``time,statistic,threshold,state``: every evaluation, written as it happens (cusum:
+    the largest CUSUM statistic of the interval; mae: the window's MAE).
 ``summary.json``
     Written at the end (atomically): periods (FFT and refined), model settings, fit time,
     validation MAE, threshold rule, first alarm, fault time from run.json, detection latency,
     false alarms before the fault, skipped-row counts, timings.
-``history.png``, ``mae.png``, ``spectrum.png``
+``history.png``, ``statistic.png``, ``spectrum.png``
     The paper's Fig. 9-13 views: data and forecast with the training window shaded (full
     run and a zoom on the alarm), MAE against the threshold with the alarm marked, and the
     spectrum of the training window with the FFT and refined periods.
@@ -41,7 +42,7 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["OUTPUT_FILES", "OutputWriters", "PLOT_FILES", "checked_default_out_dir", "default_out_dir", "jsonable",
            "write_plots"]
 
-PLOT_FILES = ("history.png", "mae.png", "spectrum.png")
+PLOT_FILES = ("history.png", "statistic.png", "spectrum.png")
 #: Every file the monitor writes into its output folder.
 OUTPUT_FILES = ("events.jsonl", "evaluations.csv", "summary.json", *PLOT_FILES)
 
@@ -106,7 +107,7 @@ class OutputWriters:
         except BaseException:
             self._events.close()
             raise
-        self._evals.write("time,mae,threshold,state\n")
+        self._evals.write("time,statistic,threshold,state\n")
         self._evals.flush()
 
     def event(self, e: Event) -> None:
@@ -115,15 +116,15 @@ class OutputWriters:
         self._events.write(json.dumps(jsonable(d), allow_nan=False) + "\n")
         self._events.flush()
 
-    def evaluation(self, t: float, mae: float, threshold: float, state: State) -> None:
-        self._evals.write(f"{t!r},{mae!r},{threshold!r},{state.value}\n")
+    def evaluation(self, t: float, statistic: float, threshold: float, state: State) -> None:
+        self._evals.write(f"{t!r},{statistic!r},{threshold!r},{state.value}\n")
         self._evals.flush()
 
     def restart(self) -> None:
         for fh in (self._events, self._evals):
             fh.seek(0)
             fh.truncate()
-        self._evals.write("time,mae,threshold,state\n")
+        self._evals.write("time,statistic,threshold,state\n")
         self._evals.flush()
         self._events.flush()
 
@@ -143,7 +144,7 @@ class OutputWriters:
 
 
 def write_plots(result: "MonitorResult", out_dir: str | os.PathLike[str]) -> list[Path]:
-    """Write history.png, mae.png and spectrum.png for ``result``; return their paths."""
+    """Write history.png, statistic.png and spectrum.png for ``result``; return their paths."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -152,7 +153,7 @@ def write_plots(result: "MonitorResult", out_dir: str | os.PathLike[str]) -> lis
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
-    for name, fn in zip(PLOT_FILES, (_plot_history, _plot_mae, _plot_spectrum)):
+    for name, fn in zip(PLOT_FILES, (_plot_history, _plot_statistic, _plot_spectrum)):
         fig = Figure(figsize=(10, 6.8), dpi=100)
         fn(fig, result)
         path = out / name
@@ -164,7 +165,7 @@ def write_plots(result: "MonitorResult", out_dir: str | os.PathLike[str]) -> lis
 def _unit(result: "MonitorResult") -> str:
     """The monitored signal's unit from run.json (the FMU's declaration), or "" when unknown."""
     run = result.summary.run
-    return (run.units.get(result.options.signal, "") if run is not None else "") or ""
+    return (run.units.get(result.options.signals[0], "") if run is not None else "") or ""
 
 
 def _label(result: "MonitorResult", what: str) -> str:
@@ -185,7 +186,7 @@ def _marks(ax: Any, result: "MonitorResult", label: bool = True) -> None:
 
 def _plot_history(fig: Any, result: "MonitorResult") -> None:
     h = result.history
-    sig = result.options.signal
+    sig = result.options.signals[0]
     fit = result.fits[0]
     axes = fig.subplots(2, 1)
     t = h["time"].to_numpy()
@@ -209,7 +210,9 @@ def _plot_history(fig: Any, result: "MonitorResult") -> None:
         m = (t >= a) & (t <= b)
         ax.plot(t[m], x[m], color="tab:blue", lw=0.9, zorder=3, label=f"{sig} (exchange file)")
         ax.plot(t[m], fitted[m], color="tab:green", lw=1.2, ls="--", zorder=4, label="model on training data")
-        ax.plot(t[m], f[m], color="tab:orange", lw=1.2, ls="--", zorder=4, label=f"forecast ({fit.forecaster.kind})")
+        locked = " phase-locked" if result.options.detector == "cusum" else ""
+        ax.plot(t[m], f[m], color="tab:orange", lw=1.2, ls="--", zorder=4,
+                label=f"{locked.strip()} forecast ({fit.forecaster.kind})".strip())
         for i, ft in enumerate(result.fits):
             ax.axvspan(ft.start, ft.end, color="tab:green", alpha=0.12,
                        label=f"training {ft.start:g}–{ft.end:g} s" if i == 0 else None)
@@ -226,48 +229,64 @@ def _plot_history(fig: Any, result: "MonitorResult") -> None:
                  f"Fourier order {fit.forecaster.order}", fontsize=11)
 
 
-def _plot_mae(fig: Any, result: "MonitorResult") -> None:
+def _plot_statistic(fig: Any, result: "MonitorResult") -> None:
     ev = result.evaluations
     s = result.summary
+    o = result.options
+    cusum = o.detector == "cusum"
     axes = fig.subplots(2, 1, height_ratios=[1.4, 1])
     first = s.first_alarm_time
     t = ev["time"].to_numpy()
-    mae = ev["mae"].to_numpy()
+    stat = ev["statistic"].to_numpy()
     thr = ev["threshold"].to_numpy()
     if first is not None:
         zoom = (first - 3.0, first + 2.0)
     else:
         zoom = (t[0] - 0.5, t[0] + 10.0) if t.size else (0.0, 1.0)
+    if cusum:
+        what = f"CUSUM of {o.signal} (largest of the {o.every:g} s interval)"
+        limit = f"limit h ({o.false_alarm_rate:g} false alarms/h)"
+        ylabel = "CUSUM statistic (noise standard deviations)"
+    else:
+        what = f"MAE over the newest {o.window:g} s (every {o.every:g} s)"
+        limit = f"threshold ({s.fit.rule.mode})"
+        ylabel = _label(result, f"MAE of {o.signal}")
     for ax, span, title in ((axes[0], None, "whole run"), (axes[1], zoom, "zoom")):
         m = np.ones(t.size, bool) if span is None else (t >= span[0]) & (t <= span[1])
-        ax.semilogy(t[m], np.maximum(mae[m], 1e-12), color="tab:blue", lw=1.0, marker="." if span else None,
-                    ms=3, label=f"MAE over the newest {result.options.window:g} s (every {result.options.every:g} s)")
-        ax.semilogy(t[m], thr[m], color="red", ls="--", lw=1.2,
-                    label=f"threshold ({s.fit.rule.mode})")
-        above = m & (mae > thr)
-        ax.semilogy(t[above], mae[above], "o", ms=2.5, color="red", label="above threshold")
+        floor = 1e-3 if cusum else 1e-12
+        ax.semilogy(t[m], np.maximum(stat[m], floor), color="tab:blue", lw=1.0, marker="." if span else None,
+                    ms=3, label=what)
+        ax.semilogy(t[m], thr[m], color="red", ls="--", lw=1.2, label=limit)
+        above = m & (stat > thr)
+        ax.semilogy(t[above], stat[above], "o", ms=2.5, color="red", label="above the limit")
+        if cusum:
+            alarm = m & (ev["state"].to_numpy() == "ALARM")
+            if alarm.any():
+                ax.fill_between(t[m], 0, 1, where=alarm[m], transform=ax.get_xaxis_transform(), color="red",
+                                alpha=0.08, label="alarm latched")
         _marks(ax, result)
         if span is not None:
             ax.set_xlim(*span)
         ax.set_xlabel("time (s)")
-        ax.set_ylabel(_label(result, f"MAE of {result.options.signal}"))
+        ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3, which="both")
-        ax.set_title(f"forecast error against the threshold — {title}", fontsize=10)
+        ax.set_title(f"detector statistic against its limit — {title}", fontsize=10)
     if first is not None:
-        txt = (f"t = {first:g} s    MAE: {s.first_alarm.mae:.4g} > threshold {s.first_alarm.threshold:.4g}\n"
+        name = "CUSUM" if cusum else "MAE"
+        txt = (f"t = {first:g} s    {name}: {s.first_alarm.statistic:.4g} > limit {s.first_alarm.threshold:.4g}\n"
                f"{ALARM_MESSAGE}")
         if s.detection_latency is not None:
-            txt += f"\ndetection latency {s.detection_latency:.3g} s after the fault"
+            txt += f"\ndetection delay {s.detection_latency:.3g} s after the fault; {s.alarms} alarm episode(s)"
         box = {"facecolor": "white", "edgecolor": "red", "alpha": 0.9}
     else:
-        txt = f"no alarm; largest MAE/threshold {s.max_mae_over_threshold or 0:.3g}"
+        txt = f"no alarm; largest statistic/limit {s.max_statistic_over_threshold or 0:.3g}"
         box = {"facecolor": "white", "edgecolor": "green", "alpha": 0.9}
     # below the axes, so it never hides the threshold line; the legend sits beside it
     fig.text(0.99, 0.015, txt, fontsize=8, ha="right", va="bottom", bbox=box)
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower left", bbox_to_anchor=(0.01, 0.0), fontsize=8, ncol=2, frameon=False)
     fig.subplots_adjust(left=0.11, right=0.98, top=0.9, bottom=0.24, hspace=0.45)
-    fig.suptitle(f"{s.case}: {result.options.signal}, {result.fits[0].forecaster.kind} model",
+    fig.suptitle(f"{s.case}: {o.signal}, {result.fits[0].forecaster.kind} model, detector {o.detector}",
                  fontsize=11)
 
 
@@ -289,12 +308,12 @@ def _plot_spectrum(fig: Any, result: "MonitorResult") -> None:
     ax.set_ylabel(_label(result, "amplitude"))
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7, loc="upper right")
-    fig.suptitle(f"{result.summary.case}: period of {result.options.signal}", fontsize=11)
-    ax.set_title(f"spectrum of {result.options.signal}, training {fit.start:g}–{fit.end:g} s", fontsize=10)
+    fig.suptitle(f"{result.summary.case}: period of {result.options.signals[0]}", fontsize=11)
+    ax.set_title(f"spectrum of {result.options.signals[0]}, training {fit.start:g}–{fit.end:g} s", fontsize=10)
     # one period of the training data folded on the refined period, with the model
     h = result.history
     t = h["time"].to_numpy()
-    x = h[result.options.signal].to_numpy()
+    x = h[result.options.signals[0]].to_numpy()
     sel = (t >= fit.start) & (t <= fit.end)
     phase = np.mod(t[sel] - fit.start, est.period)
     ax2.plot(phase, x[sel], ".", ms=2, color="tab:blue", label="training data, folded")
@@ -302,7 +321,7 @@ def _plot_spectrum(fig: Any, result: "MonitorResult") -> None:
     ax2.plot(grid - fit.start, fit.forecaster.predict(grid), color="red", lw=1.0,
              label=f"{fit.forecaster.kind}, order {fit.forecaster.order}")
     ax2.set_xlabel(f"time modulo {est.period:.5f} s")
-    ax2.set_ylabel(_label(result, result.options.signal))
+    ax2.set_ylabel(_label(result, result.options.signals[0]))
     ax2.grid(alpha=0.3)
     ax2.legend(fontsize=7)
     ax2.set_title("one period", fontsize=10)

@@ -72,7 +72,7 @@ class _Session:
                 on_evaluation(t, m, th, s)
 
         self.monitor = Monitor(self.options, source=str(path), on_event=event_cb, on_evaluation=eval_cb)
-        self.reader = ExchangeReader(path, [self.options.signal])
+        self.reader = ExchangeReader(path, list(self.options.signals))
 
     def _outputs(self) -> OutputWriters | None:
         """The output files, created at the first thing worth writing."""
@@ -98,7 +98,7 @@ class _Session:
             self.warn(issue.message)
         if len(batch):
             self.reads_with_rows += 1
-        self.monitor.feed(batch.time, batch.values[self.options.signal])
+        self.monitor.feed(batch.time, np.column_stack([batch.values[s] for s in self.options.signals]))
         progressed = batch.restarted or self.reader.offset != before
         return len(batch), progressed, batch.missing
 
@@ -148,10 +148,10 @@ class _Session:
             status=status, error=error, exchange=self.path,
             case=(run.case if run is not None and run.case else self.path.name), options=self.options,
             rows=self.reader.stats, reads_with_rows=self.reads_with_rows, restarts=mon.restarts,
-            samples=mon.n_samples, last_time=mon.last_time, fits=tuple(mon.fits), refits=mon.detector.refits,
+            samples=mon.n_samples, last_time=mon.last_time, fits=tuple(mon.fits), refits=mon.refits,
             final_state=mon.state, evaluations=mon.n_evaluations,
-            max_mae_over_threshold=mon.max_ratio if mon.n_evaluations else None,
-            max_mae_before_fault=float(pre.max()) if pre.size else None,
+            max_statistic_over_threshold=mon.max_ratio if mon.n_evaluations else None,
+            max_statistic_before_fault=float(pre.max()) if pre.size else None,
             alarm_events=alarms, score=score_alarms([e.time for e in alarms], fault) if run is not None else None,
             run=run, timing=timing, warnings=len(self.warnings))
 
@@ -286,7 +286,7 @@ def follow(exchange_path: str | os.PathLike[str], *, options: MonitorOptions | N
                         session.warn(f"{following.describe()} was replaced by {run.describe()}; following the new run")
                         session.restart()
                         session.reader.close()
-                        session.reader = ExchangeReader(path, [opts.signal])
+                        session.reader = ExchangeReader(path, list(opts.signals))
                     if run is not None and (following is None or run.identity != following.identity):
                         following = run
                         say(f"following {run.describe()}")

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .detector import ALARM_MESSAGE, Event, State
+from .detector import ALARM_MESSAGE, Event, State, ThresholdRule
 from .options import MonitorOptions
 from .reader import ReaderStats, RunInfo
 from .spectrum import PeriodEstimate
@@ -105,8 +105,8 @@ class Summary:
     refits: int
     final_state: State
     evaluations: int
-    max_mae_over_threshold: float | None
-    max_mae_before_fault: float | None
+    max_statistic_over_threshold: float | None
+    max_statistic_before_fault: float | None
     alarm_events: tuple[Event, ...]
     score: FaultScore | None
     run: RunInfo | None
@@ -129,11 +129,13 @@ class Summary:
 
     @property
     def validation_mae(self) -> float | None:
-        """The largest windowed MAE of the validation model (auto threshold), else None."""
-        return self.fits[0].rule.details.get("validation_mae_max") if self.fits else None
+        """The largest windowed MAE of the validation model (mae detector, auto threshold), else None."""
+        rule = self.fits[0].rule if self.fits else None
+        return rule.details.get("validation_mae_max") if isinstance(rule, ThresholdRule) else None
 
     @property
     def alarms(self) -> int:
+        """Alarm episodes: an alarm latches (cusum) or needs a clear first (mae), so each alarm event starts one."""
         return len(self.alarm_events)
 
     @property
@@ -169,6 +171,8 @@ class Summary:
             "case": self.case,
             "run_id": self.run.run_id if self.run is not None else None,
             "signal": self.signal,
+            "signals": list(self.options.signals),
+            "detector": self.options.detector,
             "options": self.options.as_dict(),
             "rows": self.rows.as_dict(),
             "reads_with_rows": self.reads_with_rows,
@@ -185,12 +189,14 @@ class Summary:
             "refits": self.refits,
             "final_state": self.final_state.value,
             "evaluations": self.evaluations,
-            "max_mae_over_threshold": self.max_mae_over_threshold,
-            "max_mae_before_fault": self.max_mae_before_fault,
+            "max_statistic_over_threshold": self.max_statistic_over_threshold,
+            "max_statistic_before_fault": self.max_statistic_before_fault,
             "alarms": self.alarms,
+            "alarm_episodes": [{"time": e.time, **{k: e.data[k] for k in ("signal", "side", "onset") if k in e.data}}
+                               for e in self.alarm_events[:1000]],
             "alarm_times": [e.time for e in self.alarm_events[:1000]],
             "first_alarm_time": first.time if first else None,
-            "first_alarm_mae": first.mae if first else None,
+            "first_alarm_statistic": first.statistic if first else None,
             "first_alarm_threshold": first.threshold if first else None,
             "message": ALARM_MESSAGE if first else None,
             "run_status": self.run.status if self.run else None,

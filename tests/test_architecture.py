@@ -77,7 +77,7 @@ def test_modules_import_each_other_without_a_circle(package):
 
 
 def test_one_place_decides_an_alarm():
-    """Only monitor.detector.Detector creates alarm events."""
+    """Only monitor.detector (Detector, SequentialDetector) creates alarm events."""
     makers = []
     for path in sorted((REPO / "monitor").glob("*.py")):
         for node in ast.walk(ast.parse(path.read_text())):
@@ -85,7 +85,7 @@ def test_one_place_decides_an_alarm():
                 kinds = [a.value for a in node.args[1:2] if isinstance(a, ast.Constant)]
                 if "alarm" in kinds:
                     makers.append(path.name)
-    assert makers == ["detector.py"], makers
+    assert makers and set(makers) == {"detector.py"}, makers
 
 
 def test_case_and_sweep_validators_share_one_toolkit():

@@ -1,5 +1,8 @@
 """Acceptance criteria of the monitor (issue 4) on exchange files written by fourbar-run.
 
+The issue-4 figures are the paper's rule's (``detector="mae"``): they must still hold, so
+the fixture replays with it.  The command test at the end runs the default (cusum).
+
 - Case 1 (100 s): no alarm, with both models.
 - Case 2 (L2 1.0 → 1.1 m at 10 s): first alarm ≤ 0.5 s after the fault, both models,
   default settings (the paper needed 4 s).
@@ -30,7 +33,7 @@ def results(tmp_path_factory, fourbar_fmu):
     for run in ("case1", "case2", "noise1", "noise2"):
         path = orchestrated(tmp_path_factory, fourbar_fmu, run)
         for model in MODELS:
-            out[run, model] = replay(path, model=model)
+            out[run, model] = replay(path, model=model, detector="mae")
     return out
 
 
@@ -43,7 +46,7 @@ def test_case1_has_no_alarm(results, model):
     assert s.false_alarms == 0 and s.fault_time is None
     assert s.evaluations == 906                          # 9.5 .. 100 s every 0.1 s
     # margin: clean data stays far below the threshold
-    assert s.max_mae_over_threshold < 0.3
+    assert s.max_statistic_over_threshold < 0.3
 
 
 @pytest.mark.parametrize("model", MODELS)
@@ -55,16 +58,16 @@ def test_case2_alarms_within_half_a_second(results, model):
     assert s.false_alarms == 0
     assert 10.0 <= s.first_alarm_time <= 10.5
     assert 0.0 <= s.detection_latency <= 0.5
-    assert s.max_mae_before_fault < 0.1 * s.fit.rule.base     # STABLE well before the fault
+    assert s.max_statistic_before_fault < 0.1 * s.fit.rule.base     # STABLE well before the fault
     first = next(e for e in r.events if e["event"] == "alarm")
-    assert first["message"] == ALARM_MESSAGE and first["mae"] > first["threshold"]
+    assert first["message"] == ALARM_MESSAGE and first["statistic"] > first["threshold"]
 
 
 @pytest.mark.parametrize("model", MODELS)
 def test_noise_case1_has_no_alarm(results, model):
     s = results["noise1", model].summary
     assert s.alarms == 0
-    assert s.max_mae_over_threshold < 0.8
+    assert s.max_statistic_over_threshold < 0.8
     # the validation term sees the noise: MAE of N(0, σ) is σ·sqrt(2/π) ≈ 4 mm
     assert 0.003 < s.validation_mae < 0.008
 
@@ -99,13 +102,13 @@ def test_refined_period_is_accurate(tmp_path_factory, fourbar_fmu):
 def test_command_reports_the_alarm_and_writes_outputs(tmp_path_factory, fourbar_fmu, tmp_path, capsys):
     exchange = orchestrated(tmp_path_factory, fourbar_fmu, "case2")
     out_dir = tmp_path / "monitor"
-    code = main([str(exchange), "--out", str(out_dir)])           # default: prophet, auto threshold
+    code = main([str(exchange), "--out", str(out_dir)])           # default: prophet, cusum
     printed = capsys.readouterr()
     assert code == 1
     assert ALARM_MESSAGE in printed.out
-    alarm_line = next(line for line in printed.out.splitlines() if "ALARM  " in line and "MAE" in line)
-    assert "t=   10.30 s" in alarm_line and "> threshold 0.005" in alarm_line
-    assert "detected 0.3 s after it" in printed.out
+    alarm_line = next(line for line in printed.out.splitlines() if "ALARM  " in line and "CUSUM" in line)
+    assert "t=   10.01 s" in alarm_line and "on x2" in alarm_line and "episode 1" in alarm_line
+    assert "detected 0.01 s after it" in printed.out
     assert "Traceback" not in printed.err
     assert len(printed.out.splitlines()) < 40          # a 100 s replay prints a screenful, not 900 lines
 
@@ -114,17 +117,18 @@ def test_command_reports_the_alarm_and_writes_outputs(tmp_path_factory, fourbar_
     assert summary["model"]["kind"] == "prophet" and summary["model"]["growth"] == "flat"
     assert summary["model"]["seasonality"]["period_days"] == pytest.approx(summary["period"]["refined_s"] / 86400)
     assert summary["model"]["order"] == 30 and summary["model"]["uncertainty_samples"] == 0
-    assert summary["fit_seconds"] > 0 and summary["validation_mae"] is not None
-    assert summary["threshold"]["mode"] == "auto" and summary["threshold"]["base"] > 0
-    assert summary["first_alarm_time"] == pytest.approx(10.3)
-    assert summary["fault_time"] == 10.0 and summary["detection_latency_s"] == pytest.approx(0.3)
+    assert summary["fit_seconds"] > 0 and summary["detector"] == "cusum"
+    assert summary["threshold"]["k"] == 0.25 and summary["threshold"]["arl0_hours"] >= 100 - 1e-9
+    assert summary["first_alarm_time"] == pytest.approx(10.01)
+    assert summary["fault_time"] == 10.0 and summary["detection_latency_s"] == pytest.approx(0.01)
+    assert summary["alarms"] == 1 and summary["alarm_episodes"][0]["signal"] == "x2"
     assert summary["false_alarms_before_fault"] == 0
     events = [json.loads(line) for line in (out_dir / "events.jsonl").read_text().splitlines()]
     assert [e["event"] for e in events[:3]] == ["trained", "stable", "alarm"]
-    assert {"time", "mae", "threshold", "state", "message"} <= set(events[2])
+    assert {"time", "statistic", "threshold", "state", "message", "signal", "onset"} <= set(events[2])
     evaluations = (out_dir / "evaluations.csv").read_text().splitlines()
-    assert evaluations[0] == "time,mae,threshold,state" and len(evaluations) == 907
-    for name in ("history.png", "mae.png", "spectrum.png"):
+    assert evaluations[0] == "time,statistic,threshold,state" and len(evaluations) == 911   # 9.1 .. 100 s
+    for name in ("history.png", "statistic.png", "spectrum.png"):
         data = (out_dir / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 20_000
 

@@ -80,7 +80,7 @@ def test_follow_live_run_matches_replay(tmp_path, fourbar_fmu):
     assert events[0]["event"] == "trained" and trained_wall > started
 
     replayed = replay(exchange)           # the finished file, same defaults
-    assert followed["first_alarm_time"] == replayed.first_alarm_time == pytest.approx(10.3)
+    assert followed["first_alarm_time"] == replayed.first_alarm_time == pytest.approx(10.01)
     assert followed["detection_latency_s"] == replayed.detection_latency
     logged = pd.read_csv(mon_dir / "evaluations.csv")
     pd.testing.assert_frame_equal(logged, replayed.evaluations, check_exact=True)

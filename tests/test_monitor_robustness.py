@@ -84,7 +84,7 @@ def test_follow_waits_for_the_file(case2, reference, tmp_path):
     r = follow(target, poll=0.01, timeout=30, sleep=script, on_wait=waits.append, **FAST)
     assert len(waits) == 2 and "waiting for" in waits[0]
     assert waits[1].startswith("following run ") and json.loads((target.parent / "run.json").read_text())["run_id"] in waits[1]
-    assert r.first_alarm_time == reference.first_alarm_time == pytest.approx(10.3)
+    assert r.first_alarm_time == reference.first_alarm_time == pytest.approx(10.01)
     assert r.evaluations.equals(reference.evaluations)
 
 
@@ -306,7 +306,7 @@ def test_truncated_while_following(case1, case2, case2_lines, reference, tmp_pat
     assert any("replaced or truncated; starting again" in w for w in warnings)
     assert r.summary.restarts == 1
     assert r.evaluations.equals(reference.evaluations)
-    assert r.first_alarm_time == pytest.approx(10.3)
+    assert r.first_alarm_time == pytest.approx(10.01)
     logged = (tmp_path / "m" / "evaluations.csv").read_text().splitlines()
     assert len(logged) == len(reference.evaluations) + 1     # the log restarted with the new file
 
@@ -369,7 +369,7 @@ def test_run_json_failed(case2_lines, tmp_path, capsys):
     assert script.calls == 1                              # stopped at once, no timeout wait
     assert r.status == "run_failed" and r.exit_code == 1
     assert any("the run failed: doStep failed at t = 15.01 s" in w for w in warnings)
-    assert r.first_alarm_time == pytest.approx(10.3)       # the rows written are still monitored
+    assert r.first_alarm_time == pytest.approx(10.01)       # the rows written are still monitored
     code, out, err = cli([str(path), "--model", "harmonic", "--no-plots"], capsys)
     assert code == 1 and "the run failed: doStep failed" in out + err
 
@@ -393,19 +393,20 @@ def test_run_json_unreadable(case2, reference, tmp_path):
 
 
 # -- memory stays bounded ---------------------------------------------------------------------------------
-def test_memory_is_bounded_when_following_a_long_run():
+@pytest.mark.parametrize("detector, evaluations, first", [("cusum", 11910, 9.1), ("mae", 11906, 9.5)])
+def test_memory_is_bounded_when_following_a_long_run(detector, evaluations, first):
     """1200 s of a periodic signal in 1 s blocks: buffers stay bounded, no alarm."""
     period = 3.0573
-    mon = Monitor(MonitorOptions(model="harmonic", history_points=2000, evaluation_points=1000))
+    mon = Monitor(MonitorOptions(model="harmonic", detector=detector, history_points=2000, evaluation_points=1000))
     sizes = []
     for block in range(1200):
         t = np.round(block + np.arange(1, 101) * 0.01, 10)
         x = 0.5 * np.cos(2 * np.pi * t / period) + 0.1 * np.cos(6 * np.pi * t / period)
         mon.feed(t, x)
-        sizes.append(len(mon._t))
-    assert mon.n_evaluations == 11906
+        sizes.append(mon.buffered_samples)
+    assert mon.n_evaluations == evaluations
     assert max(sizes[100:]) <= max(sizes[100:200]) and max(sizes) < 5000
     assert len(mon.history) <= 2000 and len(mon.evaluations) <= 1000
     ev = mon.evaluation_frame()
-    assert ev["time"].iloc[0] == pytest.approx(9.5) and ev["time"].iloc[-1] > 1190   # spans the whole run
+    assert ev["time"].iloc[0] == pytest.approx(first) and ev["time"].iloc[-1] > 1190   # spans the whole run
     assert mon.detector.alarms == 0

@@ -137,7 +137,7 @@ def test_detector_persistence_and_clear():
         assert not refit
         kinds += [(e.kind, e.time) for e in events]
     assert kinds == [("alarm", 9.9), ("clear", 10.3)]
-    assert det.alarms == 1 and det.first_alarm.mae == 2.0 and det.state is State.STABLE
+    assert det.alarms == 1 and det.first_alarm.statistic == 2.0 and det.state is State.STABLE
 
 
 def test_detector_paper_refit_policy():
@@ -178,14 +178,15 @@ def test_auto_threshold_rule(grid):
 def test_monitor_finds_a_step_change(grid):
     t = grid
     x = signal(t) + np.where(t > 15.0, 0.05, 0.0)
-    mon = Monitor(MonitorOptions(model="harmonic", threshold=0.01, window=0.5, every=0.1, persistence=2))
+    mon = Monitor(MonitorOptions(model="harmonic", detector="mae", threshold=0.01, window=0.5, every=0.1,
+                                 persistence=2))
     for i in range(0, t.size, 37):                      # in uneven batches, as a follower reads
         mon.feed(t[i:i + 37], x[i:i + 37])
     alarms = [e.time for e in mon.events if e.kind == "alarm"]
     assert alarms[0] == pytest.approx(15.2)     # MAE 0.01 at 15.1 (not above), 0.02 at 15.2: 2 above
     ev = mon.evaluation_frame()
     assert ev["time"].iloc[0] == pytest.approx(9.5)      # the first window wholly after the training end
-    assert ev["mae"][ev["time"] <= 15.0 + 1e-9].max() < 1e-6
+    assert ev["statistic"][ev["time"] <= 15.0 + 1e-9].max() < 1e-6
 
 
 # -- engine pieces ---------------------------------------------------------------------------------
@@ -210,12 +211,12 @@ def test_options_are_checked_together():
 
 def test_paper_refit_policy_end_to_end(tmp_path_factory, fourbar_fmu):
     exchange = orchestrated(tmp_path_factory, fourbar_fmu, "case2")
-    r = replay(exchange, model="harmonic", refit="paper")
+    r = replay(exchange, model="harmonic", detector="mae", refit="paper")
     kinds = [e["event"] for e in r.events[:3]]
     assert kinds == ["trained", "stable", "alarm"]           # stable at the first evaluation (9.5 s)
     assert r.events[1]["time"] == 9.5 and r.first_alarm_time == pytest.approx(10.3)
     # a threshold no model can meet: refit on the latest 1000 samples, then give up and alarm
-    r = replay(exchange, model="harmonic", refit="paper", threshold=1e-9, max_refits=2)
+    r = replay(exchange, model="harmonic", detector="mae", refit="paper", threshold=1e-9, max_refits=2)
     kinds = [e["event"] for e in r.events]
     assert kinds[:5] == ["trained", "refit", "trained", "refit", "trained"]
     assert r.events[5]["event"] == "alarm" and r.events[5]["reason"] == "refit_limit"

@@ -1,0 +1,293 @@
+"""The sequential detector's numerics: noise scale, CUSUM design, and the residual engine.
+
+For every monitored signal ``s`` the engine forms the phase-locked residual and its
+standardised value::
+
+    r_s(t) = x_s(t) − f_s(t − τ̂(t))             (f_s: the fitted forecast, periodic)
+    z_s(t) = r_s(t) / sqrt(σ_s² + f_s'(t − τ̂)² · Var τ̂(t))
+
+and runs a two-sided CUSUM (:mod:`monitor.cusum`) on each ``z_s``.  ``τ̂`` comes from one
+:class:`~monitor.tracking.PhaseTracker` shared by the signals (one mechanism, one phase),
+updated block by block (``block`` s) with data at least ``guard`` s old and only while the
+detector is quiet, so a fault is not learnt before it is detected.
+
+Noise scale (:func:`noise_scale`)
+    ``σ_s`` is learnt from held-out training data: a model of the same kind fitted on the
+    first 2/3 of the training window forecasts the rest.  The residuals there are
+    autocorrelated when the model error dominates (the noise-free case) and white when
+    sensor noise dominates.  Both are covered by the long-run standard deviation of an
+    AR(1) fit, ``std · sqrt((1 + ρ)/(1 − ρ))`` (ρ, the lag-1 autocorrelation, clipped to
+    [0, 0.95]): a CUSUM with a small reference ``k`` integrates many samples, so its
+    in-control behaviour is set by the long-run variance.  The estimate is raised to its
+    upper confidence limit ``(1 + c/sqrt(2·n_eff))`` (``c = 2``, ``n_eff = n(1 − ρ)/(1 + ρ)``)
+    because the run length depends exponentially on the scale.  Finally a floor of
+    ``noise_floor`` × the training amplitude applies: a noise-free simulation has almost no
+    noise (a few µm of model error), and the floor stands for the smallest deviation worth
+    an alarm; it also keeps the CUSUM blind to the model's µm-level periodic error.
+
+Design (:func:`design_cusum`)
+    ``k = δ/2`` for the design shift ``δ`` (in σ); ``h`` from the false-alarm rate per hour
+    (see :mod:`monitor.cusum`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from .cusum import arl_siegmund, cusum_path, cusum_threshold
+from .detector import Crossing, SequentialDetector, State
+from .tracking import PeriodicTemplate, PhaseTracker
+
+__all__ = ["CusumDesign", "NoiseScale", "ResidualCusum", "design_cusum", "noise_scale"]
+
+#: z of the upper confidence limit put on the noise scale.
+SCALE_CONFIDENCE = 2.0
+#: Largest lag-1 autocorrelation used in the long-run scale.
+MAX_LAG1 = 0.95
+
+
+@dataclass(frozen=True)
+class NoiseScale:
+    """How a signal's residuals are standardised (units of the signal)."""
+
+    held_out_std: float
+    lag1: float
+    long_run_std: float
+    samples: int
+    inflation: float
+    floor: float
+    sigma: float
+
+    @property
+    def at_floor(self) -> bool:
+        return self.sigma <= self.floor
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"held_out_std": self.held_out_std, "lag1": self.lag1, "long_run_std": self.long_run_std,
+                "held_out_samples": self.samples, "inflation": self.inflation, "floor": self.floor,
+                "sigma": self.sigma, "at_floor": self.at_floor}
+
+
+def noise_scale(residual: np.ndarray, amplitude: float, floor_fraction: float) -> NoiseScale:
+    """The standardisation scale from held-out residuals (rules in the module docstring)."""
+    r = np.asarray(residual, dtype=float)
+    r = r[np.isfinite(r)]
+    n = int(r.size)
+    std = float(np.sqrt(np.mean(r * r))) if n else 0.0
+    lag1 = 0.0
+    if n > 2:
+        d = r - r.mean()
+        denom = float(d @ d)
+        if denom > 0:
+            lag1 = float(np.clip((d[1:] @ d[:-1]) / denom, 0.0, MAX_LAG1))
+    long_run = std * math.sqrt((1 + lag1) / (1 - lag1))
+    n_eff = max(n * (1 - lag1) / (1 + lag1), 2.0)
+    inflation = 1.0 + SCALE_CONFIDENCE / math.sqrt(2.0 * n_eff)
+    floor = float(floor_fraction) * float(amplitude)
+    return NoiseScale(std, lag1, long_run, n, inflation, floor, max(long_run * inflation, floor))
+
+
+@dataclass(frozen=True)
+class CusumDesign:
+    """The CUSUM's reference ``k`` and limit ``h`` and what they were designed for."""
+
+    false_alarm_rate: float        # per hour of data, all statistics together
+    sample_step: float             # s
+    statistics: int                # one-sided statistics (2 per signal)
+    shift: float                   # design shift δ, in σ
+    k: float
+    h: float
+
+    @property
+    def arl0_samples(self) -> float:
+        """In-control ARL of each one-sided statistic (Siegmund), in samples."""
+        return arl_siegmund(self.h, self.k)
+
+    @property
+    def arl0_hours(self) -> float:
+        """Bound on the mean time between false alarms of the whole detector (union bound)."""
+        return self.arl0_samples * self.sample_step / self.statistics / 3600.0
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"rule": "two-sided CUSUM on standardised residuals", "false_alarm_rate_per_hour": self.false_alarm_rate,
+                "sample_step_s": self.sample_step, "one_sided_statistics": self.statistics,
+                "design_shift_sigma": self.shift, "k": self.k, "h": self.h,
+                "arl0_samples_each": self.arl0_samples, "arl0_hours": self.arl0_hours}
+
+
+def design_cusum(false_alarm_rate: float, sample_step: float, signals: int, shift: float) -> CusumDesign:
+    """``k = shift/2`` and the ``h`` that keeps the false-alarm rate (per hour) of ``2·signals`` statistics."""
+    statistics = 2 * int(signals)
+    arl_each = statistics * 3600.0 / (float(false_alarm_rate) * float(sample_step))
+    k = 0.5 * float(shift)
+    return CusumDesign(float(false_alarm_rate), float(sample_step), statistics, float(shift), k,
+                       cusum_threshold(arl_each, k))
+
+
+@dataclass
+class _Pending:
+    """Residual rows kept for the tracker until their block is ``guard`` s old."""
+
+    t: np.ndarray
+    residual: np.ndarray            # (n, m)
+    slope: np.ndarray               # (n, m)
+    shift: np.ndarray               # (n,)
+
+
+class ResidualCusum:
+    """Phase-locked residuals → CUSUM per signal → :class:`~monitor.detector.SequentialDetector`.
+
+    ``feed(t, X)`` takes samples after ``origin`` (``X``: one column per signal) in any
+    batch sizes; tracker updates happen at fixed data times (``origin + j·block + guard``)
+    and evaluations are recorded at ``origin + j·every``, so the result does not depend on
+    how the data were batched.  ``on_evaluation(time, statistic, threshold, state)``
+    receives the largest statistic over each ``every`` interval.
+    """
+
+    def __init__(self, names: tuple[str, ...], templates: list[PeriodicTemplate], scales: list[NoiseScale],
+                 design: CusumDesign, tracker: PhaseTracker, detector: SequentialDetector, *, origin: float,
+                 guard: float, block: float, every: float, sample_step: float,
+                 on_evaluation: Callable[[float, float, float, State], None]):
+        self.names = names
+        self.templates = templates
+        self.sigma2 = np.array([s.sigma ** 2 for s in scales])
+        self.design = design
+        self.tracker = tracker
+        self.detector = detector
+        self.origin = float(origin)
+        self.guard = float(guard)
+        self.block = float(block)
+        self.every = float(every)
+        self._eps = 1e-6 * float(sample_step)
+        self.on_evaluation = on_evaluation
+        m = len(names)
+        self._s = np.zeros((2, m))                      # S⁺, S⁻ per signal
+        self._zero_time = np.full((2, m), self.origin)  # last time each statistic was 0 (change-onset estimate)
+        self._next_block = 1
+        self._next_eval = 1
+        self._eval_max = 0.0
+        self._pending = _Pending(np.empty(0), np.empty((0, m)), np.empty((0, m)), np.empty(0))
+        self.blocks_used = 0
+        self.blocks_skipped = 0
+        self.max_ratio = 0.0
+
+    @property
+    def pending_samples(self) -> int:
+        return int(self._pending.t.size)
+
+    # -- the forecast ------------------------------------------------------------------------
+    def forecast(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Phase-locked forecast, slope, shift and shift variance at ``t`` (from the tracker's state)."""
+        shift, var = self.tracker.shift(t)
+        tt = np.asarray(t, dtype=float) - shift
+        f = np.column_stack([tpl.value(tt) for tpl in self.templates])
+        g = np.column_stack([tpl.slope(tt) for tpl in self.templates])
+        return f, g, shift, var
+
+    # -- feeding -----------------------------------------------------------------------------
+    def feed(self, t: np.ndarray, X: np.ndarray) -> np.ndarray:
+        """Process samples; returns the forecast of every signal at ``t`` (for the history)."""
+        t = np.asarray(t, dtype=float)
+        X = np.asarray(X, dtype=float).reshape(t.size, -1)
+        out = np.empty_like(X)
+        i = 0
+        while i < t.size:
+            boundary = self.origin + self._next_block * self.block + self.guard
+            j = int(np.searchsorted(t, boundary + self._eps, side="right"))
+            if j > i:
+                out[i:j] = self._segment(t[i:j], X[i:j])
+            if j < t.size:
+                self._update_tracker()
+            i = j
+        return out
+
+    def _segment(self, t: np.ndarray, X: np.ndarray) -> np.ndarray:
+        f, g, shift, var = self.forecast(t)
+        r = X - f
+        sd = np.sqrt(self.sigma2[None, :] + g * g * var[:, None])
+        z = r / sd
+        ok = np.isfinite(z)
+        z = np.where(ok, z, 0.0)
+        p = self._pending
+        p.t = np.concatenate([p.t, t])
+        p.residual = np.vstack([p.residual, np.where(ok, r, np.nan)])
+        p.slope = np.vstack([p.slope, g])
+        p.shift = np.concatenate([p.shift, shift])
+        self._cusum(t, z)
+        return f
+
+    def _cusum(self, t: np.ndarray, z: np.ndarray) -> None:
+        k, h = self.design.k, self.design.h
+        i = 0
+        n = t.size
+        while i < n:
+            w = np.stack([z[i:] - k, -z[i:] - k])                    # (2, n-i, m)
+            paths = np.empty_like(w)
+            for side in range(2):
+                for s in range(w.shape[2]):
+                    paths[side, :, s] = cusum_path(w[side, :, s], self._s[side, s])
+            over = paths > h
+            crossed = over.any(axis=(0, 2))
+            stop = int(np.argmax(crossed)) if crossed.any() else n - i
+            seg_paths = paths[:, :stop + 1 if crossed.any() else stop, :]
+            self._track_zero(t[i:i + seg_paths.shape[1]], seg_paths)
+            self._record(t[i:i + seg_paths.shape[1]], seg_paths.max(axis=(0, 2)))
+            if not crossed.any():
+                self._s = paths[:, -1, :].copy()
+                return
+            at = i + stop
+            side, sig = np.unravel_index(int(np.argmax(paths[:, stop, :])), (2, w.shape[2]))
+            self.detector.crossing(Crossing(float(t[at]), self.names[sig], "+" if side == 0 else "-",
+                                            float(paths[side, stop, sig]), h, float(self._zero_time[side, sig])))
+            self._s[:] = 0.0
+            self._zero_time[:] = float(t[at])
+            i = at + 1
+
+    def _track_zero(self, t: np.ndarray, paths: np.ndarray) -> None:
+        """Remember, per statistic, the last time it was zero: the CUSUM's change-time estimate."""
+        zero = paths <= 0.0
+        any_zero = zero.any(axis=1)
+        last = paths.shape[1] - 1 - np.argmax(zero[:, ::-1, :], axis=1)
+        self._zero_time = np.where(any_zero, t[last], self._zero_time)
+
+    def _record(self, t: np.ndarray, stat: np.ndarray) -> None:
+        h = self.design.h
+        i = 0
+        while i < t.size:
+            due = self.origin + self._next_eval * self.every
+            j = int(np.searchsorted(t, due + self._eps, side="right"))
+            if j > i:
+                self._eval_max = max(self._eval_max, float(stat[i:j].max()))
+            if j < t.size or (t.size and t[-1] >= due - self._eps):
+                self.max_ratio = max(self.max_ratio, self._eval_max / h)
+                self.detector.tick(due)
+                self.on_evaluation(due, self._eval_max, h, self.detector.state)
+                self._eval_max = 0.0
+                self._next_eval += 1
+            i = j
+
+    def _update_tracker(self) -> None:
+        """Fold block ``(b − block, b]`` into the tracker if it is confirmed healthy; drop it."""
+        end = self.origin + self._next_block * self.block
+        start = end - self.block
+        self._next_block += 1
+        p = self._pending
+        sel = (p.t > start + self._eps) & (p.t <= end + self._eps)
+        healthy = self.detector.quiet_since(start)
+        if healthy and sel.any():
+            r = p.residual[sel]
+            g = p.slope[sel]
+            ok = np.isfinite(r).all(axis=1)
+            if ok.any():
+                m = r.shape[1]
+                tt = np.repeat(p.t[sel][ok], m)
+                self.tracker.update(tt, g[ok].ravel(), r[ok].ravel(), np.repeat(p.shift[sel][ok], m),
+                                    np.tile(self.sigma2, int(ok.sum())))
+                self.blocks_used += 1
+        elif sel.any():
+            self.blocks_skipped += 1
+        keep = p.t > end + self._eps
+        p.t, p.residual, p.slope, p.shift = p.t[keep], p.residual[keep], p.slope[keep], p.shift[keep]
