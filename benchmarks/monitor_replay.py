@@ -159,7 +159,7 @@ def detection_table(paths: dict[str, Path], seeds: int) -> list[dict]:
                 lat.append(r2.detection_latency)
                 fa2.append(r2.false_alarms)
                 fa1.append(r1.alarms)
-                ratio1.append(r1.max_mae_over_threshold)
+                ratio1.append(r1.max_statistic_over_threshold)
                 thr.append(r2.fit.rule.base)
             rows.append({"model": model, "noise": f"σ = {NOISE_STD * 1000:g} mm, {len(keys)} seeds" if noisy else "none",
                          "latency": lat, "fa2": sum(fa2), "fa1": sum(fa1), "ratio1": max(ratio1),

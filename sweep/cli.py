@@ -192,7 +192,7 @@ def _report(result) -> None:
         nf = g["no_fault"]
         clean = f"; fault-free runs with an alarm: {nf['runs_with_alarms']}/{nf['n']}" if nf["n"] else ""
         print(f"  {g['series']}: {_percent(g['smallest_reliable_change'])}{clean}")
-    for key in ("csv", "parquet", "detection_plot", "roc_plot", "summary"):
+    for key in ("csv", "parquet", "detection_plot", "roc_plot", "delay_plot", "summary"):
         if key in r.files:
             print(f"  {key.replace('_', ' ')}: {r.files[key]}")
 

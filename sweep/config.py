@@ -337,14 +337,20 @@ class _Validator(ProblemReporter):
         fields = tuple(MonitorOptions.__dataclass_fields__)
         self.unknown_keys(table, fields, "monitor")
         ok = True
+        from monitor.options import split_signals
+
         signal = table.get("signal", MonitorOptions.signal)
-        if not isinstance(signal, str) or not signal:
-            self.problem("monitor.signal", signal, "expected the name of an output column, e.g. \"x2\"")
+        if not isinstance(signal, str) or not signal.strip():
+            self.problem("monitor.signal", signal, "expected the name of an output column, e.g. \"x2\", or several "
+                                                   "separated by commas")
             ok = False
-        elif case is not None and signal not in case.outputs:
+        elif case is not None and any(s not in case.outputs for s in split_signals(signal)):
             self.problem("monitor.signal", signal, f"not an output of the base case; expected one of "
-                                                   f"{', '.join(case.outputs)} ([outputs] of {case.source.name})")
+                                                   f"{', '.join(case.outputs)} ([outputs] of {case.source.name}), "
+                                                   "or several separated by commas")
             ok = False
+        else:
+            signal = ",".join(split_signals(signal))
 
         def model_check(key, item):
             if item not in MODELS:
@@ -386,7 +392,8 @@ class _Validator(ProblemReporter):
             return None
         unit = ""
         if case is not None:
-            unit = case.fmu_description.units([signal]).get(signal, "")
+            first = signal.split(",")[0]
+            unit = case.fmu_description.units([first]).get(first, "")
         return MonitorSpec(signal=signal, model=models, threshold=thresholds, options=options, unit=unit)
 
     def fault(self, case, experiment, train_end) -> FaultSpec | None:

@@ -23,7 +23,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-__all__ = ["MAX_EXACT_SIZES", "plot_detection", "plot_roc", "series_of", "summarize"]
+__all__ = ["MAX_EXACT_SIZES", "delay_curves", "plot_delay_arl0", "plot_detection", "plot_roc", "series_of",
+           "summarize"]
 
 MAX_EXACT_SIZES = 12
 _GROUP = ("noise_std", "model", "threshold")
@@ -329,6 +330,81 @@ def plot_roc(table, path, *, title: str = "", unit: str = "", latency_limit: flo
         ax.legend(loc="lower right", fontsize=7)
     else:
         ax.text(0.5, 0.5, "no ROC: needs finished runs with and without a fault", ha="center", va="center")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    return path
+
+
+def delay_curves(table, unit: str = "") -> list[dict[str, Any]]:
+    """Per series and fault size: the median detection delay at each ARL0 level (``delay_arl0_*h``).
+
+    Only the cusum detector fills those columns (:func:`sweep.scenario.delays_at_arl0`);
+    a level where fewer than half the runs of a size detected the fault after it (missed,
+    or alarmed before it) has no median and is left out.
+    """
+    import numpy as np
+
+    from .scenario import ARL0_HOURS, delay_column
+
+    cols = [delay_column(h) for h in ARL0_HOURS]
+    if not set(cols) <= set(table.columns):
+        return []
+    out = []
+    for key, faults, _, _ in _groups(table):
+        if faults.empty or faults[cols].isna().all().all():
+            continue
+        sizes = np.abs(faults["relative_change"].to_numpy(dtype=float))
+        idx, centers = _size_bins(sizes)
+        for b, center in enumerate(centers):
+            sel = faults[idx == b]
+            if sel.empty:
+                continue
+            hours, delays = [], []
+            for h, c in zip(ARL0_HOURS, cols):
+                d = sel[c].to_numpy(dtype=float)
+                if np.isfinite(d).sum() * 2 > d.size:
+                    hours.append(h)
+                    delays.append(float(np.median(np.where(np.isfinite(d), d, np.inf))))
+            if hours:
+                out.append({"series": _label_parts(key, unit), "key": key, "relative_change": float(center),
+                            "arl0_hours": hours, "median_delay": delays, "n": int(len(sel))})
+    return out
+
+
+def rc_colormap(name: str) -> Any:
+    import matplotlib
+
+    return matplotlib.colormaps[name]
+
+
+def plot_delay_arl0(table, path, *, title: str = "", unit: str = "") -> Any:
+    """Median detection delay against the false-alarm level (ARL0, hours), one line per fault size."""
+    curves = delay_curves(table, unit)
+    series = []
+    for c in curves:
+        if c["series"] not in series:
+            series.append(c["series"])
+    rc, fig, axes = _figure(max(1, len(series)), width=5.5)
+    sizes = sorted({c["relative_change"] for c in curves})
+    cmap = rc_colormap("viridis")
+    for ax, name in zip(axes, series or [""]):
+        for c in (c for c in curves if c["series"] == name):
+            i = sizes.index(c["relative_change"])
+            color = cmap(i / max(1, len(sizes) - 1))
+            ax.plot(c["arl0_hours"], c["median_delay"], marker="o", ms=4, color=color,
+                    label=f"{100 * c['relative_change']:.3g} % (n = {c['n']})")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("ARL0: mean hours of healthy operation between false alarms")
+        ax.set_ylabel("median detection delay (s)")
+        ax.set_title(name or "no delay curves (cusum detector only)", fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+        if curves:
+            ax.legend(fontsize=7, title="fault size", title_fontsize=7, loc="upper left")
+        else:
+            ax.text(0.5, 0.5, "needs fault runs monitored by the cusum detector", ha="center", va="center",
+                    transform=ax.transAxes)
+    fig.suptitle(title or "detection delay against false-alarm rate (the CUSUM limit set for each ARL0)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     return path

@@ -39,9 +39,11 @@ COLUMNS: dict[str, str] = {
     # results
     "status": "str", "error": "str", "detected": "bool", "detection_time": "float", "latency": "float",
     "first_alarm_time": "float", "alarms": "int", "false_alarms": "int", "threshold_base": "float",
-    "period": "float", "evaluations": "int", "mae_max_pre": "float", "mae_mean_pre": "float",
-    "mae_max_post": "float", "mae_mean_post": "float", "score_pre": "float", "score_post": "float",
-    "score_early": "float", "latency_limit": "float", "rows_written": "int", "fmu_guid": "str",
+    "period": "float", "evaluations": "int", "statistic_max_pre": "float", "statistic_mean_pre": "float",
+    "statistic_max_post": "float", "statistic_mean_post": "float", "score_pre": "float", "score_post": "float",
+    "score_early": "float", "latency_limit": "float", "delay_arl0_0.1h": "float", "delay_arl0_1h": "float",
+    "delay_arl0_10h": "float", "delay_arl0_100h": "float", "delay_arl0_1000h": "float", "delay_arl0_10000h": "float",
+    "rows_written": "int", "fmu_guid": "str",
     # how it ran (differ between otherwise identical runs)
     "run_seconds": "float", "monitor_seconds": "float", "wall_seconds": "float", "cpu_seconds": "float",
     "worker": "str",

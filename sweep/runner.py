@@ -13,7 +13,7 @@ Rows are appended to ``results.csv`` as the tasks finish (in completion order), 
 interrupted sweep keeps every finished scenario; ``results.parquet`` is rewritten from them
 every ``PARQUET_INTERVAL`` seconds.  At the end the table is rewritten in plan order
 (``results.csv`` and ``results.parquet``), summarised (``summary.json``) and
-plotted (``plots/detection.png``, ``plots/roc.png``).  Ctrl-C cancels the pending tasks,
+plotted (``plots/detection.png``, ``plots/roc.png``, ``plots/delay_arl0.png``).  Ctrl-C cancels the pending tasks,
 writes the same files from the rows so far and raises :class:`SweepInterrupted`.
 """
 from __future__ import annotations
@@ -23,7 +23,7 @@ import os
 import sys
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -251,8 +251,10 @@ def _sweep_locked(sweep: Sweep, out: Path, store: ResultsStore, plan, by_id, not
 def _persistence(sweep: Sweep) -> int:
     from monitor import MonitorOptions
 
-    opts = dict(sweep.monitor.options)
-    return int(opts.get("persistence", MonitorOptions.persistence))
+    from .scenario import detector_persistence
+
+    return detector_persistence(replace(MonitorOptions(), **{k: v for k, v in sweep.monitor.options.items()
+                                                            if k in ("detector", "persistence")}))
 
 
 def _limit_ok(row: dict, sweep: Sweep, out: Path) -> bool:
@@ -270,8 +272,8 @@ def _limit_ok(row: dict, sweep: Sweep, out: Path) -> bool:
     path = out / "runs" / str(row["scenario_id"]) / "monitor" / "evaluations.csv"
     try:
         ev = pd.read_csv(path)
-        row["score_early"] = early_score(ev["time"].to_numpy(), ev["mae"].to_numpy(), ev["threshold"].to_numpy(),
-                                         row.get("fault_time"), _persistence(sweep), sweep.latency_limit)
+        row["score_early"] = early_score(ev["time"].to_numpy(), ev["statistic"].to_numpy(),
+                                         ev["threshold"].to_numpy(), row.get("fault_time"), _persistence(sweep), sweep.latency_limit)
     except (OSError, ValueError, KeyError):
         return False
     row["latency_limit"] = sweep.latency_limit
@@ -326,7 +328,7 @@ def _run_on(client, sweep: Sweep, pending: list[Scenario], out: Path, store: Res
 
 def _finish(sweep: Sweep, out: Path, store: ResultsStore, rows: list[dict], plan, *, skipped: int, ran: int,
             interrupted: bool, wall0: float, notes: list[str]) -> SweepResult:
-    from .report import plot_detection, plot_roc, summarize
+    from .report import plot_delay_arl0, plot_detection, plot_roc, summarize
 
     store.rewrite(rows)
     store.close()
@@ -341,6 +343,7 @@ def _finish(sweep: Sweep, out: Path, store: ResultsStore, rows: list[dict], plan
     if summary["ok"]:
         files["detection_plot"] = plot_detection(summary, plots / "detection.png", title=title)
         files["roc_plot"] = plot_roc(table, plots / "roc.png", unit=unit, latency_limit=sweep.latency_limit)
+        files["delay_plot"] = plot_delay_arl0(table, plots / "delay_arl0.png", unit=unit)
     summary.update(name=sweep.name, planned=len(plan), skipped=skipped, ran=ran, interrupted=interrupted,
                    wall_seconds=time.perf_counter() - wall0, finished_at=_now())
     files["summary"] = out / "summary.json"

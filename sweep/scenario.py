@@ -38,9 +38,10 @@ __all__ = ["RESULT_FIELDS", "early_score", "failed_row", "run_scenario", "scenar
 
 #: Result columns added to a scenario's inputs (types in :mod:`sweep.results`).
 RESULT_FIELDS = ("status", "error", "detected", "detection_time", "latency", "first_alarm_time", "alarms",
-                 "false_alarms", "threshold_base", "period", "evaluations", "mae_max_pre", "mae_mean_pre",
-                 "mae_max_post", "mae_mean_post", "score_pre", "score_post", "score_early", "latency_limit",
-                 "rows_written", "fmu_guid",
+                 "false_alarms", "threshold_base", "period", "evaluations", "statistic_max_pre", "statistic_mean_pre",
+                 "statistic_max_post", "statistic_mean_post", "score_pre", "score_post", "score_early", "latency_limit",
+                 "delay_arl0_0.1h", "delay_arl0_1h", "delay_arl0_10h", "delay_arl0_100h", "delay_arl0_1000h",
+                 "delay_arl0_10000h", "rows_written", "fmu_guid",
                  "run_seconds", "monitor_seconds", "wall_seconds", "cpu_seconds", "worker")
 
 
@@ -56,7 +57,7 @@ def scenario_case(base, scenario: Scenario):
                             start=scenario.fault_time, end=scenario.fault_time + scenario.ramp_duration),)
     noise = None
     if scenario.noise_std > 0:
-        noise = Noise(seed=scenario.noise_seed, std={scenario.signal: scenario.noise_std})
+        noise = Noise(seed=scenario.noise_seed, std={s.strip(): scenario.noise_std for s in scenario.signal.split(",")})
     exchange = replace(base.exchange, realtime_factor=0.0)
     return replace(base, name=f"scenario-{scenario.id}", events=events, noise=noise, exchange=exchange)
 
@@ -112,12 +113,59 @@ def score(times, mae, threshold, alarm_times, fault_time: float | None, persiste
         "alarms": scored.alarms,
         "false_alarms": scored.false_alarms,
         "evaluations": int(t.size),
-        "mae_max_pre": stat(np.max, mae[pre]), "mae_mean_pre": stat(np.mean, mae[pre]),
-        "mae_max_post": stat(np.max, mae[post]), "mae_mean_post": stat(np.mean, mae[post]),
+        "statistic_max_pre": stat(np.max, mae[pre]), "statistic_mean_pre": stat(np.mean, mae[pre]),
+        "statistic_max_post": stat(np.max, mae[post]), "statistic_mean_post": stat(np.mean, mae[post]),
         "score_pre": stat(np.max, runs[run_pre]), "score_post": stat(np.max, runs[~run_pre]),
         "score_early": early_score(t, mae, thr, fault_time, p, latency_limit),
         "latency_limit": latency_limit,
     }
+
+
+def detector_persistence(options) -> int:
+    """Consecutive evaluations above the limit that make an alarm: 1 for the CUSUM (any crossing)."""
+    return 1 if options.detector == "cusum" else int(options.persistence)
+
+
+#: The false-alarm levels (mean hours between false alarms) of the delay-vs-ARL0 curve.
+ARL0_HOURS = (0.1, 1.0, 10.0, 100.0, 1000.0, 10000.0)
+
+
+def delay_column(hours: float) -> str:
+    return f"delay_arl0_{hours:g}h"
+
+
+def delays_at_arl0(times, statistic, design, fault_time: float | None) -> dict[str, Any]:
+    """Detection delay the same run would have had with the CUSUM limit set for each ``ARL0_HOURS``.
+
+    The statistic does not depend on the limit until its first crossing, so the first
+    evaluation after the fault where it reaches the limit ``h(ARL0)`` (Siegmund, same
+    ``k``, sampling step and statistic count as the run's design) is that limit's
+    detection time, at the evaluation cadence.  That holds for limits up to the run's own
+    ``h`` only (after the run's alarm the statistic restarts from zero), so levels above the
+    run's design are left None: a sweep with a smaller ``false_alarm_rate`` reaches them.
+    None also when not reached, or reached before the fault (a false alarm at that level).
+    """
+    import numpy as np
+
+    from monitor.cusum import cusum_threshold
+    from monitor.summary import before_fault
+
+    out: dict[str, Any] = {delay_column(h): None for h in ARL0_HOURS}
+    if fault_time is None:
+        return out
+    t = np.asarray(times, dtype=float)
+    s = np.asarray(statistic, dtype=float)
+    pre = before_fault(t, fault_time)
+    pre_max = float(s[pre].max()) if pre.any() else 0.0
+    for hours in ARL0_HOURS:
+        arl_each = hours * 3600.0 * design.statistics / design.sample_step
+        h = cusum_threshold(arl_each, design.k)
+        if h > design.h * (1 + 1e-9) or pre_max >= h:
+            continue
+        hit = np.flatnonzero(~pre & (s >= h))
+        if hit.size:
+            out[delay_column(hours)] = round(float(t[hit[0]]) - float(fault_time), 9)
+    return out
 
 
 def early_score(times, mae, threshold, fault_time: float | None, persistence: int,
@@ -184,13 +232,17 @@ def run_scenario(scenario: Scenario, base_case, run_dir: str, monitor_options: M
         monitor_seconds = time.perf_counter() - m0
         ev = monitored.evaluations
         alarm_times = [e["time"] for e in monitored.events if e.get("event") == "alarm"]
-        figures = score(ev["time"].to_numpy(), ev["mae"].to_numpy(), ev["threshold"].to_numpy(), alarm_times,
-                        scenario.fault_time, monitored.options.persistence, latency_limit)
+        figures = score(ev["time"].to_numpy(), ev["statistic"].to_numpy(), ev["threshold"].to_numpy(), alarm_times,
+                        scenario.fault_time, detector_persistence(monitored.options), latency_limit)
         fit = monitored.summary.fit
+        if fit is not None and monitored.options.detector == "cusum":
+            figures.update(delays_at_arl0(ev["time"].to_numpy(), ev["statistic"].to_numpy(), fit.rule,
+                                          scenario.fault_time))
         period = monitored.period
         if not keep_exchange:
             result.exchange_path.unlink(missing_ok=True)
-        return finish(status="ok", error=None, threshold_base=fit.rule.base if fit is not None else None,
+        return finish(status="ok", error=None, threshold_base=(getattr(fit.rule, "base", None) or getattr(fit.rule, "h", None))
+                      if fit is not None else None,
                       period=period.period if period is not None else None,
                       monitor_seconds=monitor_seconds, **figures)
     except Exception as exc:    # a bug or an unexpected environment problem: keep the sweep going

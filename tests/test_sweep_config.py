@@ -172,8 +172,8 @@ def test_score_definitions():
     assert s["false_alarms"] == 1 and s["alarms"] == 2
     assert s["detected"] and s["detection_time"] == 10.3
     assert s["latency"] == pytest.approx(0.3, abs=1e-12)
-    assert s["mae_max_pre"] == 3.0 and s["mae_mean_pre"] == pytest.approx(4.0 / 3)
-    assert s["mae_max_post"] == 5.0
+    assert s["statistic_max_pre"] == 3.0 and s["statistic_mean_pre"] == pytest.approx(4.0 / 3)
+    assert s["statistic_max_post"] == 5.0
     assert s["score_pre"] == 0.5                  # no two consecutive pre-fault windows above 0.5
     assert s["score_post"] == 4.0                 # min(4, 5) over the last pair
     clean = score(t, mae, thr, alarm_times=[10.3], fault_time=None, persistence=1)
