@@ -38,7 +38,8 @@ def test_the_comparison_notices_a_changed_or_lost_quote(tmp_path):
     readme = tmp_path / "README.md"
     readme.write_text(readme.read_text().replace("largest MAE/threshold in Case 1", "largest ratio"))
     lost = [f for f in doc_figures.compare(moved, tmp_path) if f.quoted is None]
-    assert {f.key for f in lost} == {"false_alarms", "ratio_clean", "ratio_noisy"}
+    assert {f.key for f in lost} == {"false_alarms", "ratio_clean", "ratio_noisy",    # one quote: both detectors
+                                     "cusum_false_alarms", "cusum_ratio_clean", "cusum_ratio_noisy"}
 
 
 @pytest.mark.slow
