@@ -65,7 +65,7 @@ def test_follow_live_run_matches_replay(tmp_path, fourbar_fmu):
     out = "".join(head) + rest
     assert monitor.returncode == 1, out + err
     assert "Traceback" not in err
-    assert ALARM_MESSAGE in out and "t=   10.30 s  ALARM" in out
+    assert ALARM_MESSAGE in out and "t=   10.01 s  ALARM" in out
 
     run_json = json.loads((run_dir / "run.json").read_text())
     assert run_json["status"] == "finished" and run_json["last_time"] == 20.0

@@ -69,5 +69,5 @@ print(json.dumps({{"light": light, "bad": bad, "alarm": r.first_alarm_time}}))
     report = json.loads(proc.stdout)
     assert report["bad"] == []
     assert report["light"] == []          # heavy libraries are imported only when used
-    assert report["alarm"] == 10.3
-    assert (tmp_path / "out" / "mae.png").exists()
+    assert report["alarm"] == 10.01           # the CUSUM at the first changed row
+    assert (tmp_path / "out" / "statistic.png").exists()
