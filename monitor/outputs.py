@@ -246,7 +246,7 @@ def _plot_statistic(fig: Any, result: "MonitorResult") -> None:
     if cusum:
         what = f"CUSUM of {o.signal} (largest of the {o.every:g} s interval)"
         limit = f"limit h ({o.false_alarm_rate:g} false alarms/h)"
-        ylabel = "CUSUM statistic (noise standard deviations)"
+        ylabel = "CUSUM (noise σ)"
     else:
         what = f"MAE over the newest {o.window:g} s (every {o.every:g} s)"
         limit = f"threshold ({s.fit.rule.mode})"
