@@ -91,15 +91,15 @@ class PhaseTracker:
         t = np.asarray(t, dtype=float)
         if t.size == 0:
             return
-        centre = float(t[-1])
-        mean, cov = self._propagated(centre - self.time)
+        end = float(t[-1])                           # the state is kept at the newest sample's time
+        mean, cov = self._propagated(end - self.time)
         y = slope * shift_used - residual            # = slope·τ(t) + noise
-        H = np.column_stack([slope, slope * (t - centre)])
+        H = np.column_stack([slope, slope * (t - end)])
         w = 1.0 / variance
         info = np.linalg.inv(cov) + (H * w[:, None]).T @ H
         cov_new = np.linalg.inv(info)
         mean_new = cov_new @ (np.linalg.solve(cov, mean) + (H * w[:, None]).T @ y)
-        self.mean, self.cov, self.time = mean_new, 0.5 * (cov_new + cov_new.T), centre
+        self.mean, self.cov, self.time = mean_new, 0.5 * (cov_new + cov_new.T), end
         self.updates += 1
 
     @property

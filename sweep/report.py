@@ -371,14 +371,10 @@ def delay_curves(table, unit: str = "") -> list[dict[str, Any]]:
     return out
 
 
-def rc_colormap(name: str) -> Any:
-    import matplotlib
-
-    return matplotlib.colormaps[name]
-
-
 def plot_delay_arl0(table, path, *, title: str = "", unit: str = "") -> Any:
     """Median detection delay against the false-alarm level (ARL0, hours), one line per fault size."""
+    import matplotlib
+
     curves = delay_curves(table, unit)
     series = []
     for c in curves:
@@ -386,7 +382,7 @@ def plot_delay_arl0(table, path, *, title: str = "", unit: str = "") -> Any:
             series.append(c["series"])
     rc, fig, axes = _figure(max(1, len(series)), width=5.5)
     sizes = sorted({c["relative_change"] for c in curves})
-    cmap = rc_colormap("viridis")
+    cmap = matplotlib.colormaps["viridis"]
     for ax, name in zip(axes, series or [""]):
         for c in (c for c in curves if c["series"] == name):
             i = sizes.index(c["relative_change"])

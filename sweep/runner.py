@@ -23,7 +23,7 @@ import os
 import sys
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -253,8 +253,9 @@ def _persistence(sweep: Sweep) -> int:
 
     from .scenario import detector_persistence
 
-    return detector_persistence(replace(MonitorOptions(), **{k: v for k, v in sweep.monitor.options.items()
-                                                            if k in ("detector", "persistence")}))
+    opts = sweep.monitor.options
+    return detector_persistence(opts.get("detector", MonitorOptions.detector),
+                                opts.get("persistence", MonitorOptions.persistence))
 
 
 def _limit_ok(row: dict, sweep: Sweep, out: Path) -> bool:

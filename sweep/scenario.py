@@ -121,9 +121,9 @@ def score(times, mae, threshold, alarm_times, fault_time: float | None, persiste
     }
 
 
-def detector_persistence(options) -> int:
+def detector_persistence(detector: str, persistence: int) -> int:
     """Consecutive evaluations above the limit that make an alarm: 1 for the CUSUM (any crossing)."""
-    return 1 if options.detector == "cusum" else int(options.persistence)
+    return 1 if detector == "cusum" else int(persistence)
 
 
 #: The false-alarm levels (mean hours between false alarms) of the delay-vs-ARL0 curve.
@@ -233,7 +233,7 @@ def run_scenario(scenario: Scenario, base_case, run_dir: str, monitor_options: M
         ev = monitored.evaluations
         alarm_times = [e["time"] for e in monitored.events if e.get("event") == "alarm"]
         figures = score(ev["time"].to_numpy(), ev["statistic"].to_numpy(), ev["threshold"].to_numpy(), alarm_times,
-                        scenario.fault_time, detector_persistence(monitored.options), latency_limit)
+                        scenario.fault_time, detector_persistence(monitored.options.detector, monitored.options.persistence), latency_limit)
         fit = monitored.summary.fit
         if fit is not None and monitored.options.detector == "cusum":
             figures.update(delays_at_arl0(ev["time"].to_numpy(), ev["statistic"].to_numpy(), fit.rule,
