@@ -294,7 +294,8 @@ class Monitor:
         rel = period_err / period if math.isfinite(period_err) else 0.0
         tracker = PhaseTracker(float(tt.mean()), rate_std=max(3.0 * rel, o.rate_prior),
                                shift_std=math.sqrt(1.0 / (info * (tt[-1] - tt[0]))),
-                               noise_per_second=1.0 / info, track_time=o.track_time)
+                               noise_per_second=1.0 / info, track_time=o.track_time,
+                               variance_horizon=o.guard + o.tracker_block)
         seconds = time.perf_counter() - start
         self.timing["train"] += seconds
         fit = Fit(float(tt[0]), float(end), estimates[0], fits[0].forecaster, design, seconds, tuple(fits),

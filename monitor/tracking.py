@@ -26,6 +26,13 @@ estimates the time shift ``τ`` from data already confirmed healthy.
     much more than ``T`` is followed (absorbed), a faster one is not.  Only a pure time
     shift can be absorbed; a change of the waveform's shape is never in the tracker's
     span.
+
+    While the detector is in alarm the tracker is not updated (a fault must not be learnt),
+    and its prediction runs on with the last healthy rate.  The variance it reports stops
+    growing at ``variance_horizon`` (the longest gap between updates in healthy operation,
+    ``guard + block``): otherwise, over a long alarm, the growing phase uncertainty would
+    shrink the standardised residuals until the CUSUM fell quiet and the alarm cleared
+    while the fault persisted.
 """
 from __future__ import annotations
 
@@ -64,8 +71,9 @@ class PhaseTracker:
     """Kalman filter on ``(τ, τ̇)`` (see the module docstring); times in seconds."""
 
     def __init__(self, t_ref: float, *, rate_std: float, shift_std: float, noise_per_second: float,
-                 track_time: float):
+                 track_time: float, variance_horizon: float = math.inf):
         self.time = float(t_ref)
+        self.variance_horizon = float(variance_horizon)
         self.mean = np.zeros(2)
         self.cov = np.diag([shift_std ** 2, rate_std ** 2])
         self.track_time = float(track_time)
@@ -78,11 +86,12 @@ class PhaseTracker:
         return F @ self.mean, F @ self.cov @ F.T + (Q if dt > 0 else 0.0)
 
     def shift(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Predicted ``τ(t)`` and its variance for times at or after the last update."""
+        """Predicted ``τ(t)`` and its variance (grown for at most ``variance_horizon`` s) for
+        times at or after the last update."""
         d = np.asarray(t, dtype=float) - self.time
         m, c = self.mean, self.cov
-        var = (c[0, 0] + 2 * c[0, 1] * d + c[1, 1] * d * d
-               + self.q * np.abs(d) ** 3 / 3)
+        e = np.clip(d, -self.variance_horizon, self.variance_horizon)
+        var = c[0, 0] + 2 * c[0, 1] * e + c[1, 1] * e * e + self.q * np.abs(e) ** 3 / 3
         return m[0] + m[1] * d, var
 
     def update(self, t: np.ndarray, slope: np.ndarray, residual: np.ndarray, shift_used: np.ndarray,

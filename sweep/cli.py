@@ -185,8 +185,9 @@ def _report(result) -> None:
               f"): {row['error']}")
     if len(failed) > 5:
         print(f"  ... {len(failed) - 5} more failed rows")
-    variable, limit = s.get("variable") or "fault", s["latency_limit"]
-    print(f"smallest |Δ{variable}|/{variable} detected within {limit:g} s with no false alarm "
+    variable, limit = s.get("variable"), s["latency_limit"]
+    size = f"|Δ{variable}|/{variable}" if variable else "relative change"
+    print(f"smallest {size} detected within {limit:g} s with no false alarm "
           f"(in every scenario of that size and above):")
     for g in s["series"]:
         nf = g["no_fault"]

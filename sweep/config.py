@@ -29,6 +29,7 @@ from orchestrator.validation import (GRID_TOLERANCE, ConfigError, ProblemReporte
 
 __all__ = [
     "FaultSpec",
+    "FaultVariable",
     "MonitorSpec",
     "NoiseSpec",
     "Range",
@@ -80,19 +81,31 @@ Axis = Union[tuple, Range]
 
 
 @dataclass(frozen=True)
-class FaultSpec:
-    """The injected fault.  ``size`` holds relative changes (``0.01`` = +1 %) when
-    ``size_mode == "relative"``, else absolute values in the variable's unit."""
+class FaultVariable:
+    """A parameter the sweep changes: its name, its value in the base case and its unit."""
 
-    variable: str
-    base_value: float           # the variable's value in the base case (or the FMU's start value)
+    name: str
+    base_value: float           # the value in the base case (or the FMU's start value)
     unit: str
+
+
+@dataclass(frozen=True)
+class FaultSpec:
+    """The injected fault.  ``variables`` is an axis (each scenario changes one of them);
+    ``size`` holds relative changes (``0.01`` = +1 %) when ``size_mode == "relative"``,
+    else absolute values in the (single) variable's unit."""
+
+    variables: tuple[FaultVariable, ...]
     kind: tuple[str, ...]
     size_mode: str              # "relative" | "value"
     size: Axis
     time: Axis                  # s, on the case's communication grid
     ramp_duration: Axis         # s, ramps only
     no_fault: bool              # also run scenarios without any fault
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(v.name for v in self.variables)
 
 
 @dataclass(frozen=True)
@@ -154,8 +167,9 @@ class Sweep:
             "name": self.name, "description": self.description, "sweep_file": str(self.source),
             "case_file": str(self.case_path), "fmu": str(self.case.fmu), "fmu_guid": self.fmu_guid,
             "stop": self.stop,
-            "fault": {"variable": self.fault.variable, "base_value": self.fault.base_value,
-                      "unit": self.fault.unit, "kind": list(self.fault.kind),
+            "fault": {"variable": list(self.fault.names),
+                      "base_value": {v.name: v.base_value for v in self.fault.variables},
+                      "unit": {v.name: v.unit for v in self.fault.variables}, "kind": list(self.fault.kind),
                       self.fault.size_mode: axis(self.fault.size), "time": axis(self.fault.time),
                       "ramp_duration": axis(self.fault.ramp_duration), "no_fault": self.fault.no_fault},
             "noise": {"std": axis(self.noise.std), "seed": axis(self.noise.seed)},
@@ -402,35 +416,9 @@ class _Validator(ProblemReporter):
             return None
         self.unknown_keys(table, _FAULT_KEYS, "fault")
         ok = True
-        variable = table.get("variable")
-        base_value = None
-        unit = ""
-        if variable is None:
-            self.missing("fault.variable", "the name of a tunable parameter of the FMU, e.g. \"L2\"")
-            ok = False
-        elif not isinstance(variable, str):
-            self.problem("fault.variable", variable, f"expected a variable name (string), got {kind_of(variable)}")
-            ok = False
-        elif case is not None:
-            tunable = {v.name: v for v in case.fmu_description.model.modelVariables
-                       if v.type == "Real" and (v.causality == "input"
-                                                or (v.causality == "parameter" and v.variability == "tunable"))}
-            var = tunable.get(variable)
-            if var is None:
-                close = difflib.get_close_matches(variable, tunable, n=1)
-                hint = f"did you mean {close[0]!r}? " if close else ""
-                self.problem("fault.variable", variable, f"not a tunable Real parameter of {case.fmu.name}; "
-                                                         f"{hint}expected one of {', '.join(tunable)}")
-                ok = False
-            else:
-                unit = var.unit or ""
-                start = case.parameters.get(variable, var.start)
-                try:
-                    base_value = float(start)
-                except (TypeError, ValueError):
-                    self.problem("fault.variable", variable, f"has no numeric value in the base case or the FMU "
-                                                             f"(start {start!r}); set it in [parameters]")
-                    ok = False
+        variables = self.fault_variables(table.get("variable"), case)
+        ok = variables is not None
+        unit = variables[0].unit if variables else ""
 
         def kind_check(key, item):
             if item not in _KINDS:
@@ -451,6 +439,10 @@ class _Validator(ProblemReporter):
         elif "value" in table:
             size_mode = "value"
             size = self.axis("fault.value", table["value"], lambda k, v: self.number(k, v, unit))
+            if variables is not None and len(variables) > 1:
+                self.problem("fault.value", table["value"], "expected fault.relative when fault.variable names "
+                                                            "several parameters (absolute values have one unit)")
+                ok = False
         else:
             self.missing("fault.relative", "the fault sizes: relative changes (0.01 = +1 %) in fault.relative, "
                                            "or absolute values in fault.value")
@@ -507,8 +499,49 @@ class _Validator(ProblemReporter):
         no_fault = self.boolean("fault.no_fault", table.get("no_fault", False))
         if not ok or None in (kinds, size, times, durations, no_fault):
             return None
-        return FaultSpec(variable=variable, base_value=base_value, unit=unit, kind=kinds, size_mode=size_mode,
-                         size=size, time=times, ramp_duration=durations, no_fault=no_fault)
+        return FaultSpec(variables=variables, kind=kinds, size_mode=size_mode, size=size, time=times,
+                         ramp_duration=durations, no_fault=no_fault)
+
+    def fault_variables(self, value: Any, case) -> tuple[FaultVariable, ...] | None:
+        """``fault.variable``: one name or an array of names of tunable Real parameters."""
+        if value is None:
+            self.missing("fault.variable", "the name of a tunable parameter of the FMU, e.g. \"L2\", "
+                                           "or an array of names")
+            return None
+        names = value if isinstance(value, list) else [value]
+        if not names:
+            self.problem("fault.variable", value, "expected a non-empty array of parameter names")
+            return None
+        tunable = {}
+        if case is not None:
+            tunable = {v.name: v for v in case.fmu_description.model.modelVariables
+                       if v.type == "Real" and (v.causality == "input"
+                                                or (v.causality == "parameter" and v.variability == "tunable"))}
+        out: list[FaultVariable] = []
+        for i, name in enumerate(names):
+            key = f"fault.variable[{i}]" if isinstance(value, list) else "fault.variable"
+            if not isinstance(name, str):
+                self.problem(key, name, f"expected a variable name (string), got {kind_of(name)}")
+                continue
+            if name in (v.name for v in out):
+                self.problem(key, name, "named twice; expected each parameter once")
+                continue
+            if case is None:
+                continue
+            var = tunable.get(name)
+            if var is None:
+                close = difflib.get_close_matches(name, tunable, n=1)
+                hint = f"did you mean {close[0]!r}? " if close else ""
+                self.problem(key, name, f"not a tunable Real parameter of {case.fmu.name}; "
+                                        f"{hint}expected one of {', '.join(tunable)}")
+                continue
+            start = case.parameters.get(name, var.start)
+            try:
+                out.append(FaultVariable(name, float(start), var.unit or ""))
+            except (TypeError, ValueError):
+                self.problem(key, name, f"has no numeric value in the base case or the FMU "
+                                        f"(start {start!r}); set it in [parameters]")
+        return tuple(out) if len(out) == len(names) else None
 
     def relative_change(self, key: str, value: Any) -> float | None:
         """A relative change: finite, non-zero (no_fault = true gives fault-free runs), > -1."""

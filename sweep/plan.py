@@ -3,8 +3,8 @@
 Order of the axes (the order of the grid's nested loops, outermost first, and the order
 in which one random draw takes its numbers)::
 
-    fault.kind, fault size, fault.time, fault.ramp_duration, noise.std, noise.seed,
-    monitor.model, monitor.threshold
+    fault.variable, fault.kind, fault size, fault.time, fault.ramp_duration, noise.std,
+    noise.seed, monitor.model, monitor.threshold
 
 Grid axes (values and arrays) are crossed; with ``[sample]`` there are ``n`` draws, each
 taking one number per range axis from ``numpy.random.default_rng(seed)`` in that order, and
@@ -13,7 +13,8 @@ A drawn fault time or ramp duration is rounded to the case's communication grid.
 
 Scenarios are then made canonical, so that runs which would be identical are run once:
 a step has no ramp duration, a fault-free scenario has no fault time, size or kind
-(``"none"``), and a noise-free one (std 0) no noise seed.  The scenario id is the first 16
+(``"none"``) and no variable (it is shared by every variable of the sweep), and a
+noise-free one (std 0) no noise seed.  The scenario id is the first 16
 hex digits of the SHA-256 of the canonical inputs -- the base case's parameters,
 experiment and outputs, the fault, the noise, every monitor option -- as sorted JSON;
 the FMU file is not part of it (its GUID is recorded in each result row instead).
@@ -32,7 +33,8 @@ from .config import Range, Sweep
 __all__ = ["ID_SCHEMA", "Scenario", "plan_scenarios", "threshold_text"]
 
 #: Bump when the meaning of a scenario's inputs changes (invalidates stored results).
-ID_SCHEMA = 1
+#: 2: a fault-free scenario names no variable (the variable became an axis).
+ID_SCHEMA = 2
 
 
 def threshold_text(threshold: float | str) -> str:
@@ -46,11 +48,11 @@ class Scenario:
 
     id: str
     index: int                   # position in the sweep's plan
-    variable: str
+    variable: str | None         # the changed parameter; None without a fault
     kind: str                    # "step" | "ramp" | "none"
     relative_change: float       # (fault_value - base_value)/base_value; 0 without a fault
     fault_value: float | None    # the variable's value after the fault (end of a ramp), its unit
-    base_value: float
+    base_value: float | None     # the variable's value in the base case; None without a fault
     fault_time: float | None     # s: a step's time or a ramp's start
     ramp_duration: float | None  # s
     noise_std: float             # the monitored signal's unit
@@ -98,7 +100,7 @@ def plan_scenarios(sweep: Sweep) -> tuple[Scenario, ...]:
 
     f, n, m = sweep.fault, sweep.noise, sweep.monitor
     exp = sweep.case.experiment
-    axes = {"kind": f.kind, "size": f.size, "time": f.time, "ramp_duration": f.ramp_duration or (None,),
+    axes = {"variable": f.variables, "kind": f.kind, "size": f.size, "time": f.time, "ramp_duration": f.ramp_duration or (None,),
             "std": n.std, "seed": n.seed, "model": m.model, "threshold": m.threshold}
     sampled = [name for name, axis in axes.items() if isinstance(axis, Range)]
     if sweep.sample is not None and sampled:
@@ -114,22 +116,23 @@ def plan_scenarios(sweep: Sweep) -> tuple[Scenario, ...]:
         std = float(values["std"])
         seed = int(values["seed"]) if std > 0 else None
         if fault:
-            kind = values["kind"]
+            kind, variable = values["kind"], values["variable"].name
+            base = values["variable"].base_value
             if f.size_mode == "relative":
                 relative = float(values["size"])
-                value = f.base_value * (1.0 + relative)
+                value = base * (1.0 + relative)
             else:
                 value = float(values["size"])
-                relative = (value - f.base_value) / f.base_value if f.base_value != 0 else math.inf
+                relative = (value - base) / base if base != 0 else math.inf
             t = _grid_round(float(values["time"]), exp.start, exp.step)
             duration = None
             if kind == "ramp":
                 duration = max(exp.step, round(float(values["ramp_duration"]) / exp.step) * exp.step)
         else:
-            kind, relative, value, t, duration = "none", 0.0, None, None, None
+            kind, variable, base, relative, value, t, duration = "none", None, None, 0.0, None, None, None
         threshold = threshold_text(values["threshold"])
-        inputs = dict(variable=f.variable, kind=kind, relative_change=relative, fault_value=value,
-                      base_value=f.base_value, fault_time=t, ramp_duration=duration, noise_std=std,
+        inputs = dict(variable=variable, kind=kind, relative_change=relative, fault_value=value,
+                      base_value=base, fault_time=t, ramp_duration=duration, noise_std=std,
                       noise_seed=seed, signal=m.signal, model=values["model"], threshold=threshold,
                       stop=sweep.stop)
         payload = {"schema": ID_SCHEMA, "case": fingerprint, "monitor": monitor_options,

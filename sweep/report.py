@@ -1,7 +1,9 @@
 """What a sweep found: per-group detection figures, the headline, and the plots.
 
 Groups ("series") are the settings a reader compares: noise level, monitor model and
-threshold -- and the fault kind (and ramp duration) when the sweep has more than one.
+threshold -- and the changed parameter, the fault kind (and ramp duration) when the sweep
+has more than one.  Fault-free runs change no parameter: each group is judged with the
+fault-free runs of its noise level, model and threshold.
 Fault sizes are the absolute relative change ``|relative_change|``; when a sweep samples
 more than ``MAX_EXACT_SIZES`` distinct sizes they are pooled into log-spaced bins.
 
@@ -28,11 +30,13 @@ __all__ = ["MAX_EXACT_SIZES", "delay_curves", "plot_delay_arl0", "plot_detection
 
 MAX_EXACT_SIZES = 12
 _GROUP = ("noise_std", "model", "threshold")
-_FAULT_EXTRA = ("kind", "ramp_duration")
+_FAULT_EXTRA = ("variable", "kind", "ramp_duration")
 
 
 def _label_parts(key: dict[str, Any], unit: str = "") -> str:
     parts = []
+    if key.get("variable") is not None:
+        parts.append(str(key["variable"]))
     if "kind" in key and key["kind"] is not None:
         kind = key["kind"]
         if kind == "ramp" and key.get("ramp_duration") is not None:
@@ -117,7 +121,7 @@ def summarize(table, latency_limit: float, *, unit: str = "") -> dict[str, Any]:
     """
     import numpy as np
 
-    variable = table["variable"].dropna().iloc[0] if len(table) else ""
+    variables = [str(v) for v in table["variable"].dropna().unique()] if len(table) else []
     groups = []
     for key, faults, clean, nfail in _groups(table):
         entry: dict[str, Any] = {"series": _label_parts(key, unit), **{k: _py(v) for k, v in key.items()},
@@ -157,7 +161,7 @@ def summarize(table, latency_limit: float, *, unit: str = "") -> dict[str, Any]:
                              "alarms": int(alarms.sum())}
         groups.append(entry)
     counts = table["status"].value_counts().to_dict()
-    return {"variable": _py(variable), "unit": unit, "latency_limit": latency_limit, "scenarios": int(len(table)),
+    return {"variable": variables[0] if len(variables) == 1 else None, "variables": variables, "unit": unit, "latency_limit": latency_limit, "scenarios": int(len(table)),
             "ok": int(counts.get("ok", 0)), "failed": int(len(table) - counts.get("ok", 0)), "series": groups}
 
 
@@ -169,16 +173,17 @@ def _py(v):
 
 # --------------------------------------------------------------------------------- plots
 
-def _figure(ncols: int, width: float = 6.0):
-    """A figure drawn with the Agg canvas, without pyplot (no global backend, nothing to close)."""
+def _figure(ncols: int, width: float = 6.0, nrows: int = 1):
+    """A figure drawn with the Agg canvas, without pyplot (no global backend, nothing to close);
+    its axes as one flat array, row by row."""
     import matplotlib
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(width * ncols, 4.6))
+    fig = Figure(figsize=(width * ncols, 4.6 * nrows))
     FigureCanvasAgg(fig)
-    axes = fig.subplots(1, ncols, squeeze=False)
-    return matplotlib.rcParams, fig, axes[0]
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    return matplotlib.rcParams, fig, axes.ravel()
 
 
 _MARKERS = ("o", "x", "s", "^", "D", "v", "P", "*")
@@ -204,7 +209,7 @@ class _Styles:
 
     @staticmethod
     def _rest(key: dict[str, Any]) -> tuple:
-        return tuple((c, key.get(c)) for c in ("model", "threshold", "kind", "ramp_duration"))
+        return tuple((c, key.get(c)) for c in ("variable", "model", "threshold", "kind", "ramp_duration"))
 
     def color(self, key):
         return self.colors[self.noise.index(key["noise_std"]) % len(self.colors)]
@@ -223,7 +228,7 @@ class _Styles:
 
 
 def _key(series: dict[str, Any]) -> dict[str, Any]:
-    return {c: series.get(c) for c in ("noise_std", "model", "threshold", "kind", "ramp_duration")}
+    return {c: series.get(c) for c in ("noise_std", "model", "threshold", "variable", "kind", "ramp_duration")}
 
 
 def plot_detection(summary: dict[str, Any], path, *, title: str = "") -> Any:
@@ -232,7 +237,7 @@ def plot_detection(summary: dict[str, Any], path, *, title: str = "") -> Any:
 
     rc, fig, (ax_p, ax_l) = _figure(2)
     limit = summary["latency_limit"]
-    variable = summary.get("variable") or "fault"
+    variable = summary.get("variable")
     series = [s for s in summary["series"] if s["sizes"]]
     styles = _Styles(rc, [_key(s) for s in series])
     any_latency = False
@@ -258,7 +263,8 @@ def plot_detection(summary: dict[str, Any], path, *, title: str = "") -> Any:
         ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
         ax.xaxis.set_major_formatter(plain)
         ax.xaxis.set_minor_formatter(NullFormatter())
-        ax.set_xlabel(f"fault size |Δ{variable}| / {variable} (%)")
+        ax.set_xlabel(f"fault size |Δ{variable}| / {variable} (%)" if variable
+                      else "fault size |Δp| / p of the changed parameter p (%)")
         ax.grid(True, which="both", alpha=0.3)
     ax_p.set_ylim(-0.03, 1.03)
     ax_p.set_ylabel("fraction of runs")
@@ -380,14 +386,21 @@ def plot_delay_arl0(table, path, *, title: str = "", unit: str = "") -> Any:
     for c in curves:
         if c["series"] not in series:
             series.append(c["series"])
-    rc, fig, axes = _figure(max(1, len(series)), width=5.5)
+    ncols = min(4, max(1, len(series)))
+    nrows = max(1, math.ceil(len(series) / ncols))
+    rc, fig, axes = _figure(ncols, width=5.5, nrows=nrows)
+    for ax in axes[len(series or [""]):]:
+        ax.set_visible(False)
     sizes = sorted({c["relative_change"] for c in curves})
     cmap = matplotlib.colormaps["viridis"]
     for ax, name in zip(axes, series or [""]):
-        for c in (c for c in curves if c["series"] == name):
+        mine = [c for c in curves if c["series"] == name]
+        for j, c in enumerate(mine):
             i = sizes.index(c["relative_change"])
             color = cmap(i / max(1, len(sizes) - 1))
-            ax.plot(c["arl0_hours"], c["median_delay"], marker="o", ms=4, color=color,
+            layer = _Styles.layer(j, len(mine))      # equal curves stay visible as nested lines
+            ax.plot(c["arl0_hours"], c["median_delay"], marker="o", color=color, lw=layer["lw"] / 1.5,
+                    markersize=layer["markersize"] / 2, zorder=layer["zorder"],
                     label=f"{100 * c['relative_change']:.3g} % (n = {c['n']})")
         ax.set_xscale("log")
         ax.set_yscale("log")

@@ -340,7 +340,8 @@ def _finish(sweep: Sweep, out: Path, store: ResultsStore, rows: list[dict], plan
     files = {"csv": store.csv_path, "parquet": store.parquet_path}
     plots = out / "plots"
     plots.mkdir(exist_ok=True)
-    title = f"{sweep.name}: {sweep.fault.variable} faults, {sweep.monitor.signal} monitored, stop {sweep.stop:g} s"
+    title = (f"{sweep.name}: {', '.join(sweep.fault.names)} faults, {sweep.monitor.signal} monitored, "
+             f"stop {sweep.stop:g} s")
     if summary["ok"]:
         files["detection_plot"] = plot_detection(summary, plots / "detection.png", title=title)
         files["roc_plot"] = plot_roc(table, plots / "roc.png", unit=unit, latency_limit=sweep.latency_limit)

@@ -156,6 +156,41 @@ seed = 3
     assert {s.id for s in plan_scenarios(load_sweep(reseeded))}.isdisjoint(s.id for s in faults)
 
 
+def test_variable_axis_changes_one_parameter_per_scenario_and_shares_the_fault_free_runs(tmp_path, fourbar_fmu):
+    body = """stop = 20.0
+[fault]
+variable = ["L1", "m3", "g"]
+relative = [0.01, 0.1]
+time = 10.0
+no_fault = true
+[noise]
+std = [0.0, 0.005]
+[monitor]
+model = "harmonic"
+"""
+    path = write_sweep(tmp_path, fourbar_fmu, body)
+    plan = plan_scenarios(load_sweep(path))
+    faults = [s for s in plan if s.has_fault]
+    assert len(faults) == 3 * 2 * 2                # variables x sizes x noise levels
+    assert len(plan) - len(faults) == 2            # one fault-free run per noise level, not per variable
+    base = {"L1": 3.0, "m3": 1.0, "g": 9.81}       # Table 1 (cases/case1_normal.toml)
+    for s in faults:
+        assert s.base_value == pytest.approx(base[s.variable], rel=1e-12)
+        assert s.fault_value == pytest.approx(base[s.variable] * (1 + s.relative_change), rel=1e-12)
+    assert all(s.variable is None and s.base_value is None for s in plan if not s.has_fault)
+    # several variables with absolute values, and a name given twice, are reported
+    bad = write_sweep(tmp_path, fourbar_fmu, '[fault]\nvariable = ["L2", "L3", "L2"]\nvalue = 1.1\ntime = 10.0\n',
+                      name="bad.toml")
+    with pytest.raises(SweepError) as info:
+        load_sweep(bad)
+    text = str(info.value)
+    assert 'fault.variable[2] = "L2": named twice' in text
+    assert "fault.value = 1.1: expected fault.relative" not in text   # reported once the names are valid
+    bad.write_text(bad.read_text().replace('["L2", "L3", "L2"]', '["L2", "L3"]'))
+    with pytest.raises(SweepError, match="expected fault.relative when fault.variable names several"):
+        load_sweep(bad)
+
+
 def test_range_without_sample_table_is_reported(tmp_path, fourbar_fmu):
     path = write_sweep(tmp_path, fourbar_fmu, '[fault]\nvariable = "L2"\nrelative = {min = 0.01, max = 0.1}\n'
                                               'time = 10.0\n')
@@ -181,9 +216,9 @@ def test_score_definitions():
     assert clean["score_pre"] == 5.0 and clean["score_post"] is None
 
 
-def _row(i, rel, std, latency, false_alarms=0, has_fault=True):
+def _row(i, rel, std, latency, false_alarms=0, has_fault=True, variable="L2"):
     detected = latency is not None
-    return {"scenario_id": f"s{i}", "index": i, "variable": "L2", "kind": "step" if has_fault else "none",
+    return {"scenario_id": f"s{i}", "index": i, "variable": variable if has_fault else None, "kind": "step" if has_fault else "none",
             "relative_change": rel, "noise_std": std, "model": "harmonic", "threshold": "auto",
             "has_fault": has_fault, "status": "ok", "detected": detected if has_fault else False,
             "latency": latency, "false_alarms": false_alarms, "alarms": false_alarms + detected,
@@ -203,6 +238,22 @@ def test_headline_is_the_smallest_size_from_which_every_run_is_good():
     assert series[0.0]["no_fault"] == {"n": 1, "runs_with_alarms": 0, "alarms": 0}
     assert series[0.005]["smallest_reliable_change"] == 0.1     # 5 % had a false alarm
     assert series[0.005]["series"].startswith("noise σ = 5 mm")
+
+
+def test_headline_per_variable_judges_each_with_the_shared_fault_free_runs():
+    from sweep.report import summarize
+
+    rows = [_row(0, 0.01, 0.0, 0.5, variable="L1"), _row(1, 0.02, 0.0, 0.4, variable="L1"),
+            _row(2, 0.01, 0.0, 3.0, variable="m2"), _row(3, 0.02, 0.0, 1.0, variable="m2"),
+            _row(4, 0.0, 0.0, None, has_fault=False, false_alarms=1)]
+    summary = summarize(table_from_rows(rows), 2.0, unit="m")
+    assert summary["variable"] is None and summary["variables"] == ["L1", "m2"]
+    series = {g["variable"]: g for g in summary["series"]}
+    assert series["L1"]["smallest_reliable_change"] == 0.01
+    assert series["m2"]["smallest_reliable_change"] == 0.02      # +1 % of m2 took 3 s
+    assert series["L1"]["series"].startswith("L1, no noise")
+    for g in series.values():                                     # the one fault-free run counts for both
+        assert g["no_fault"] == {"n": 1, "runs_with_alarms": 1, "alarms": 1}
 
 
 def test_results_csv_round_trip_is_exact(tmp_path):
