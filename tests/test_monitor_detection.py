@@ -89,3 +89,30 @@ def test_several_signals_are_monitored_jointly(tmp_path, native_fmu):
     assert {f.forecaster.period for f in joint.fit.signals} == {joint.fit.period}
     episode = joint.alarm_events[0].data
     assert episode["signal"] in ("x2", "x3", "x4") and 9.0 <= episode["onset"] <= joint.first_alarm_time
+
+
+def _step(time: float, value: float) -> str:
+    return f'\n[[events]]\ntype = "step"\ntime = {time!r}\nvariable = "L2"\nvalue = {value!r}\n'
+
+
+@pytest.mark.slow
+def test_a_late_fault_is_seen_as_fast_as_an_early_one_and_a_persisting_fault_stays_one_alarm(tmp_path, native_fmu):
+    """L2 +2 % with σ = 5 mm on x2, at 10 s and ~500 s later at the same phase of the swing.
+
+    Without phase locking the forecast slides against the data and the late fault is seen
+    seconds later (a +3 % step took ~10 s at 500 s before the tracker); here the latencies
+    must agree within 20 % (the issue's target) plus one evaluation step (0.1 s, the
+    latency's resolution).  The early fault's run goes on for 790 s after the fault: the
+    alarm must hold as one episode (before the tracker's variance was capped, the growing
+    phase uncertainty silenced a long alarm and it cleared, then re-alarmed)."""
+    noise = NOISE.format(seed=5, cols="x2 = 0.005")
+    early = replay(_run(tmp_path, native_fmu, "early", stop=800.0, extra=noise + _step(10.0, 1.02)),
+                   model="harmonic", plots=False).summary
+    assert early.false_alarms == 0 and early.alarms == 1 and early.final_state.value == "ALARM"
+    period = early.fit.period
+    late_time = round(10.0 + round(490.0 / period) * period, 2)         # same phase, on the 0.01 s grid
+    late = replay(_run(tmp_path, native_fmu, "late", stop=late_time + 15.0, extra=noise + _step(late_time, 1.02)),
+                  model="harmonic", plots=False).summary
+    assert late.false_alarms == 0 and late.alarms == 1
+    assert 0 < early.detection_latency <= 2.0
+    assert abs(late.detection_latency - early.detection_latency) <= 0.2 * early.detection_latency + 0.1
