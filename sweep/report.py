@@ -409,11 +409,11 @@ def plot_delay_arl0(table, path, *, title: str = "", unit: str = "") -> Any:
         ax.set_title(name or "no delay curves (cusum detector only)", fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
         if curves:
-            ax.legend(fontsize=7, title="fault size", title_fontsize=7, loc="upper left")
+            ax.legend(fontsize=7, title="fault size", title_fontsize=7, loc="best")
         else:
             ax.text(0.5, 0.5, "needs fault runs monitored by the cusum detector", ha="center", va="center",
                     transform=ax.transAxes)
     fig.suptitle(title or "detection delay against false-alarm rate (the CUSUM limit set for each ARL0)", fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.04 / nrows))      # room for the title above the top row
     fig.savefig(path, dpi=120)
     return path
