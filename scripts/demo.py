@@ -4,7 +4,7 @@
 ``fourbar-run`` drives the FMU and appends to out/<case>/exchange.csv; ``fourbar-monitor
 --follow``, started first in its own process, waits for that file, trains on 0-9 s and
 watches the rest.  They share nothing but the files.  The verdict comes from the
-monitor's summary.json.
+monitor's summary.json; after an alarm ``fourbar-diagnose`` names the changed parameter.
 
 Usage: python scripts/demo.py [--speedup 10] [--case cases/case2_fault_L2.toml] [--model prophet]
        (--speedup 1 runs at wall-clock pace, as in the paper)
@@ -78,8 +78,18 @@ def main(argv=None) -> int:
         print(f"detection latency      : {latency:.2f} s   (paper: fault at 10 s, detected at 14 s -> 4 s)")
     print(f"false alarms before it : {summary.get('false_alarms_before_fault', 'n/a')}")
     plots = sorted(monitor_out.glob("*.png"))
-    print(f"plots                  : {', '.join(str(p.relative_to(REPO)) if p.is_relative_to(REPO) else str(p) for p in plots)}")
-    return 0 if alarm is not None else 1
+    print(f"plots                  : {', '.join(_shown(p) for p in plots)}")
+    if alarm is None:
+        return 1
+    print()
+    print("== diagnosis (fourbar-diagnose: which parameter changed, to what, and when) ==")
+    diagnosed = subprocess.run([str(BIN / "fourbar-diagnose"), str(out)])
+    # 0: explained by one parameter; 1: not explained (still a finished diagnosis); 2: bad input.
+    return 0 if diagnosed.returncode in (0, 1) else 1
+
+
+def _shown(path: Path) -> str:
+    return str(path.relative_to(REPO)) if path.is_relative_to(REPO) else str(path)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,112 @@
+"""``fourbar-diagnose``: after an alarm, name the parameter that changed, its new value and when.
+
+Exit codes: 0 explained by one parameter, 1 not explained (or no change found), 2 bad input
+(no alarm in the run, a missing or stale summary, an FMU that is not the run's, ...).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import fields
+from pathlib import Path
+
+from fourbar_common import package_version
+
+__all__ = ["build_parser", "main"]
+
+_EPILOG = """\
+what it does:
+  Replays the run's FMU (the native FMU beside it when there is one: it saves its state, so
+  each "what if" starts where the healthy run was) and fits every tunable parameter alone as
+  the cause: a step whose value (least squares) and grid time (search) explain the monitored
+  columns best from --lookback s before the monitor's first alarm to --horizon s after it.
+  The best is also fitted as a linear ramp. Hypotheses are ranked by chi-square, scaled by
+  each column's noise, estimated from the --noise-span s before that.
+
+verdicts:
+  explained      one parameter explains the change within the noise (exit 0)
+  unexplained    the best single parameter leaves residuals well above the noise: two
+                 faults at once, or a change the model does not have (exit 1)
+  no_change      the data after the alarm follow the healthy model: a false alarm (exit 1)
+
+outputs (in --out, default RUN_DIR/diagnosis): diagnosis.json, diagnosis.png
+
+examples:
+  fourbar-diagnose out/case2_fault_L2
+  fourbar-diagnose out/case3_ramp_noise --horizon 5
+  fourbar-diagnose RUN_DIR --columns x2,y2,x3,y3,x4,y4    # all written columns, not only the monitored ones
+
+exit status: 0 explained, 1 unexplained or no change, 2 bad input
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .diagnosis import DiagnoseOptions
+
+    defaults = DiagnoseOptions()
+    p = argparse.ArgumentParser(prog="fourbar-diagnose", formatter_class=argparse.RawDescriptionHelpFormatter,
+                                description="Classify the fault behind a monitor alarm: which parameter changed, "
+                                            "to what value, and when.", epilog=_EPILOG)
+    p.add_argument("run_dir", metavar="RUN_DIR", help="a run folder: exchange.csv, run.json, monitor/summary.json")
+    p.add_argument("--out", metavar="DIR", help="output folder (default RUN_DIR/diagnosis)")
+    p.add_argument("--summary", metavar="FILE", help="the monitor's summary.json (default RUN_DIR/monitor/summary.json)")
+    p.add_argument("--fmu", metavar="FMU", help="the FMU the run used, if it moved (its GUID must match run.json's)")
+    p.add_argument("--use-run-fmu", action="store_true",
+                   help="simulate with the run's own FMU even when a faster native FMU is beside it")
+    p.add_argument("--columns", metavar="COL[,COL...]", help="columns to fit (default: the monitored ones)")
+    p.add_argument("--lookback", type=float, default=defaults.lookback, metavar="S",
+                   help="s before the first alarm where the change may lie (default %(default)s)")
+    p.add_argument("--horizon", type=float, default=defaults.horizon, metavar="S",
+                   help="s of data after the first alarm used by the fit (default %(default)s)")
+    p.add_argument("--noise-span", type=float, default=defaults.noise_span, metavar="S",
+                   help="s of healthy data before the lookback that give the noise level (default %(default)s)")
+    p.add_argument("--no-ramp", action="store_true", help="fit steps only")
+    p.add_argument("--no-plot", action="store_true", help="write diagnosis.json only")
+    p.add_argument("--quiet", action="store_true", help="print the verdict line only")
+    p.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:
+        return int(exc.code or 0)
+    for name in ("lookback", "horizon", "noise_span"):
+        value = getattr(args, name)
+        if not value > 0:
+            print(f"fourbar-diagnose: error: --{name.replace('_', '-')} {value!r}: expected a positive number of "
+                  f"seconds", file=sys.stderr)
+            return 2
+    from .diagnosis import diagnose
+    from .errors import DiagnoseError, NoAlarm
+    from .outputs import write_outputs
+
+    columns = [c.strip() for c in args.columns.split(",") if c.strip()] if args.columns else None
+    try:
+        d = diagnose(args.run_dir, summary=args.summary, fmu=args.fmu, columns=columns,
+                     use_run_fmu=args.use_run_fmu, lookback=args.lookback, horizon=args.horizon,
+                     noise_span=args.noise_span, ramp=not args.no_ramp)
+    except NoAlarm as exc:
+        print(f"fourbar-diagnose: {exc}", file=sys.stderr)
+        return 2
+    except DiagnoseError as exc:
+        print(f"fourbar-diagnose: error: {exc}", file=sys.stderr)
+        return 2
+    out = Path(args.out) if args.out else Path(args.run_dir) / "diagnosis"
+    written = write_outputs(d, out, plot=not args.no_plot)
+    print(f"diagnosis: {d.message}")
+    if not args.quiet:
+        print(f"  fitted {', '.join(d.columns)} over t = {d.window[0]:.2f}..{d.window[1]:.2f} s "
+              f"(first alarm {d.alarm_time:.2f} s); noise {', '.join(f'{k} {v:.2g}' for k, v in d.noise.items())}")
+        print(f"  {'hypothesis':<10} {'new value':>14} {'change':>9} {'at t [s]':>9} {'residual RMS':>13}")
+        for f in d.ranking:
+            print(f"  {f.parameter:<10} {f.value:>14.6g} {f.relative_change:>+9.3%} {f.change_time:>9.2f} {f.rms:>13.3g}")
+        print(f"  {d.branches} branches on {d.simulator} in {d.seconds:.1f} s; wrote "
+              f"{', '.join(str(p) for p in written)}")
+    return 0 if d.explained else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
