@@ -11,7 +11,7 @@
    time by a search over grid points (:func:`diagnose.fit.fit_step`).  They are ranked by
    chi-square on the same rows.
 4. Ramp.  The best one is also fitted as a linear ramp; the ramp is kept when it lowers the
-   chi-square by more than ``ramp_gain`` and lasts longer than two steps.
+   chi-square by more than ``ramp_gain`` and lasts at least ``SHORTEST_RAMP``.
 5. Verdict.  ``no_change`` when the best hypothesis improves on the healthy model by less
    than ``change_gain`` in chi-square (noise only); ``unexplained`` when its reduced
    chi-square (per residual) is above ``explained_limit`` (two faults at once, a change
@@ -43,6 +43,13 @@ __all__ = ["Diagnosis", "DiagnoseOptions", "diagnose", "diagnose_inputs"]
 #: m: the smallest noise level assumed for a column.  Exact (noise-free) data still differ from
 #: a replay by the integrator's own error, below Table 1's absolute tolerance of 1e-6.
 NOISE_FLOOR = 1e-6
+
+
+#: Share of the change's effect (RMS of data minus healthy model after the alarm) below which
+#: the first change-time estimate ignores a residual (see diagnose_inputs).
+ONSET_SHARE = 0.01
+#: s: a fitted ramp shorter than this is reported as the step it is (ten 0.01 s grid steps).
+SHORTEST_RAMP = 0.1
 
 
 @dataclass(frozen=True)
@@ -178,7 +185,11 @@ def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOption
         residual = data - sim.healthy
         k_fit = fit_from - first
         sigma = noise_levels(residual[:k_fit], NOISE_FLOOR)
-        found = onset(residual[k_fit:] / sigma)
+        # The onset is looked for against max(noise, 1 % of the change's own size per column), so a
+        # replay's slowly growing integration error (exact data, another FMU) is not taken for it.
+        a_row = a - first
+        size = np.sqrt(np.mean(np.square(residual[a_row:]), axis=0)) if a_row < residual.shape[0] else sigma
+        found = onset(residual[k_fit:] / np.maximum(sigma, ONSET_SHARE * size))
         c0 = fit_from + found if found is not None else a
         latest = min(a, last - 1)
         problem = Problem(sim=sim, data=data, sigma=sigma, fit_from=fit_from, latest=latest,
@@ -192,7 +203,7 @@ def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOption
         ramp = None
         if options.ramp:
             ramp = fit_ramp(problem, best)
-            if ramp.chi2 < best.chi2 - options.ramp_gain and ramp.end_time - ramp.change_time > 2 * grid.step:
+            if ramp.chi2 < best.chi2 - options.ramp_gain and ramp.end_time - ramp.change_time >= SHORTEST_RAMP:
                 best = ramp
         residuals = problem.rows * len(inputs.columns)
         reduced = best.chi2 / max(residuals - 2, 1)
