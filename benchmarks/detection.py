@@ -65,13 +65,15 @@ def toml_value(v) -> str:
     return repr(v)
 
 
-def sweep_text(name: str, *, stop: float, fault: dict, noise: dict, monitor: dict) -> str:
+def sweep_text(name: str, *, stop: float, fault: dict, noise: dict, monitor: dict, diagnose: bool = False) -> str:
     lines = [f"name = {toml_value(name)}", f"case = {toml_value(str(CASES / 'case1_normal.toml'))}",
              f"fmu = {toml_value(str(NATIVE))}", f"stop = {stop!r}"]
     for table, body in (("fault", fault), ("noise", noise), ("monitor", monitor)):
         lines.append(f"[{table}]")
         lines += [f"{k} = {toml_value(v)}" for k, v in body.items()]
     lines += ["[output]", "keep_exchange = true"]
+    if diagnose:
+        lines += ["[diagnose]", "enabled = true"]
     return "\n".join(lines) + "\n"
 
 

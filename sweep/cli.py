@@ -193,6 +193,14 @@ def _report(result) -> None:
         nf = g["no_fault"]
         clean = f"; fault-free runs with an alarm: {nf['runs_with_alarms']}/{nf['n']}" if nf["n"] else ""
         print(f"  {g['series']}: {_percent(g['smallest_reliable_change'])}{clean}")
+    if s.get("classification"):
+        print("diagnosis (fourbar-diagnose after each alarm): right parameter / detected faults")
+        print(f"  {'parameter':<9} {'change':>8} {'noise':>7} {'right':>9} {'value err':>10} {'time err':>9}")
+        for c in s["classification"]:
+            value = "-" if c["value_error"] is None else f"{100 * c['value_error']:.2g} %"
+            when = "-" if c["time_error"] is None else f"{c['time_error']:.2f} s"
+            print(f"  {c['variable']:<9} {_percent(c['relative_change']):>8} {c['noise_std']:>7g} "
+                  f"{c['right']:>4}/{c['detected']:<4} {value:>10} {when:>9}")
     for key in ("csv", "parquet", "detection_plot", "roc_plot", "delay_plot", "summary"):
         if key in r.files:
             print(f"  {key.replace('_', ' ')}: {r.files[key]}")

@@ -39,12 +39,14 @@ __all__ = [
     "load_sweep",
 ]
 
-_TOP_KEYS = ("name", "description", "case", "fmu", "stop", "fault", "noise", "monitor", "sample", "report", "output")
+_TOP_KEYS = ("name", "description", "case", "fmu", "stop", "fault", "noise", "monitor", "sample", "report", "output",
+             "diagnose")
 _FAULT_KEYS = ("variable", "kind", "relative", "value", "time", "ramp_duration", "no_fault")
 _NOISE_KEYS = ("std", "seed")
 _SAMPLE_KEYS = ("n", "seed")
 _REPORT_KEYS = ("latency_limit",)
 _OUTPUT_KEYS = ("keep_exchange", "monitor_plots")
+_DIAGNOSE_KEYS = ("enabled",)
 _RANGE_KEYS = ("min", "max", "scale")
 _KINDS = ("step", "ramp")
 
@@ -149,6 +151,7 @@ class Sweep:
     latency_limit: float = 2.0  # s: "detected within" for the headline figure
     keep_exchange: bool = True
     monitor_plots: bool = False
+    diagnose: bool = False      # run fourbar-diagnose after each alarm and score it
     description: str = ""
     notes: tuple[str, ...] = field(default=())   # things the CLI should tell the user
 
@@ -178,6 +181,7 @@ class Sweep:
             "sample": None if self.sample is None else {"n": self.sample.n, "seed": self.sample.seed},
             "report": {"latency_limit": self.latency_limit},
             "output": {"keep_exchange": self.keep_exchange, "monitor_plots": self.monitor_plots},
+            "diagnose": {"enabled": self.diagnose},
         }
 
 
@@ -269,6 +273,9 @@ class _Validator(ProblemReporter):
         self.unknown_keys(output, _OUTPUT_KEYS, "output")
         keep_exchange = self.boolean("output.keep_exchange", output.get("keep_exchange", True))
         monitor_plots = self.boolean("output.monitor_plots", output.get("monitor_plots", False))
+        diagnose_table = self.table("diagnose") or {}
+        self.unknown_keys(diagnose_table, _DIAGNOSE_KEYS, "diagnose")
+        diagnose = self.boolean("diagnose.enabled", diagnose_table.get("enabled", False))
 
         if stop is not None and train_end is not None and stop <= train_end:
             self.problem("stop", stop, f"expected a time after the monitor's training window, which ends at "
@@ -287,7 +294,7 @@ class _Validator(ProblemReporter):
         case = replace(case, experiment=experiment, events=(), noise=None)
         return Sweep(name=name, source=self.path, case_path=case.source, case=case, stop=stop, fault=fault,
                      noise=noise, monitor=monitor, sample=sample, latency_limit=latency_limit,
-                     keep_exchange=keep_exchange, monitor_plots=monitor_plots,
+                     keep_exchange=keep_exchange, monitor_plots=monitor_plots, diagnose=bool(diagnose),
                      description=description, notes=tuple(self.notes))
 
     def base_case(self):

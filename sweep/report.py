@@ -417,3 +417,35 @@ def plot_delay_arl0(table, path, *, title: str = "", unit: str = "") -> Any:
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.04 / nrows))      # room for the title above the top row
     fig.savefig(path, dpi=120)
     return path
+
+
+def classification(table) -> list[dict[str, Any]]:
+    """How well the diagnosis named each fault: one row per variable, size and noise level.
+
+    ``faults`` runs with that fault; ``detected`` those the monitor alarmed on (the only ones
+    diagnosed); ``right`` diagnoses naming the changed parameter as an explanation; ``accuracy``
+    = right / detected.  Among the right ones: ``value_error`` the largest relative error of the
+    new value (a step's value, or a ramp's final value) and ``time_error`` the largest error of
+    the change time in s (a ramp's start).
+    """
+    import numpy as np
+
+    if "diagnosis" not in table.columns:
+        return []
+    faults = table[(table["has_fault"] == True) & (table["status"] == "ok")]   # noqa: E712 (nullable booleans)
+    out = []
+    for (variable, size, noise), g in faults.groupby(["variable", "relative_change", "noise_std"], sort=True):
+        detected = g[g["detected"] == True]                                      # noqa: E712
+        right = detected[(detected["diagnosis"] == "explained") & (detected["diagnosed_variable"] == variable)]
+        value_err = (right["diagnosed_value"] / right["fault_value"] - 1.0).abs()
+        time_err = (right["diagnosed_time"] - right["fault_time"]).abs()
+        out.append({
+            "variable": variable, "relative_change": float(size), "noise_std": float(noise), "faults": int(len(g)),
+            "detected": int(len(detected)), "right": int(len(right)),
+            "accuracy": float(len(right) / len(detected)) if len(detected) else None,
+            "unexplained": int((detected["diagnosis"] == "unexplained").sum()),
+            "value_error": float(value_err.max()) if len(right) else None,
+            "time_error": float(time_err.max()) if len(right) else None,
+            "seconds_max": float(np.nanmax(detected["diagnosis_seconds"])) if len(detected) else None,
+        })
+    return out

@@ -44,12 +44,14 @@ COLUMNS: dict[str, str] = {
     "score_early": "float", "latency_limit": "float", "delay_arl0_0.1h": "float", "delay_arl0_1h": "float",
     "delay_arl0_10h": "float", "delay_arl0_100h": "float", "delay_arl0_1000h": "float", "delay_arl0_10000h": "float",
     "rows_written": "int", "fmu_guid": "str",
+    "diagnosis": "str", "diagnosed_variable": "str", "diagnosed_kind": "str", "diagnosed_value": "float",
+    "diagnosed_time": "float", "diagnosed_end_time": "float",
     # how it ran (differ between otherwise identical runs)
-    "run_seconds": "float", "monitor_seconds": "float", "wall_seconds": "float", "cpu_seconds": "float",
-    "worker": "str",
+    "run_seconds": "float", "monitor_seconds": "float", "diagnosis_seconds": "float", "wall_seconds": "float",
+    "cpu_seconds": "float", "worker": "str",
 }
 #: Columns that describe how a row was computed (time, place), not what it found.
-RUNTIME_COLUMNS = ("run_seconds", "monitor_seconds", "wall_seconds", "cpu_seconds", "worker")
+RUNTIME_COLUMNS = ("run_seconds", "monitor_seconds", "diagnosis_seconds", "wall_seconds", "cpu_seconds", "worker")
 _DTYPES = {"str": "str", "float": "float64", "int": "Int64", "bool": "boolean"}
 
 assert set(RESULT_FIELDS) <= set(COLUMNS), "scenario fields missing from the table schema"

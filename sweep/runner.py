@@ -202,6 +202,8 @@ def _sweep_locked(sweep: Sweep, out: Path, store: ResultsStore, plan, by_id, not
             reason = "duplicate row"
         elif not _limit_ok(row, sweep, out):
             reason = "report.latency_limit changed and the run's evaluations.csv is gone"
+        elif sweep.diagnose and row.get("status") == "ok" and row.get("alarms") and not row.get("diagnosis"):
+            reason = "diagnose.enabled and the row has no diagnosis"
         else:
             row["index"] = by_id[sid].index
             kept[sid] = row
@@ -296,7 +298,7 @@ def _run_on(client, sweep: Sweep, pending: list[Scenario], out: Path, store: Res
     for i, s in enumerate(pending):
         fut = client.submit(run_scenario, s, sweep.case, str(runs / s.id), options, fmu_guid=sweep.fmu_guid,
                             keep_exchange=sweep.keep_exchange, monitor_plots=sweep.monitor_plots,
-                            latency_limit=sweep.latency_limit,
+                            latency_limit=sweep.latency_limit, diagnose=sweep.diagnose,
                             pure=False, priority=len(pending) - i, key=f"scenario-{s.id}-{os.urandom(4).hex()}")
         futures[fut] = s
     failed = 0
@@ -329,7 +331,7 @@ def _run_on(client, sweep: Sweep, pending: list[Scenario], out: Path, store: Res
 
 def _finish(sweep: Sweep, out: Path, store: ResultsStore, rows: list[dict], plan, *, skipped: int, ran: int,
             interrupted: bool, wall0: float, notes: list[str]) -> SweepResult:
-    from .report import plot_delay_arl0, plot_detection, plot_roc, summarize
+    from .report import classification, plot_delay_arl0, plot_detection, plot_roc, summarize
 
     store.rewrite(rows)
     store.close()
@@ -346,6 +348,8 @@ def _finish(sweep: Sweep, out: Path, store: ResultsStore, rows: list[dict], plan
         files["detection_plot"] = plot_detection(summary, plots / "detection.png", title=title)
         files["roc_plot"] = plot_roc(table, plots / "roc.png", unit=unit, latency_limit=sweep.latency_limit)
         files["delay_plot"] = plot_delay_arl0(table, plots / "delay_arl0.png", unit=unit)
+    if sweep.diagnose:
+        summary["classification"] = classification(table)
     summary.update(name=sweep.name, planned=len(plan), skipped=skipped, ran=ran, interrupted=interrupted,
                    wall_seconds=time.perf_counter() - wall0, finished_at=_now())
     files["summary"] = out / "summary.json"

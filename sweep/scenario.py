@@ -41,8 +41,9 @@ RESULT_FIELDS = ("status", "error", "detected", "detection_time", "latency", "fi
                  "false_alarms", "threshold_base", "period", "evaluations", "statistic_max_pre", "statistic_mean_pre",
                  "statistic_max_post", "statistic_mean_post", "score_pre", "score_post", "score_early", "latency_limit",
                  "delay_arl0_0.1h", "delay_arl0_1h", "delay_arl0_10h", "delay_arl0_100h", "delay_arl0_1000h",
-                 "delay_arl0_10000h", "rows_written", "fmu_guid",
-                 "run_seconds", "monitor_seconds", "wall_seconds", "cpu_seconds", "worker")
+                 "delay_arl0_10000h", "rows_written", "fmu_guid", "diagnosis", "diagnosed_variable", "diagnosed_kind",
+                 "diagnosed_value", "diagnosed_time", "diagnosed_end_time",
+                 "run_seconds", "monitor_seconds", "diagnosis_seconds", "wall_seconds", "cpu_seconds", "worker")
 
 
 def scenario_case(base, scenario: Scenario):
@@ -188,10 +189,27 @@ def early_score(times, mae, threshold, fault_time: float | None, persistence: in
     return float(runs[sel].max()) if sel.any() else None
 
 
+def diagnosis_fields(run_dir: Path) -> dict[str, Any]:
+    """The diagnosis of a monitored run folder as result columns (``diagnosis`` is the verdict,
+    ``failed: ...`` when the diagnosis could not run)."""
+    t0 = time.perf_counter()
+    try:
+        from diagnose import DiagnoseError, diagnose
+
+        d = diagnose(run_dir)
+    except DiagnoseError as exc:
+        return {"diagnosis": f"failed: {' '.join(str(exc).split())}", "diagnosis_seconds": time.perf_counter() - t0}
+    best = d.best
+    return {"diagnosis": d.verdict, "diagnosed_variable": best.parameter, "diagnosed_kind": best.kind,
+            "diagnosed_value": best.value, "diagnosed_time": best.change_time, "diagnosed_end_time": best.end_time,
+            "diagnosis_seconds": d.seconds}
+
+
 def run_scenario(scenario: Scenario, base_case, run_dir: str, monitor_options: Mapping[str, Any], *,
                  fmu_guid: str = "", keep_exchange: bool = True, monitor_plots: bool = False,
-                 latency_limit: float | None = None) -> dict[str, Any]:
-    """Run one scenario (orchestrator run + monitor replay) and return its result row."""
+                 latency_limit: float | None = None, diagnose: bool = False) -> dict[str, Any]:
+    """Run one scenario (orchestrator run + monitor replay, + the diagnosis after an alarm when
+    ``diagnose``) and return its result row."""
     wall0 = time.perf_counter()
     cpu0 = time.process_time()
     worker = f"{socket.gethostname()}:{os.getpid()}"
@@ -239,6 +257,8 @@ def run_scenario(scenario: Scenario, base_case, run_dir: str, monitor_options: M
             figures.update(delays_at_arl0(ev["time"].to_numpy(), ev["statistic"].to_numpy(), fit.rule,
                                           scenario.fault_time))
         period = monitored.period
+        if diagnose and alarm_times:
+            figures.update(diagnosis_fields(out))
         if not keep_exchange:
             result.exchange_path.unlink(missing_ok=True)
         return finish(status="ok", error=None, threshold_base=(getattr(fit.rule, "base", None) or getattr(fit.rule, "h", None))
