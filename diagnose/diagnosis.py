@@ -36,7 +36,7 @@ from .changepoint import noise_levels, onset
 from .errors import DiagnoseError
 from .fit import Fit, Problem, fit_ramp, fit_step
 from .inputs import RunInputs, read_inputs
-from .simulator import Simulator
+from .simulator import BranchFailed, Simulator
 
 __all__ = ["Diagnosis", "DiagnoseOptions", "diagnose", "diagnose_inputs"]
 
@@ -214,9 +214,12 @@ def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOption
         else:
             verdict = "explained"
         units = {n: v.unit or "" for n in inputs.hypotheses for v in [fmu.variables[n]]}
+        try:
+            model = np.vstack((sim.healthy[:fit_from - first + 1], problem.model_of(best)))
+        except BranchFailed:        # only when every hypothesis was refused somewhere: nothing to draw
+            model = np.full_like(sim.healthy, np.nan)
         curves = Curves(time=grid.time(np.arange(first, last + 1)), data=data, healthy=sim.healthy.copy(),
-                        model=np.vstack((sim.healthy[:fit_from - first + 1], problem.model_of(best))),
-                        fit_from=grid.time(fit_from))
+                        model=model, fit_from=grid.time(fit_from))
         branches, method = sim.branches, sim.method
     ranking = tuple(fits)
     runner = next((f for f in ranking if f.parameter != best.parameter), None)
