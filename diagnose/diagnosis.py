@@ -108,8 +108,7 @@ class Diagnosis:
 
     @property
     def runner_up(self) -> Fit | None:
-        others = [f for f in self.ranking if self.best is None or f.parameter != self.best.parameter]
-        return others[0] if others else None
+        return _runner_up(self.ranking, self.best)
 
     def to_json(self) -> dict:
         def fit(f: Fit | None):
@@ -128,6 +127,11 @@ class Diagnosis:
             "healthy_chi2": self.healthy_chi2, "reduced_chi2": self.reduced_chi2, "simulator": self.simulator,
             "branches": self.branches, "seconds": self.seconds,
         }
+
+
+def _runner_up(ranking, best: Fit | None) -> Fit | None:
+    """The best-ranked hypothesis of another parameter than ``best``'s."""
+    return next((f for f in ranking if best is None or f.parameter != best.parameter), None)
 
 
 def _fmt(value: float, stderr: float | None = None) -> str:
@@ -222,8 +226,7 @@ def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOption
                         model=model, fit_from=grid.time(fit_from))
         branches, method = sim.branches, sim.method
     ranking = tuple(fits)
-    runner = next((f for f in ranking if f.parameter != best.parameter), None)
-    message = _message(verdict, best, runner, units, healthy_chi2, reduced, floor_chi2=residuals)
+    message = _message(verdict, best, _runner_up(ranking, best), units, healthy_chi2, reduced, floor_chi2=residuals)
     return Diagnosis(verdict=verdict, message=message, best=best, ranking=ranking, ramp=ramp,
                      alarm_time=inputs.alarm_time, onset_time=grid.time(c0) if found is not None else None,
                      window=(grid.time(fit_from), grid.time(last)), rows=problem.rows, columns=inputs.columns,

@@ -64,10 +64,6 @@ class Fit:
     def relative_change(self) -> float:
         return self.value / self.before - 1.0 if self.before else math.nan
 
-    @property
-    def midpoint(self) -> float:
-        return 0.5 * (self.change_time + self.end_time)
-
 
 @dataclass
 class Problem:

@@ -88,10 +88,8 @@ def _pick_simulator(run_description, needed: set[str], prefer_run_fmu: bool):
         if path == run_description.path:
             continue
         try:
-            from orchestrator.case import describe_fmu
-
-            other = describe_fmu(path)
-        except Exception:
+            other = _describe(path, "a candidate simulator")
+        except DiagnoseError:     # an unreadable file beside the run's FMU is simply not a candidate
             continue
         names = {v.name for v in other.model.modelVariables}
         if (_can_save_state(other) and other.model.coSimulation is not None and needed <= names
