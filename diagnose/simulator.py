@@ -98,10 +98,9 @@ class Simulator:
         fmu, self._fmu = self._fmu, None
         if fmu is None:
             return
-        slave = fmu._slave
         for state in self._states:
             try:
-                slave.freeFMUstate(state)
+                fmu.free_state(state)
             except Exception:    # freeing must not hide the diagnosis' own result
                 pass
         self._states = []
@@ -126,56 +125,52 @@ class Simulator:
             self._fmu.do_step(t, self.grid.time(k_next) - t)
             k = k_next
 
-    def _step(self, k: int) -> None:
-        t = self.grid.time(k)
-        self._fmu.do_step(t, self.grid.time(k + 1) - t)
+    def _times(self, k_from: int, k_to: int) -> list[float]:
+        return [self.grid.time(k) for k in range(k_from, k_to + 1)]
 
     def _healthy_pass(self) -> None:
         self._advance(0, self.first)
-        snapshot = self.method == "snapshot"
-        slave = self._fmu._slave
-        for i, k in enumerate(range(self.first, self.last + 1)):
-            self.healthy[i] = self._read()
-            if snapshot:
-                self._states.append(slave.getFMUstate())
-            if k < self.last:
-                self._step(k)
+        fmu = self._fmu
+        self.healthy[0] = self._read()
+        if self.method == "resimulate":
+            fmu.step_through(self._times(self.first, self.last), self.columns, self.healthy[1:])
+            return
+        self._states.append(fmu.get_state())
+        for k in range(self.first, self.last):
+            fmu.step_through(self._times(k, k + 1), self.columns, self.healthy[k - self.first + 1:])
+            self._states.append(fmu.get_state())
 
     def _restart_at(self, c: int) -> None:
         if self.method == "snapshot":
-            self._fmu._slave.setFMUstate(self._states[c - self.first])
+            self._fmu.set_state(self._states[c - self.first])
             return
-        self._fmu._slave.reset()
+        self._fmu.reset()
         self._initialise()
         self._advance(0, self.first)
-        for k in range(self.first, c):
-            self._step(k)
+        if c > self.first:
+            self._fmu.step_through(self._times(self.first, c), (), np.empty((c - self.first, 0)))
 
     # -- branches -----------------------------------------------------------------------
-    def branch(self, name: str, values: Sequence[float], start: int) -> np.ndarray:
-        """Outputs at grid points ``start+1 .. last`` when ``name`` is set to ``values[i]`` at
-        grid point ``start + i`` (before that step; the last value then holds).
+    def branch(self, name: str, values: Sequence[float], start: int, until: int | None = None) -> np.ndarray:
+        """Outputs at grid points ``start+1 .. until`` (default ``last``) when ``name`` is set
+        to ``values[i]`` at grid point ``start + i`` (before that step; the last value then holds).
 
         ``values`` of length 1 is a step at ``start``.  Raises :class:`BranchFailed` with the
         FMU's message when the FMU cannot take the values.
         """
         from orchestrator.instance import FmuError
 
-        if not self.first <= start < self.last:
-            raise ValueError(f"branch start {start} outside the window {self.first}..{self.last - 1}")
+        until = self.last if until is None else int(until)
+        if not self.first <= start < until <= self.last:
+            raise ValueError(f"branch {start}..{until} outside the window {self.first}..{self.last}")
         self.branches += 1
-        out = np.empty((self.last - start, len(self.columns)))
-        values = np.atleast_1d(np.asarray(values, dtype=float))
-        fmu, read = self._fmu, self._read
+        out = np.empty((until - start, len(self.columns)))
+        values = [float(v) for v in np.atleast_1d(np.asarray(values, dtype=float))]
         try:
             self._restart_at(start)
-            for i, k in enumerate(range(start, self.last)):
-                if i < values.size:
-                    fmu.set_values(((name, float(values[i])),))
-                self._step(k)
-                out[i] = read()
+            self._fmu.step_through(self._times(start, until), self.columns, out, changes=(name, values))
         except FmuError as exc:
             if self.method == "resimulate":
-                self._fmu._slave.reset()     # the next branch initialises again
+                self._fmu.reset()     # the next branch initialises again
             raise BranchFailed(str(exc)) from None
         return out

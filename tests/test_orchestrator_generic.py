@@ -169,3 +169,26 @@ def test_generic_fmu_is_validated_against_its_own_variables(stepper_fmu, tmp_pat
         "outputs: missing, and the default outputs x2, y2, x3, y3, x4, y4 are not all variables of Stepper.fmu "
         "(lacking: x2, y2, x3, y3, x4, y4); expected [outputs] variables = [...] naming outputs of Stepper.fmu, "
         "e.g. y, u_seen, t_end, steps",)
+
+
+def test_step_through_steps_sets_and_reads_like_single_calls(stepper_fmu):
+    """The replay's fast loop (FmuInstance.step_through): a change set before its step, the
+    last value held, each row read after its step, and a failing step reported with the
+    FMU's own message, as fmi2DoStep through FMPy would."""
+    import numpy as np
+
+    from orchestrator.case import describe_fmu
+    from orchestrator.instance import FmuError, FmuInstance
+
+    with FmuInstance(describe_fmu(stepper_fmu), "fast") as fmu:
+        fmu.setup_experiment(0.0, 1.0, None)
+        fmu.set_values([("offset", 0.5), ("u", 2.0)])
+        fmu.enter_initialization_mode()
+        fmu.exit_initialization_mode()
+        out = np.full((4, 2), np.nan)
+        fmu.step_through([0.0, 0.1, 0.2, 0.3, 0.4], ("y", "t_end"), out, changes=("gain", [1.0, 3.0]))
+        assert out[:, 0].tolist() == [2.5, 6.5, 6.5, 6.5]         # y = 0.5 + gain * 2, gain 1 then 3
+        assert out[:, 1] == pytest.approx([0.1, 0.2, 0.3, 0.4], abs=1e-15)
+        assert fmu.reader(["steps"])() == [4]
+        with pytest.raises(FmuError, match=r"fmi2DoStep\(t = 0\.4 s.*gain = 150\.0 exceeds 100"):
+            fmu.step_through([0.4, 0.5], ("y",), np.empty((1, 1)), changes=("gain", [150.0]))
