@@ -7,9 +7,9 @@
 2. Healthy model.  The FMU replays the run with run.json's start values; the first rows that
    leave it (a CUSUM on the scaled residual, :mod:`diagnose.changepoint`) give a first
    change time.
-3. Hypotheses.  Each tunable parameter alone, as a step: value by least squares, change
-   time by a search over grid points (:func:`diagnose.fit.fit_step`).  They are ranked by
-   chi-square on the same rows.
+3. Hypotheses.  Each tunable parameter alone, as a step: change time by scoring grid
+   points, value by least squares (:class:`diagnose.fit.StepSearch`, :func:`_step_fits`).
+   They are ranked by chi-square on the same rows.
 4. Ramp.  The best one is also fitted as a linear ramp; the ramp is kept when it lowers the
    chi-square by more than ``ramp_gain`` and lasts at least ``SHORTEST_RAMP``.
 5. Verdict.  ``no_change`` when the best hypothesis improves on the healthy model by less
@@ -34,7 +34,7 @@ import numpy as np
 
 from .changepoint import noise_levels, onset
 from .errors import DiagnoseError
-from .fit import Fit, Problem, fit_ramp, fit_step
+from .fit import Fit, Problem, StepSearch, fit_ramp
 from .inputs import RunInputs, read_inputs
 from .simulator import BranchFailed, Simulator
 
@@ -48,6 +48,8 @@ NOISE_FLOOR = 1e-6
 #: Share of the change's effect (RMS of data minus healthy model after the alarm) below which
 #: the first change-time estimate ignores a residual (see diagnose_inputs).
 ONSET_SHARE = 0.01
+#: s: how far after the first change-time estimate the change is searched (it is late, not early).
+SEARCH_AFTER = 0.2
 #: s: a fitted ramp shorter than this is reported as the step it is (ten 0.01 s grid steps).
 SHORTEST_RAMP = 0.1
 
@@ -57,10 +59,14 @@ class DiagnoseOptions:
     lookback: float = 5.0          # s before the first alarm where the change may lie
     horizon: float = 3.0           # s of data after the first alarm in the fit
     noise_span: float = 5.0        # s before the lookback that give the noise level
-    refine: int = 4                # hypotheses whose change time is searched (the best at the first estimate)
+    search_back: float = 2.0       # s before the first change-time estimate where every hypothesis is scored
+    scan_step: float = 0.05        # s between the change times scored first
+    scan_horizon: float = 1.0      # s of rows after the latest candidate change time that score them
+    refine: int = 3                # best hypotheses then searched over the whole lookback, to the grid point
     ramp: bool = True              # also fit the best hypothesis as a ramp
     change_gain: float = 25.0      # chi-square gain over the healthy model that makes a change (5 sigma)
     ramp_gain: float = 25.0        # chi-square gain of the ramp over the step that makes a ramp
+    distinct_gain: float = 9.0     # chi-square gap (per unit reduced chi-square) under which the best two are not told apart (3 sigma)
     explained_limit: float = 1.5   # largest reduced chi-square of an explanation ...
     explained_fraction: float = 1e-3   # ... unless it leaves less than this share of the change's chi-square
     method: str = "auto"           # branches: auto, snapshot, resimulate (diagnose.simulator)
@@ -152,7 +158,7 @@ def _describe(fit: Fit, unit: str) -> str:
 
 
 def _message(verdict: str, best: Fit, runner: Fit | None, units: dict[str, str], healthy: float,
-             reduced: float, floor_chi2: float) -> str:
+             reduced: float, floor_chi2: float, distinct_gain: float) -> str:
     unit = units.get(best.parameter, "")
     if verdict == "no_change":
         return (f"no change found: after the alarm the data agree with the healthy model within the noise "
@@ -166,7 +172,39 @@ def _message(verdict: str, best: Fit, runner: Fit | None, units: dict[str, str],
         ratio = math.sqrt(max(runner.chi2, floor_chi2) / max(best.chi2, floor_chi2))
         text += (f"; next best explanation: {runner.parameter} {runner.relative_change:+.1%} "
                  f"(residual {ratio:.3g}x larger)")
+        gap = (runner.chi2 - best.chi2) / max(reduced, 1.0)
+        if gap < distinct_gain:
+            text += f"; the data cannot tell these two apart (chi-square {gap:.2g} apart, under {distinct_gain:g})"
     return text
+
+
+def _step_fits(problem: Problem, hypotheses, c0: int, options: DiagnoseOptions) -> list[Fit]:
+    """Every hypothesis fitted as a step, best first (step 3 of the module docstring).
+
+    Every hypothesis is surveyed from ``search_back`` s before the first change-time
+    estimate ``c0`` to a little after it; the ``refine`` best are searched again over the
+    whole lookback, to the grid point (:class:`diagnose.fit.StepSearch`); the others are
+    fitted where their survey put them.
+    """
+    grid = problem.sim.grid
+
+    def points(seconds: float) -> int:
+        return int(round(seconds / grid.step))
+
+    hi = min(problem.latest, c0 + points(SEARCH_AFTER))
+    stride = max(1, points(options.scan_step))
+    near = [*range(hi, max(problem.fit_from, c0 - points(options.search_back)) - 1, -stride),
+            *range(c0 - stride, c0 + 1)]       # a jump (a length) is exact: its own onset row
+    searches = {name: StepSearch(problem, name, hi + points(options.scan_horizon)) for name in hypotheses}
+    surveyed = {name: search.survey(near) for name, search in searches.items()}
+    order = sorted(searches, key=lambda n: surveyed[n].chi2 if surveyed[n] else math.inf)
+    whole = range(hi, problem.fit_from - 1, -stride)
+    fits = [searches[n].fit(whole, stride, also=c0 - 1) for n in order[:options.refine]]
+    for name in order[options.refine:]:
+        point = surveyed[name] or next(iter(searches[name].best()), None)    # None: nothing in range
+        if point is not None:
+            fits.append(searches[name].solve(point.start, point.change, 8))
+    return sorted(fits, key=lambda f: f.chi2)
 
 
 def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOptions()) -> Diagnosis:
@@ -199,10 +237,7 @@ def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOption
         problem = Problem(sim=sim, data=data, sigma=sigma, fit_from=fit_from, latest=latest,
                           base=inputs.parameters)
         healthy_chi2 = problem.healthy_chi2()
-        first_pass = sorted((fit_step(problem, name, c0 - 1, search=False) for name in inputs.hypotheses),
-                            key=lambda f: f.chi2)
-        refined = [fit_step(problem, f.parameter, c0 - 1) for f in first_pass[:options.refine]]
-        fits = sorted(refined + first_pass[options.refine:], key=lambda f: f.chi2)
+        fits = _step_fits(problem, inputs.hypotheses, c0, options)
         best = fits[0]
         ramp = None
         if options.ramp:
@@ -226,7 +261,8 @@ def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOption
                         model=model, fit_from=grid.time(fit_from))
         branches, method = sim.branches, sim.method
     ranking = tuple(fits)
-    message = _message(verdict, best, _runner_up(ranking, best), units, healthy_chi2, reduced, floor_chi2=residuals)
+    message = _message(verdict, best, _runner_up(ranking, best), units, healthy_chi2, reduced, floor_chi2=residuals,
+                       distinct_gain=options.distinct_gain)
     return Diagnosis(verdict=verdict, message=message, best=best, ranking=ranking, ramp=ramp,
                      alarm_time=inputs.alarm_time, onset_time=grid.time(c0) if found is not None else None,
                      window=(grid.time(fit_from), grid.time(last)), rows=problem.rows, columns=inputs.columns,

@@ -88,6 +88,33 @@ def test_a_coupler_step_under_noise_and_a_mass_step_are_named(tmp_path, native_f
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("variable, value", [("L1", 3.3), ("m3", 1.1)])
+def test_a_large_step_is_timed_to_its_grid_point(tmp_path, native_fmu, variable, value):
+    """+10 % of L1 or m3 at 11 s, noise-free: the change time's chi-square profile is rugged
+    (a pattern search over it named m2 for this m3 step; a scan every 0.05 s alone misses
+    L1's basin, one grid point wide), so this checks the search lands on the grid point and
+    the value within 0.1 %."""
+    run = _monitored(tmp_path, native_fmu, variable, stop=15.0, extra=_step(variable, value, time=11.0))
+    proc, d = _diagnose_cli(run)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert d["best"]["parameter"] == variable and d["best"]["kind"] == "step"
+    assert d["best"]["value"] == pytest.approx(value, rel=1e-3)
+    assert d["best"]["change_time"] == pytest.approx(11.0, abs=0.005)       # the grid point itself
+
+
+@pytest.mark.slow
+def test_two_masses_the_data_cannot_tell_apart_are_said_to_be(tmp_path, native_fmu):
+    """m4 +1 % under 5 mm on six columns: m2 -0.85 % fits as well (only mass ratios act, and
+    m3 matters little), so the message must say the two cannot be told apart."""
+    run = _monitored(tmp_path, native_fmu, "m4", stop=16.5, extra=_step("m4", 1.01, time=11.0) + _noise(0.005, ALL, 1))
+    proc, d = _diagnose_cli(run)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    first, second = d["ranking"][0], d["ranking"][1]
+    assert {first["parameter"], second["parameter"]} == {"m2", "m4"}
+    assert "cannot tell these two apart" in d["message"]
+
+
+@pytest.mark.slow
 def test_two_parameters_at_once_are_not_explained_by_one(tmp_path, native_fmu):
     """L2 +5 % and L4 +5 % at the same time: no single parameter fits; exit 1 and the message says so."""
     run = _monitored(tmp_path, native_fmu, "two", stop=14.0, extra=_step("L2", 1.05) + _step("L4", 2.625))
