@@ -139,6 +139,20 @@ def test_a_ramp_is_identified_as_a_ramp(tmp_path, native_fmu):
     assert rate == pytest.approx(0.005, rel=0.2)
 
 
+@pytest.mark.slow
+def test_a_false_alarm_is_found_to_be_noise_only(tmp_path, native_fmu):
+    """A healthy run under 5 mm noise, monitored with a detector designed for 100 false
+    alarms per hour so that it alarms on noise: no single change beats the healthy model by
+    the 5-sigma gain, so the verdict is no_change and the exit 1."""
+    run = _monitored(tmp_path, native_fmu, "noise", stop=17.0, extra=_noise(0.005, ALL, 3), false_alarm_rate=100.0)
+    alarm = json.loads((run / "monitor" / "summary.json").read_text())["first_alarm_time"]
+    assert alarm is not None and alarm < 14.0, "the test needs the monitor to alarm on noise"
+    proc, d = _diagnose_cli(run)
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert d["verdict"] == "no_change" and proc.stdout.startswith("diagnosis: no change found")
+    assert d["healthy_chi2"] - d["best"]["chi2"] < 25.0
+
+
 def test_a_healthy_run_has_no_fault_to_classify(tmp_path, native_fmu):
     run = _monitored(tmp_path, native_fmu, "healthy", stop=12.0)
     proc, d = _diagnose_cli(run)
