@@ -282,16 +282,18 @@ class StepSearch:
                 self._points[point.start] = self._score(point.start, _probe_near(point.change))
 
     def fit(self, starts, stride: int, keep: int = 2, max_nfev: int = 40, also: int | None = None) -> Fit:
-        """The best step, after a first :meth:`scan`.
+        """The best step, after a first :meth:`scan` or :meth:`survey`.
 
-        The grid points ``starts`` (``stride`` apart) and those scored before are scored
-        again with a probe at the best estimate so far, the best are settled, every grid point within ``stride`` of
-        the ``keep`` best is scored with a probe at its estimate, the best are settled again
-        (noise-free, neighbouring grid points differ by less than a probe 0.2 % off makes),
-        and the ``keep`` best are fitted by least squares, with the grid point ``also`` if
-        given (the first change-time estimate: exact for a length's jump, where the secant
-        can fail, since a 10 % length change shifts the motion's phase by radians over the
-        window and makes the residual anything but linear in the value).
+        1. The grid points ``starts`` (``stride`` apart) and those scored before are scored
+           again with a probe at the best estimate so far, and the best are settled.
+        2. Every grid point within ``stride`` of the ``keep`` best is scored with a probe at
+           its estimate, and the best are settled again (noise-free, neighbouring grid
+           points differ by less than a probe 0.2 % off makes).
+        3. The ``keep`` best, and the grid point ``also`` if given, are fitted by least
+           squares.  ``also`` is the first change-time estimate: exact for a length's jump,
+           where the scores can be blunt (a 10 % length change shifts the motion's phase by
+           radians over the window, far from linear in the value) but least squares
+           converges.
         """
         best = self.best()
         probe = _probe_near(best[0].change) if best and math.isfinite(best[0].chi2) else _PROBE
