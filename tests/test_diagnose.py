@@ -125,6 +125,28 @@ def test_two_parameters_at_once_are_not_explained_by_one(tmp_path, native_fmu):
     assert d["reduced_chi2"] > 100                     # residuals 10x the noise floor at least
 
 
+def test_a_sensor_offset_is_a_change_outside_the_model(tmp_path, native_fmu):
+    """A healthy run whose x2 sensor reads 10 mm high from 10 s on (written into the exchange
+    file after the run, so the FMU never saw it): no parameter moves x2 alone, so the best
+    single change must leave residuals far above the noise floor; exit 1, "not explained"."""
+    import pandas as pd
+
+    name = "offset"
+    path = case_file("case1_normal", native_fmu, tmp_path / f"{name}.toml", name=name)
+    subprocess.run([FOURBAR_RUN, str(path), "--out", str(tmp_path / name), "--stop", "16", "--quiet"],
+                   check=True, timeout=600)
+    exchange = tmp_path / name / "exchange.csv"
+    rows = pd.read_csv(exchange)
+    rows.loc[rows["time"] >= 10.0, "x2"] += 0.010
+    rows.to_csv(exchange, index=False, float_format="%.17g")
+    replay(exchange, out_dir=tmp_path / name / "monitor", model="harmonic", signal=ALL, plots=False)
+    proc, d = _diagnose_cli(tmp_path / name)
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert d["verdict"] == "unexplained" and "not explained by one parameter" in proc.stdout
+    # a 10 mm offset against a 1e-6 m noise floor: the best fit stays orders of magnitude off
+    assert d["reduced_chi2"] > 100
+
+
 @pytest.mark.slow
 def test_a_ramp_is_identified_as_a_ramp(tmp_path, native_fmu):
     """Case 3 (L2 ramp 1.0 -> 1.05 m over 20-30 s, σ = 5 mm on x2): a ramp starting near 20 s at 0.005 m/s."""
