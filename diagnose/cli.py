@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 from fourbar_common import package_version
@@ -83,15 +84,19 @@ def main(argv: list[str] | None = None) -> int:
     from .outputs import write_outputs
 
     columns = [c.strip() for c in args.columns.split(",") if c.strip()] if args.columns else None
-    try:
-        d = diagnose(args.run_dir, summary=args.summary, fmu=args.fmu, columns=columns,
-                     use_run_fmu=args.use_run_fmu, lookback=args.lookback, horizon=args.horizon,
-                     noise_span=args.noise_span, ramp=not args.no_ramp)
-    except NoAlarm as exc:
-        print(f"fourbar-diagnose: {exc}", file=sys.stderr)
-        return 2
-    except DiagnoseError as exc:
-        print(f"fourbar-diagnose: error: {exc}", file=sys.stderr)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            d = diagnose(args.run_dir, summary=args.summary, fmu=args.fmu, columns=columns,
+                         use_run_fmu=args.use_run_fmu, lookback=args.lookback, horizon=args.horizon,
+                         noise_span=args.noise_span, ramp=not args.no_ramp)
+        except (NoAlarm, DiagnoseError) as exc:
+            d, failure = None, exc
+    for w in caught:      # e.g. malformed rows skipped in exchange.csv: one line each, no source trace
+        print(f"fourbar-diagnose: warning: {w.message}", file=sys.stderr)
+    if d is None:
+        label = "" if isinstance(failure, NoAlarm) else "error: "
+        print(f"fourbar-diagnose: {label}{failure}", file=sys.stderr)
         return 2
     out = Path(args.out) if args.out else Path(args.run_dir) / "diagnosis"
     written = write_outputs(d, out, plot=not args.no_plot)

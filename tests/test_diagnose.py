@@ -210,6 +210,13 @@ def test_bad_run_folders_exit_2_with_the_reason(tmp_path, native_fmu):
     assert proc.returncode == 2 and "--horizon" in proc.stderr
     proc, _ = _diagnose_cli(run, "--columns", "x9")
     assert proc.returncode == 2 and "x9" in proc.stderr
+
+    exchange = (run / "exchange.csv").read_bytes()          # cut mid-line before the alarm
+    (run / "exchange.csv").write_bytes(exchange[:3000])
+    proc, _ = _diagnose_cli(run)
+    assert proc.returncode == 2 and "does not contain the alarm" in proc.stderr
+    assert "warning: " in proc.stderr and "incomplete last line" in proc.stderr and "Traceback" not in proc.stderr
+    (run / "exchange.csv").write_bytes(exchange)
     assert not (run / "diagnosis").exists()          # nothing written for any of these
 
 
