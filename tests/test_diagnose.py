@@ -11,8 +11,10 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from monitor import replay
@@ -32,11 +34,14 @@ def _noise(sigma: float, columns: str, seed: int = 7) -> str:
 
 
 def _monitored(tmp_path: Path, fmu: Path, name: str, *, stop: float, extra: str = "", case: str = "case1_normal",
-               signal: str = ALL, **monitor) -> Path:
-    """A run folder: fourbar-run, then the monitor (harmonic model) on ``signal``."""
+               signal: str = ALL, edit: Callable[[Path], None] | None = None, **monitor) -> Path:
+    """A run folder: fourbar-run, ``edit`` of its exchange.csv if given, then the monitor
+    (harmonic model) on ``signal``."""
     path = case_file(case, fmu, tmp_path / f"{name}.toml", name=name, extra=extra)
     subprocess.run([FOURBAR_RUN, str(path), "--out", str(tmp_path / name), "--stop", repr(stop), "--quiet"],
                    check=True, timeout=600)
+    if edit is not None:
+        edit(tmp_path / name / "exchange.csv")
     replay(tmp_path / name / "exchange.csv", out_dir=tmp_path / name / "monitor", model="harmonic", signal=signal,
            plots=False, **monitor)
     return tmp_path / name
@@ -129,18 +134,13 @@ def test_a_sensor_offset_is_a_change_outside_the_model(tmp_path, native_fmu):
     """A healthy run whose x2 sensor reads 10 mm high from 10 s on (written into the exchange
     file after the run, so the FMU never saw it): no parameter moves x2 alone, so the best
     single change must leave residuals far above the noise floor; exit 1, "not explained"."""
-    import pandas as pd
+    def offset_x2(exchange: Path) -> None:
+        rows = pd.read_csv(exchange)
+        rows.loc[rows["time"] >= 10.0, "x2"] += 0.010
+        rows.to_csv(exchange, index=False, float_format="%.17g")
 
-    name = "offset"
-    path = case_file("case1_normal", native_fmu, tmp_path / f"{name}.toml", name=name)
-    subprocess.run([FOURBAR_RUN, str(path), "--out", str(tmp_path / name), "--stop", "16", "--quiet"],
-                   check=True, timeout=600)
-    exchange = tmp_path / name / "exchange.csv"
-    rows = pd.read_csv(exchange)
-    rows.loc[rows["time"] >= 10.0, "x2"] += 0.010
-    rows.to_csv(exchange, index=False, float_format="%.17g")
-    replay(exchange, out_dir=tmp_path / name / "monitor", model="harmonic", signal=ALL, plots=False)
-    proc, d = _diagnose_cli(tmp_path / name)
+    run = _monitored(tmp_path, native_fmu, "offset", stop=16.0, edit=offset_x2)
+    proc, d = _diagnose_cli(run)
     assert proc.returncode == 1, proc.stdout + proc.stderr
     assert d["verdict"] == "unexplained" and "not explained by one parameter" in proc.stdout
     # a 10 mm offset against a 1e-6 m noise floor: the best fit stays orders of magnitude off
