@@ -158,6 +158,9 @@ class MonitorOptions(_Checked):
                           "and quiet since", flag="--guard", group="detection")
     track_time: float = option(15.0, positive("of seconds"), "cusum: time constant of the phase tracker; phase "
                                "drifts slower than this are followed", flag="--track-time", group="detection")
+    shape_time: float = option(60.0, NON_NEGATIVE, "cusum: time constant of the waveform-shape correction, learnt "
+                               "like the phase from quiet data; shape changes slower than this are followed; 0 = "
+                               "no correction", flag="--shape-time", group="detection")
     clear_after: float = option(30.0, positive("of seconds"), "cusum: a latched alarm clears after this long "
                                 "without a CUSUM crossing", flag="--clear-after", group="detection")
     tracker_block: float = option(1.0, positive("of seconds"))

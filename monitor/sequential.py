@@ -39,7 +39,7 @@ import numpy as np
 
 from .cusum import arl_siegmund, cusum_path, cusum_threshold
 from .detector import Crossing, SequentialDetector, State
-from .tracking import PeriodicTemplate, PhaseTracker
+from .tracking import PeriodicTemplate, PhaseTracker, ShapeCorrection
 
 __all__ = ["CusumDesign", "NoiseScale", "ResidualCusum", "design_cusum", "noise_scale"]
 
@@ -47,6 +47,10 @@ __all__ = ["CusumDesign", "NoiseScale", "ResidualCusum", "design_cusum", "noise_
 SCALE_CONFIDENCE = 2.0
 #: Largest lag-1 autocorrelation used in the long-run scale.
 MAX_LAG1 = 0.95
+#: z of the phase-error bound: the scale is widened by ``f'·PHASE_Z·e`` for the phase error ``e`` seen.
+PHASE_Z = 2.0
+#: s of data: how long a phase error seen on healthy data keeps widening the scale (decay time).
+PHASE_ERROR_MEMORY = 600.0
 
 
 @dataclass(frozen=True)
@@ -132,9 +136,10 @@ class _Pending:
     """Residual rows kept for the tracker until their block is ``guard`` s old."""
 
     t: np.ndarray
-    residual: np.ndarray            # (n, m)
+    residual: np.ndarray            # (n, m)  x − forecast (template + correction)
     slope: np.ndarray               # (n, m)
     shift: np.ndarray               # (n,)
+    correction: np.ndarray          # (n, m)  the shape correction in the forecast
 
 
 class ResidualCusum:
@@ -150,10 +155,16 @@ class ResidualCusum:
     def __init__(self, names: tuple[str, ...], templates: list[PeriodicTemplate], scales: list[NoiseScale],
                  design: CusumDesign, tracker: PhaseTracker, detector: SequentialDetector, *, origin: float,
                  guard: float, block: float, every: float, sample_step: float,
-                 on_evaluation: Callable[[float, float, float, State], None]):
+                 on_evaluation: Callable[[float, float, float, State], None],
+                 corrections: list[ShapeCorrection] | None = None):
         self.names = names
         self.templates = templates
-        self.sigma2 = np.array([s.sigma ** 2 for s in scales])
+        self.corrections = corrections
+        self._sigma2_noise = np.array([s.sigma ** 2 for s in scales])
+        self.sigma2 = self._sigma2_noise.copy()
+        #: s²: the decaying peak of the mean squared phase error the CUSUM was fed (see _learn_phase_error)
+        self.phase_error2 = 0.0
+        self._phase_error_time: float | None = None
         self.design = design
         self.tracker = tracker
         self.detector = detector
@@ -169,7 +180,7 @@ class ResidualCusum:
         self._next_block = 1
         self._next_eval = 1
         self._eval_max = 0.0
-        self._pending = _Pending(np.empty(0), np.empty((0, m)), np.empty((0, m)), np.empty(0))
+        self._pending = _Pending(np.empty(0), np.empty((0, m)), np.empty((0, m)), np.empty(0), np.empty((0, m)))
         self.blocks_used = 0
         self.blocks_skipped = 0
         self.max_ratio = 0.0
@@ -179,13 +190,18 @@ class ResidualCusum:
         return int(self._pending.t.size)
 
     # -- the forecast ------------------------------------------------------------------------
-    def forecast(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Phase-locked forecast, slope, shift and shift variance at ``t`` (from the tracker's state)."""
+    def forecast(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Phase-locked forecast (shape correction included), slope, shift, shift variance and the
+        correction at ``t`` (from the tracker's and the corrections' state)."""
         shift, var = self.tracker.shift(t)
         tt = np.asarray(t, dtype=float) - shift
         f = np.column_stack([tpl.value(tt) for tpl in self.templates])
         g = np.column_stack([tpl.slope(tt) for tpl in self.templates])
-        return f, g, shift, var
+        if self.corrections is None:
+            c = np.zeros_like(f)
+        else:
+            c = np.column_stack([corr.value(tt) for corr in self.corrections])
+        return f + c, g, shift, var, c
 
     # -- feeding -----------------------------------------------------------------------------
     def feed(self, t: np.ndarray, X: np.ndarray) -> np.ndarray:
@@ -205,9 +221,9 @@ class ResidualCusum:
         return out
 
     def _segment(self, t: np.ndarray, X: np.ndarray) -> np.ndarray:
-        f, g, shift, var = self.forecast(t)
+        f, g, shift, var, c = self.forecast(t)
         r = X - f
-        sd = np.sqrt(self.sigma2[None, :] + g * g * var[:, None])
+        sd = np.sqrt(self.sigma2[None, :] + g * g * (var + PHASE_Z ** 2 * self.phase_error2)[:, None])
         z = r / sd
         ok = np.isfinite(z)
         z = np.where(ok, z, 0.0)
@@ -216,6 +232,7 @@ class ResidualCusum:
         p.residual = np.vstack([p.residual, np.where(ok, r, np.nan)])
         p.slope = np.vstack([p.slope, g])
         p.shift = np.concatenate([p.shift, shift])
+        p.correction = np.vstack([p.correction, c])
         self._cusum(t, z)
         return f
 
@@ -269,6 +286,22 @@ class ResidualCusum:
                 self._next_eval += 1
             i = j
 
+    def _learn_phase_error(self, t: np.ndarray, shift_used: np.ndarray) -> None:
+        """Compare the shift the CUSUM used with the tracker's estimate now that the block is in.
+
+        The difference is the phase error the detector was exposed to at its prediction
+        horizon (guard to guard + block).  Its mean square is kept as a peak that decays with
+        ``PHASE_ERROR_MEMORY``: a machine whose phase wanders (a rotating crank's speed drifts
+        with its energy) keeps its residual scale widened where the waveform is steep.
+        """
+        shift_now, _ = self.tracker.shift(t)
+        err2 = float(np.mean((shift_used - shift_now) ** 2))
+        end = float(t[-1])
+        if self._phase_error_time is not None:
+            self.phase_error2 *= math.exp(-max(end - self._phase_error_time, 0.0) / PHASE_ERROR_MEMORY)
+        self._phase_error_time = end
+        self.phase_error2 = max(self.phase_error2, err2)
+
     def _update_tracker(self) -> None:
         """Fold block ``(b − block, b]`` into the tracker if it is confirmed healthy; drop it."""
         end = self.origin + self._next_block * self.block
@@ -286,8 +319,16 @@ class ResidualCusum:
                 tt = np.repeat(p.t[sel][ok], m)
                 self.tracker.update(tt, g[ok].ravel(), r[ok].ravel(), np.repeat(p.shift[sel][ok], m),
                                     np.tile(self.sigma2, int(ok.sum())))
+                self._learn_phase_error(p.t[sel][ok], p.shift[sel][ok])
+                if self.corrections is not None:
+                    phase_t = p.t[sel][ok] - p.shift[sel][ok]
+                    base = r[ok] + p.correction[sel][ok]          # residual from the template alone
+                    for j, corr in enumerate(self.corrections):
+                        corr.update(phase_t, base[:, j])
+                    self.sigma2 = self._sigma2_noise * (1.0 + np.array([c.noise_ratio for c in self.corrections]))
                 self.blocks_used += 1
         elif sel.any():
             self.blocks_skipped += 1
         keep = p.t > end + self._eps
-        p.t, p.residual, p.slope, p.shift = p.t[keep], p.residual[keep], p.slope[keep], p.shift[keep]
+        p.t, p.residual, p.slope, p.shift, p.correction = (p.t[keep], p.residual[keep], p.slope[keep], p.shift[keep],
+                                                           p.correction[keep])

@@ -39,7 +39,7 @@ from .forecasters import Forecaster, fit_forecaster
 from .options import MonitorOptions
 from .sequential import CusumDesign, NoiseScale, ResidualCusum, design_cusum, noise_scale
 from .spectrum import PeriodEstimate, dominant_period
-from .tracking import PeriodicTemplate, PhaseTracker
+from .tracking import PeriodicTemplate, PhaseTracker, ShapeCorrection
 
 __all__ = ["Fit", "Monitor", "SignalFit"]
 
@@ -302,9 +302,14 @@ class Monitor:
                   period, period_err)
         self.fits.append(fit)
         self._fit = fit
+        corrections = None
+        if o.shape_time > 0:
+            bins = int(np.clip(round(period / (2.0 * self._dt)), 16, 1024))
+            corrections = [ShapeCorrection(period, tpl.origin, bins=bins, time_constant=o.shape_time,
+                                           sample_step=self._dt) for tpl in templates]
         self.engine = ResidualCusum(names, templates, [f.scale for f in fits], design, tracker, self.detector,
                                     origin=float(end), guard=o.guard, block=o.tracker_block, every=o.every,
-                                    sample_step=self._dt, on_evaluation=self._evaluated)
+                                    sample_step=self._dt, on_evaluation=self._evaluated, corrections=corrections)
         info_event = {"period_fft_s": estimates[0].fft_period, "period_s": period, "period_stderr_s": period_err,
                       "model": o.model, "order": fits[0].forecaster.order,
                       "fit_seconds": sum(f.forecaster.fit_seconds for f in fits), "train_start": fit.start,

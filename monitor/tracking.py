@@ -40,7 +40,7 @@ import math
 
 import numpy as np
 
-__all__ = ["PeriodicTemplate", "PhaseTracker"]
+__all__ = ["PeriodicTemplate", "PhaseTracker", "ShapeCorrection"]
 
 
 class PeriodicTemplate:
@@ -68,22 +68,32 @@ class PeriodicTemplate:
 
 
 class PhaseTracker:
-    """Kalman filter on ``(τ, τ̇)`` (see the module docstring); times in seconds."""
+    """Kalman filter on ``(τ, τ̇, τ̈)`` (see the module docstring); times in seconds."""
 
     def __init__(self, t_ref: float, *, rate_std: float, shift_std: float, noise_per_second: float,
-                 track_time: float, variance_horizon: float = math.inf):
+                 track_time: float, variance_horizon: float = math.inf, acceleration_std: float | None = None):
         self.time = float(t_ref)
         self.variance_horizon = float(variance_horizon)
-        self.mean = np.zeros(2)
-        self.cov = np.diag([shift_std ** 2, rate_std ** 2])
+        self.mean = np.zeros(3)
         self.track_time = float(track_time)
-        self.q = float(noise_per_second) / self.track_time ** 4
+        if acceleration_std is None:
+            acceleration_std = rate_std / self.track_time
+        self.cov = np.diag([shift_std ** 2, rate_std ** 2, acceleration_std ** 2])
+        # white jerk of intensity q: a third-order loop with natural frequency 1/T
+        self.q = float(noise_per_second) / self.track_time ** 6
         self.updates = 0
 
+    def _transition(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        F = np.array([[1.0, dt, 0.5 * dt * dt], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
+        a = abs(dt)
+        Q = self.q * np.array([[a ** 5 / 20, a ** 4 / 8, a ** 3 / 6],
+                               [a ** 4 / 8, a ** 3 / 3, a ** 2 / 2],
+                               [a ** 3 / 6, a ** 2 / 2, a]])
+        return F, Q
+
     def _propagated(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        F = np.array([[1.0, dt], [0.0, 1.0]])
-        Q = self.q * np.array([[dt ** 3 / 3, dt ** 2 / 2], [dt ** 2 / 2, dt]])
-        return F @ self.mean, F @ self.cov @ F.T + (Q if dt > 0 else 0.0)
+        F, Q = self._transition(dt)
+        return F @ self.mean, F @ self.cov @ F.T + Q
 
     def shift(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Predicted ``τ(t)`` and its variance (grown for at most ``variance_horizon`` s) for
@@ -91,8 +101,9 @@ class PhaseTracker:
         d = np.asarray(t, dtype=float) - self.time
         m, c = self.mean, self.cov
         e = np.clip(d, -self.variance_horizon, self.variance_horizon)
-        var = c[0, 0] + 2 * c[0, 1] * e + c[1, 1] * e * e + self.q * np.abs(e) ** 3 / 3
-        return m[0] + m[1] * d, var
+        h = np.stack([np.ones_like(e), e, 0.5 * e * e])            # (3, n): ∂τ(t)/∂state
+        var = np.einsum("in,ij,jn->n", h, c, h) + self.q * np.abs(e) ** 5 / 20
+        return m[0] + m[1] * d + 0.5 * m[2] * d * d, var
 
     def update(self, t: np.ndarray, slope: np.ndarray, residual: np.ndarray, shift_used: np.ndarray,
                variance: np.ndarray) -> None:
@@ -103,7 +114,8 @@ class PhaseTracker:
         end = float(t[-1])                           # the state is kept at the newest sample's time
         mean, cov = self._propagated(end - self.time)
         y = slope * shift_used - residual            # = slope·τ(t) + noise
-        H = np.column_stack([slope, slope * (t - end)])
+        d = t - end
+        H = np.column_stack([slope, slope * d, slope * 0.5 * d * d])
         w = 1.0 / variance
         info = np.linalg.inv(cov) + (H * w[:, None]).T @ H
         cov_new = np.linalg.inv(info)
@@ -117,5 +129,87 @@ class PhaseTracker:
 
     def as_dict(self) -> dict[str, float]:
         return {"time": self.time, "shift_s": float(self.mean[0]), "rate": float(self.mean[1]),
+                "acceleration_per_s": float(self.mean[2]),
                 "shift_std_s": math.sqrt(max(self.cov[0, 0], 0.0)), "rate_std": math.sqrt(max(self.cov[1, 1], 0.0)),
                 "track_time_s": self.track_time, "updates": self.updates}
+
+
+class ShapeCorrection:
+    """A slowly learnt correction of a periodic template's waveform (signal units).
+
+    The template is fitted once on the training window; a healthy machine's waveform can
+    still change slowly afterwards (a rotating crank's energy, and so its speed profile,
+    drifts with the integrator's error; a real machine warms up).  The residual this leaves
+    is periodic with the motion, not white, and a CUSUM with a small reference integrates
+    it into a false alarm however the noise scale is set.  The correction removes it:
+    ``bins`` values over one period of the template's phase, each the exponentially
+    forgetting average (time constant ``time_constant`` s of data) of the residuals of
+    healthy samples at that phase, with linear (hat) weights so the correction is
+    continuous.  Samples are folded in by block, by the same rule as the phase tracker
+    (quiet, older than the guard), so a fault is not learnt before it is detected.
+
+    A bin's average is divided by at least the weight it holds after one time constant, so
+    the correction grows from zero like an exponential average instead of starting from one
+    noisy sample.  ``noise_ratio`` is the variance the correction adds to a residual, relative
+    to the residual's own (``Σw²/(Σw)²`` of a bin's weights, averaged over bins, about
+    ``block/(2·time_constant)`` per sample a bin gets per block): the residual's scale is
+    widened by it so the CUSUM's calibration holds.
+    """
+
+    def __init__(self, period: float, origin: float, *, bins: int, time_constant: float, sample_step: float):
+        self.period = float(period)
+        self.origin = float(origin)
+        self.bins = int(bins)
+        self.time_constant = float(time_constant)
+        # a bin's weight once a whole time constant of data is in: the average is divided by at
+        # least this, so it starts from zero (an exponential average) instead of from one noisy sample
+        self._full = self.time_constant / (float(sample_step) * self.bins)
+        self._s0 = np.zeros(self.bins)     # Σ w   (decayed)
+        self._s1 = np.zeros(self.bins)     # Σ w r (decayed)
+        self._s2 = np.zeros(self.bins)     # Σ w²  (decayed twice as fast)
+        self._values = np.zeros(self.bins)
+        self.time: float | None = None
+        self.updates = 0
+
+    def _weights(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        u = np.mod(np.asarray(t, dtype=float) - self.origin, self.period) * (self.bins / self.period)
+        i0 = np.floor(u).astype(np.int64) % self.bins
+        w1 = u - np.floor(u)
+        return i0, (i0 + 1) % self.bins, w1
+
+    def value(self, t: np.ndarray) -> np.ndarray:
+        i0, i1, w1 = self._weights(t)
+        return (1.0 - w1) * self._values[i0] + w1 * self._values[i1]
+
+    def update(self, t: np.ndarray, residual: np.ndarray) -> None:
+        """Fold in residuals from the template (``x − f(t − τ)``, without the correction) at
+        template times ``t`` (data time minus the phase shift used)."""
+        t = np.asarray(t, dtype=float)
+        r = np.asarray(residual, dtype=float)
+        ok = np.isfinite(r)
+        if not ok.any():
+            return
+        t, r = t[ok], r[ok]
+        end = float(np.max(t))
+        if self.time is not None and self.time_constant > 0:
+            decay = math.exp(-max(end - self.time, 0.0) / self.time_constant)
+            self._s0 *= decay
+            self._s1 *= decay
+            self._s2 *= decay * decay
+        self.time = end if self.time is None else max(self.time, end)
+        i0, i1, w1 = self._weights(t)
+        w0 = 1.0 - w1
+        n = self.bins
+        self._s0 += np.bincount(i0, w0, n) + np.bincount(i1, w1, n)
+        self._s1 += np.bincount(i0, w0 * r, n) + np.bincount(i1, w1 * r, n)
+        self._s2 += np.bincount(i0, w0 * w0, n) + np.bincount(i1, w1 * w1, n)
+        self._values = self._s1 / np.maximum(self._s0, self._full)
+        self.updates += 1
+
+    @property
+    def noise_ratio(self) -> float:
+        return float(np.mean(self._s2 / np.maximum(self._s0, self._full) ** 2))
+
+    def as_dict(self) -> dict[str, float]:
+        return {"bins": self.bins, "time_constant_s": self.time_constant, "updates": self.updates,
+                "largest_correction": float(np.max(np.abs(self._values))), "noise_ratio": self.noise_ratio}
