@@ -2,9 +2,16 @@
 
 A run folder is what ``fourbar-run`` wrote (``exchange.csv``, ``run.json``) plus the
 monitor's ``monitor/summary.json``.  The diagnosis uses the healthy parameter values and the
-time grid from run.json, the first alarm and the monitored columns from the summary, and
-the rows of the exchange file.  It never reads run.json's ``events`` (the injected truth);
-:attr:`RunInputs.events` keeps them only so that a score can be computed afterwards.
+time grid from run.json (read as a :class:`fourbar_common.RunRecord`), the first alarm and
+the monitored columns from the summary, and the rows of the exchange file.  It never reads
+run.json's ``events`` (the injected truth); :attr:`RunInputs.events` keeps them only so that
+a score can be computed afterwards.
+
+The healthy model is the start value of every parameter of the FMU as run.json records it
+(set by the case file, by ``--set``, or the FMU's own default), so a case file that names
+no parameter, or only some, is diagnosed like one that names them all.  A schema 1 run.json
+recorded only the values the case set: the others are then the FMU's own start values (the
+FMU carries the run's GUID, so they are the run's).
 
 The FMU.  run.json names the FMU the run used and its GUID; that file must still carry
 that GUID (otherwise it was rebuilt, and its model may not be the one that made the data).
@@ -22,6 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
+from fourbar_common import RecordedEvent, RunRecord, RunRecordError, read_run_record
+
 from .errors import DiagnoseError, NoAlarm
 from .simulator import Grid
 
@@ -38,7 +47,7 @@ class RunInputs:
     columns: tuple[str, ...]
     units: dict[str, str]
     alarm_time: float
-    parameters: dict[str, float]    # run.json's start values (the healthy model)
+    parameters: dict[str, Any]      # every parameter's start value from run.json (the healthy model)
     hypotheses: tuple[str, ...]     # tunable Real parameters: the candidate causes
     grid: Grid
     tolerance: float | None
@@ -47,7 +56,8 @@ class RunInputs:
     simulator_fmu: Any              # orchestrator FmuDescription of the FMU that simulates
     case: str
     run_id: str | None
-    events: tuple[dict, ...]        # the injected truth, for scoring only
+    events: tuple[RecordedEvent, ...]   # the injected truth, for scoring only
+    record: RunRecord | None = None     # run.json as read (schema 1: completed with the FMU's defaults)
 
 
 def _load_json(path: Path, what: str, fix: str) -> dict:
@@ -60,6 +70,18 @@ def _load_json(path: Path, what: str, fix: str) -> dict:
     if not isinstance(data, dict):
         raise DiagnoseError(f"{path}: expected a JSON object, got {type(data).__name__}; {fix}")
     return data
+
+
+def _load_record(path: Path) -> RunRecord:
+    fix = "expected a run folder written by fourbar-run"
+    if not path.is_file():
+        raise DiagnoseError(f"{path}: no run.json; {fix}")
+    try:
+        return read_run_record(path)
+    except FileNotFoundError:
+        raise DiagnoseError(f"{path}: no run.json; {fix}") from None
+    except RunRecordError as exc:
+        raise DiagnoseError(str(exc)) from None
 
 
 def _describe(path: Path, what: str):
@@ -81,7 +103,8 @@ def _can_save_state(description) -> bool:
 
 
 def _pick_simulator(run_description, needed: set[str], prefer_run_fmu: bool):
-    """The FMU that simulates the branches (module docstring)."""
+    """The FMU that simulates the branches (module docstring); ``needed``: the variables it must
+    have, with the run FMU's types (the monitored columns and every recorded parameter)."""
     if prefer_run_fmu or _can_save_state(run_description):
         return run_description
     for path in sorted(run_description.path.parent.glob("*.fmu")):
@@ -91,8 +114,9 @@ def _pick_simulator(run_description, needed: set[str], prefer_run_fmu: bool):
             other = _describe(path, "a candidate simulator")
         except DiagnoseError:     # an unreadable file beside the run's FMU is simply not a candidate
             continue
-        names = {v.name for v in other.model.modelVariables}
-        if (_can_save_state(other) and other.model.coSimulation is not None and needed <= names
+        types = {v.name: v.type for v in other.model.modelVariables}
+        same_types = all(n in types and types[n] == run_description.variables[n].type for n in needed)
+        if (_can_save_state(other) and other.model.coSimulation is not None and same_types
                 and _tunable(other) == _tunable(run_description)):
             return other
     return run_description
@@ -110,14 +134,15 @@ def read_inputs(run_dir: str | Path, *, summary: str | Path | None = None, fmu: 
     if not run_dir.is_dir():
         raise DiagnoseError(f"{run_dir}: not a folder; expected a run folder written by fourbar-run "
                             "(exchange.csv, run.json, monitor/summary.json)")
-    run = _load_json(run_dir / "run.json", "run.json", "expected a run folder written by fourbar-run")
+    run_json = run_dir / "run.json"
+    record = _load_record(run_json)
     summary_path = Path(summary) if summary is not None else run_dir / "monitor" / "summary.json"
     info = _load_json(summary_path, "monitor summary",
                       f"run `fourbar-monitor {run_dir / 'exchange.csv'}` first (it writes monitor/summary.json)")
 
-    if info.get("run_id") and run.get("run_id") and info["run_id"] != run["run_id"]:
-        raise DiagnoseError(f"{summary_path}: it belongs to run {info['run_id']}, but {run_dir / 'run.json'} is run "
-                            f"{run['run_id']} (the case was run again); monitor the new run first")
+    if info.get("run_id") and record.run_id and info["run_id"] != record.run_id:
+        raise DiagnoseError(f"{summary_path}: it belongs to run {info['run_id']}, but {run_json} is run "
+                            f"{record.run_id} (the case was run again); monitor the new run first")
     alarm = info.get("first_alarm_time")
     if alarm is None:
         raise NoAlarm(f"no fault to classify: the monitor raised no alarm in {summary_path} "
@@ -125,12 +150,10 @@ def read_inputs(run_dir: str | Path, *, summary: str | Path | None = None, fmu: 
     if not isinstance(alarm, (int, float)) or not math.isfinite(alarm):
         raise DiagnoseError(f"{summary_path}: first_alarm_time = {alarm!r}; expected a time in s")
 
-    fmu_info = run.get("fmu") or {}
-    guid = fmu_info.get("guid")
-    recorded = fmu_info.get("path")
-    if not guid or not recorded:
-        raise DiagnoseError(f"{run_dir / 'run.json'}: no fmu.path/fmu.guid; expected run.json written by fourbar-run")
-    run_fmu = Path(fmu) if fmu is not None else Path(recorded)
+    if record.fmu is None:
+        raise DiagnoseError(f"{run_json}: no fmu (path, guid, model_name); expected run.json written by fourbar-run")
+    guid = record.fmu.guid
+    run_fmu = Path(fmu) if fmu is not None else Path(record.fmu.path)
     if not run_fmu.is_file():
         raise DiagnoseError(f"{run_fmu}: the run's FMU is missing; rebuild it with `python build_fmu.py` and run the "
                             f"case again, or pass --fmu PATH if it moved")
@@ -140,19 +163,21 @@ def read_inputs(run_dir: str | Path, *, summary: str | Path | None = None, fmu: 
                             f"rebuilt after the run, so it may not be the model that made the data; run the case "
                             f"again (or pass --fmu with the FMU the run used)")
 
-    experiment = run.get("experiment") or {}
-    try:
-        grid = Grid(float(experiment["start"]), float(experiment["step"]))
-    except (KeyError, TypeError, ValueError):
-        raise DiagnoseError(f"{run_dir / 'run.json'}: experiment.start/step missing; expected run.json written by "
-                            "fourbar-run") from None
-    parameters = {k: float(v) for k, v in (run.get("parameters") or {}).items()
-                  if isinstance(v, (int, float)) and not isinstance(v, bool)}
-    hypotheses = tuple(n for n in sorted(_tunable(run_description), key=list(parameters).index)
-                       if n in parameters) if parameters else ()
+    if record.experiment is None:
+        raise DiagnoseError(f"{run_json}: no experiment (start, stop, step); expected run.json written by fourbar-run")
+    grid = Grid(record.experiment.start, record.experiment.step)
+    if not record.complete:          # schema 1: only what the case set; the rest is the FMU's own
+        record = record.completed_with(run_description.parameter_starts())
+    parameters = record.start_values
+    foreign = [n for n in parameters if getattr(run_description.variables.get(n), "causality", None) != "parameter"]
+    if foreign:
+        raise DiagnoseError(f"{run_json}: parameters {', '.join(foreign)}: not parameters of {run_fmu.name}; "
+                            f"expected run.json written by fourbar-run with this FMU")
+    hypotheses = tuple(p.name for p in record.parameters
+                       if p.type == "Real" and p.tunable and p.start is not None and p.name in run_description.variables)
     if not hypotheses:
-        raise DiagnoseError(f"{run_dir / 'run.json'}: none of the FMU's tunable parameters has a value in "
-                            f"'parameters'; expected run.json written by fourbar-run")
+        raise DiagnoseError(f"{run_json}: records no tunable Real parameter of {run_fmu.name} with a start value, "
+                            f"so no parameter can be fitted as the cause")
 
     monitored = info.get("signals") or [s.strip() for s in str(info.get("signal", "")).split(",") if s.strip()]
     wanted = tuple(columns) if columns else tuple(monitored)
@@ -179,10 +204,10 @@ def read_inputs(run_dir: str | Path, *, summary: str | Path | None = None, fmu: 
     if off_grid > 1e-6:
         raise DiagnoseError(f"{exchange}: rows are not on run.json's grid (start {grid.start} s, step {grid.step} s)")
 
-    simulator = _pick_simulator(run_description, set(wanted) | set(hypotheses), use_run_fmu)
-    units = {c: run.get("units", {}).get(c, "") for c in wanted}
+    simulator = _pick_simulator(run_description, set(wanted) | set(parameters), use_run_fmu)
+    units = {c: record.units.get(c, "") for c in wanted}
     return RunInputs(run_dir=run_dir, times=times, data=frame[list(wanted)].to_numpy(dtype=float), columns=wanted,
                      units=units, alarm_time=float(alarm), parameters=parameters, hypotheses=hypotheses, grid=grid,
-                     tolerance=experiment.get("tolerance"), run_fmu=run_fmu, guid=guid,
-                     simulator_fmu=simulator, case=str(run.get("case", run_dir.name)), run_id=run.get("run_id"),
-                     events=tuple(run.get("events") or ()))
+                     tolerance=record.experiment.tolerance, run_fmu=run_fmu, guid=guid,
+                     simulator_fmu=simulator, case=record.case or run_dir.name, run_id=record.run_id,
+                     events=record.events, record=record)

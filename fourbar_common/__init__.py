@@ -6,6 +6,28 @@ may all import this package, which imports nothing of theirs and only the standa
 from __future__ import annotations
 
 from .files import replace_atomically, write_json_atomic
+from .run_record import (PARAMETER_SOURCES, SCHEMA_VERSION, ParameterStart, RecordedEvent, RecordedExchange,
+                         RecordedExperiment, RecordedFmu, RecordedNoise, RecordedRamp, RecordedStep, RecordedWriter,
+                         RunRecord, RunRecordError, read_run_record, write_run_record)
 from .version import package_version
 
-__all__ = ["package_version", "replace_atomically", "write_json_atomic"]
+__all__ = [
+    "PARAMETER_SOURCES",
+    "ParameterStart",
+    "RecordedEvent",
+    "RecordedExchange",
+    "RecordedExperiment",
+    "RecordedFmu",
+    "RecordedNoise",
+    "RecordedRamp",
+    "RecordedStep",
+    "RecordedWriter",
+    "RunRecord",
+    "RunRecordError",
+    "SCHEMA_VERSION",
+    "package_version",
+    "read_run_record",
+    "replace_atomically",
+    "write_json_atomic",
+    "write_run_record",
+]

@@ -28,7 +28,6 @@ Header problems (missing column, duplicate column name, undecodable header) rais
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 import warnings
@@ -37,6 +36,8 @@ from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
+
+from fourbar_common import RecordedEvent, RunRecord, RunRecordError, read_run_record
 
 from .errors import ExchangeFormatError, ExchangeMissingError
 
@@ -493,29 +494,75 @@ def read_exchange(path: str | os.PathLike[str], columns: Sequence[str] | None = 
 class RunInfo:
     """What the monitor uses from ``run.json`` (the orchestrator's run record).
 
-    ``run_id`` tells runs in the same folder apart; ``writer_pid``/``writer_host`` name the
-    process that writes the record and ``updated_at`` is its last heartbeat (ISO 8601).
+    ``record`` is the checked record (:class:`fourbar_common.RunRecord`, the one reader of
+    run.json's schema); it is None when run.json could not be read or is not a valid record,
+    and ``problem`` then says why (the status is ``"unreadable"``).  The properties read the
+    record: ``run_id`` tells runs in the same folder apart; ``writer_pid``/``writer_host``
+    name the process that writes the record and ``updated_at`` is its last heartbeat.
     """
 
     path: Path
-    status: str
-    fault_time: float | None
-    events: tuple[dict[str, Any], ...] = ()
-    error: str | None = None
-    case: str | None = None
-    rows_written: int | None = None
-    last_time: float | None = None
-    run_id: str | None = None
-    started_at: str | None = None
-    updated_at: str | None = None
-    writer_pid: int | None = None
-    writer_host: str | None = None
-    units: dict[str, str] = field(default_factory=dict)
+    record: RunRecord | None
+    problem: str | None = None
+
+    @property
+    def status(self) -> str:
+        return self.record.status if self.record is not None else "unreadable"
+
+    @property
+    def error(self) -> str | None:
+        return self.problem if self.record is None else self.record.error
+
+    @property
+    def fault_time(self) -> float | None:
+        return self.record.fault_time if self.record is not None else None
+
+    @property
+    def events(self) -> tuple[RecordedEvent, ...]:
+        return self.record.events if self.record is not None else ()
+
+    @property
+    def case(self) -> str | None:
+        return self.record.case if self.record is not None else None
+
+    @property
+    def rows_written(self) -> int | None:
+        return self.record.rows_written if self.record is not None else None
+
+    @property
+    def last_time(self) -> float | None:
+        return self.record.last_time if self.record is not None else None
+
+    @property
+    def run_id(self) -> str | None:
+        return self.record.run_id if self.record is not None else None
+
+    @property
+    def started_at(self) -> str | None:
+        return self.record.started_at if self.record is not None else None
+
+    @property
+    def updated_at(self) -> str | None:
+        return self.record.updated_at if self.record is not None else None
+
+    @property
+    def writer_pid(self) -> int | None:
+        writer = self.record.writer if self.record is not None else None
+        return writer.pid if writer is not None else None
+
+    @property
+    def writer_host(self) -> str | None:
+        writer = self.record.writer if self.record is not None else None
+        return writer.host if writer is not None else None
+
+    @property
+    def units(self) -> dict[str, str]:
+        return dict(self.record.units) if self.record is not None else {}
 
     @property
     def ended(self) -> bool:
         """True when run.json says the run will not append any more rows."""
-        return self.status in ("finished", "failed", "interrupted")
+        return self.record is not None and self.record.ended
 
     @property
     def identity(self) -> str | None:
@@ -547,53 +594,17 @@ class RunInfo:
         return True
 
 
-def _text(value: Any) -> str | None:
-    return value if isinstance(value, str) else None
-
-
 def read_run_info(exchange_path: str | os.PathLike[str]) -> RunInfo | None:
     """Read ``run.json`` beside the exchange file; None when there is none.
 
-    A run.json that cannot be parsed gives status ``"unreadable"`` with the reason in
-    ``error`` (it is replaced atomically, so this means a foreign or damaged file).
+    A run.json that cannot be read, is not JSON or is not a valid run record gives status
+    ``"unreadable"`` with the reason (naming the field) in ``error``; it is replaced
+    atomically, so this means a foreign or damaged file.
     """
     path = Path(exchange_path).parent / "run.json"
     try:
-        text = path.read_text(encoding="utf-8")
+        return RunInfo(path, read_run_record(path))
     except FileNotFoundError:
         return None
-    except (OSError, UnicodeDecodeError) as exc:
-        return RunInfo(path, "unreadable", None, error=f"{path}: cannot read: {exc}")
-    try:
-        data = json.loads(text)
-        if not isinstance(data, dict):
-            raise ValueError("top level is not an object")
-    except ValueError as exc:
-        return RunInfo(path, "unreadable", None, error=f"{path}: not valid JSON: {exc}")
-    fault = data.get("fault_time")
-    events = data.get("events") or []
-    try:
-        fault = None if fault is None else float(fault)
-    except (TypeError, ValueError):
-        fault = None
-    rows = data.get("rows_written")
-    last = data.get("last_time")
-    writer = data.get("writer") if isinstance(data.get("writer"), dict) else {}
-    pid = writer.get("pid")
-    return RunInfo(
-        path=path,
-        status=str(data.get("status", "unknown")),
-        fault_time=fault,
-        events=tuple(e for e in events if isinstance(e, dict)) if isinstance(events, list) else (),
-        error=data.get("error"),
-        case=_text(data.get("case")),
-        rows_written=rows if isinstance(rows, int) else None,
-        last_time=float(last) if isinstance(last, (int, float)) else None,
-        run_id=_text(data.get("run_id")),
-        started_at=_text(data.get("started_at")),
-        updated_at=_text(data.get("updated_at")),
-        writer_pid=pid if isinstance(pid, int) and not isinstance(pid, bool) and pid > 0 else None,
-        writer_host=_text(writer.get("host")),
-        units={str(k): v for k, v in data["units"].items() if isinstance(v, str)}
-        if isinstance(data.get("units"), dict) else {},
-    )
+    except RunRecordError as exc:
+        return RunInfo(path, None, problem=str(exc))

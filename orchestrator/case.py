@@ -18,6 +18,8 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any, Mapping, Union
 
+from fourbar_common import ParameterStart
+
 from .validation import grid_steps
 
 __all__ = [
@@ -67,12 +69,34 @@ class FmuDescription:
         """The declared unit of each of ``names`` that has one."""
         return {n: self.variables[n].unit for n in names if n in self.variables and self.variables[n].unit}
 
+    def parameter_starts(self) -> tuple[ParameterStart, ...]:
+        """Every parameter the FMU declares (causality ``parameter``, tunable and fixed, any
+        type), with its own start value from modelDescription.xml, in the FMU's order
+        (source ``fmu``; ``start`` None when it declares none)."""
+        return tuple(ParameterStart(name=v.name, start=_start_value(v), source="fmu", type=v.type,
+                                    variability=v.variability, unit=getattr(v, "unit", None) or None)
+                     for v in self.model.modelVariables if v.causality == "parameter")
+
     def is_current(self) -> bool:
         """True while the file is the one that was read (same modification time and size)."""
         try:
             return _stamp(self.path) == self.stamp
         except OSError:
             return False
+
+
+def _start_value(var) -> Value | None:
+    """A variable's declared start value as a Python value of its type (FMPy keeps the XML text)."""
+    text = var.start
+    if text is None:
+        return None
+    if var.type == "Real":
+        return float(text)
+    if var.type in ("Integer", "Enumeration"):
+        return int(text)
+    if var.type == "Boolean":
+        return text if isinstance(text, bool) else str(text).strip().lower() in ("true", "1")
+    return str(text)
 
 
 def describe_fmu(path: Path, known: FmuDescription | None = None) -> FmuDescription:
@@ -200,6 +224,8 @@ class Case:
     exchange: ExchangeSettings = ExchangeSettings()
     description: str = ""
     source: Path | None = None     # the case file, when loaded from one
+    #: Names in ``parameters`` whose value came from an override (``--set``, ``overrides=``), not the case.
+    overridden: frozenset[str] = frozenset()
     #: What validation read from ``fmu``; set by load_case/apply_overrides, not compared.
     fmu_description: FmuDescription | None = field(default=None, compare=False, repr=False)
 

@@ -64,6 +64,8 @@ def apply_overrides(case: Case, *, overrides: Mapping[str, Value] | None = None,
     The case's FMU description is reused while the FMU file is unchanged.
     """
     raw, origins = _merge_overrides(case.as_dict(), overrides, stop, realtime, fmu)
+    for name in case.overridden:           # still an override: run.json records its source as "set"
+        origins.setdefault(f"parameters.{name}", f"--set {name}")
     label = str(case.source) if case.source is not None else f"case {case.name!r}"
     base = case.source.parent if case.source is not None else Path.cwd()
     return _Validator(raw, label, base, origins, source=case.source, known=case.fmu_description).case()
@@ -151,7 +153,8 @@ class _Validator(ProblemReporter):
             raise ConfigError(self.label, self.problems)
         return Case(name=name, fmu=fmu, experiment=experiment, parameters=parameters, events=events,
                     outputs=outputs, noise=noise, exchange=exchange, description=description,
-                    source=self.source, fmu_description=self.description)
+                    source=self.source, fmu_description=self.description,
+                    overridden=frozenset(n for n in parameters if f"parameters.{n}" in self.origins))
 
     def name(self) -> str:
         return self.identifier("name", self.raw.get("name"), "the output directory out/<name>") or "invalid"

@@ -27,12 +27,13 @@ import sys
 import threading
 import time
 import uuid
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Mapping
 
-from fourbar_common import write_json_atomic
+from fourbar_common import (SCHEMA_VERSION, ParameterStart, RecordedExchange, RecordedExperiment, RecordedFmu,
+                            RecordedNoise, RecordedRamp, RecordedStep, RecordedWriter, RunRecord, write_run_record)
 
 from .case import Case, RampEvent, StepEvent, Value
 from .config import apply_overrides, load_case
@@ -41,7 +42,6 @@ from .pacing import InterruptFlag, RealtimePacer
 
 __all__ = ["HEARTBEAT_INTERVAL", "RunInterrupted", "RunResult", "run_case", "SCHEMA_VERSION"]
 
-SCHEMA_VERSION = 1
 _RUN_JSON_MIN_INTERVAL = 0.2   # s of wall time between two "running" updates of run.json
 #: s of wall time: while the writer lives, run.json's ``updated_at`` is never older than this (plus a write).
 HEARTBEAT_INTERVAL = 2.0
@@ -118,6 +118,24 @@ def _schedule(case: Case) -> dict[int, list[tuple[str, Value]]]:
     return schedule
 
 
+def _parameter_starts(case: Case) -> tuple[ParameterStart, ...]:
+    """The start value of every parameter of the case's FMU, with its source (run.json)."""
+    starts = []
+    for default in case.fmu_description.parameter_starts():
+        if default.name in case.parameters:
+            source = "set" if default.name in case.overridden else "case"
+            starts.append(replace(default, start=case.parameters[default.name], source=source))
+        else:
+            starts.append(default)
+    return tuple(starts)
+
+
+def _recorded_event(event) -> RecordedStep | RecordedRamp:
+    if isinstance(event, StepEvent):
+        return RecordedStep(time=event.time, variable=event.variable, value=event.value)
+    return RecordedRamp(variable=event.variable, from_=event.from_, to=event.to, start=event.start, end=event.end)
+
+
 class _Run:
     def __init__(self, case: Case, out_dir: Path, progress: bool, wall0: float):
         self.case = case
@@ -147,39 +165,38 @@ class _Run:
         self.record = self._record()
 
     # -- run.json ---------------------------------------------------------------------
-    def _record(self) -> dict:
+    def _record(self) -> RunRecord:
         case = self.case
         described = case.fmu_description      # set by the validation run_case just did
         md = described.model
-        units = described.units(case.outputs)
-        return {
-            "schema": SCHEMA_VERSION, "status": "running", "run_id": uuid.uuid4().hex, "case": case.name,
-            "case_file": str(case.source) if case.source is not None else None,
-            "description": case.description,
-            "fmu": {"path": str(case.fmu), "guid": md.guid, "model_name": md.modelName},
-            "experiment": case.experiment.as_dict(),
-            "parameters": dict(case.parameters),
-            "events": [e.as_dict() for e in case.events],
-            "fault_time": case.fault_time,
-            "outputs": list(case.outputs),
-            "units": units,
-            "noise": case.noise.as_dict() if case.noise is not None else None,
-            "exchange": case.exchange.as_dict(),
-            "rows_written": 0, "last_time": None,
-            "started_at": _now(), "updated_at": None, "finished_at": None,
-            "wall_time_s": 0.0, "error": None,
-            "writer": {"pid": os.getpid(), "host": socket.gethostname(), "heartbeat_s": HEARTBEAT_INTERVAL},
-        }
+        exp, exchange = case.experiment, case.exchange
+        return RunRecord(
+            status="running", run_id=uuid.uuid4().hex, case=case.name,
+            case_file=str(case.source) if case.source is not None else None,
+            description=case.description,
+            fmu=RecordedFmu(path=str(case.fmu), guid=md.guid, model_name=md.modelName),
+            experiment=RecordedExperiment(start=exp.start, stop=exp.stop, step=exp.step, tolerance=exp.tolerance),
+            parameters=_parameter_starts(case),
+            events=tuple(_recorded_event(e) for e in case.events),
+            fault_time=case.fault_time,
+            outputs=tuple(case.outputs),
+            units=described.units(case.outputs),
+            noise=RecordedNoise(seed=case.noise.seed, std=dict(case.noise.std)) if case.noise is not None else None,
+            exchange=RecordedExchange(flush_interval=exchange.flush_interval,
+                                      realtime_factor=exchange.realtime_factor),
+            rows_written=0, last_time=None, started_at=_now(), updated_at=None, finished_at=None,
+            wall_time_s=0.0, error=None,
+            writer=RecordedWriter(pid=os.getpid(), host=socket.gethostname(), heartbeat_s=HEARTBEAT_INTERVAL),
+        )
 
     def _write_record(self, final: bool = False) -> None:
         with self._record_lock:
             now = time.monotonic()
-            record = self.record
-            record.update(status=self.status, rows_written=self.rows_written, last_time=self.last_time,
-                          updated_at=_now(), wall_time_s=round(now - self.wall0, 6), error=self.error)
-            if final:
-                record["finished_at"] = record["updated_at"]
-            write_json_atomic(self.run_json_path, record)
+            updated = _now()
+            self.record = replace(self.record, status=self.status, rows_written=self.rows_written,
+                                  last_time=self.last_time, updated_at=updated, wall_time_s=round(now - self.wall0, 6),
+                                  error=self.error, finished_at=updated if final else self.record.finished_at)
+            write_run_record(self.run_json_path, self.record)
             self.last_json_write = now
 
     def _start_heartbeat(self) -> None:

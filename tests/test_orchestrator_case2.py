@@ -101,13 +101,15 @@ def test_run_json_carries_the_ground_truth(case2_run, fourbar_fmu):
     result, _ = case2_run
     record = json.loads(result.run_json_path.read_text())
     md = read_model_description(str(fourbar_fmu))
-    assert record["schema"] == 1
+    assert record["schema"] == 2
     assert record["status"] == "finished"
     assert record["case"] == "case2_fault_L2"
     assert record["case_file"].endswith("case2_fault_L2.toml")
     assert record["fmu"] == {"path": str(Path(fourbar_fmu).resolve()), "guid": md.guid, "model_name": "FourBar"}
     assert record["experiment"] == {"start": 0.0, "stop": 100.0, "step": 0.01, "tolerance": 1e-9}
-    assert record["parameters"]["L2"] == 1.0 and record["parameters"]["theta2_start"] == 0.5235987755982988
+    assert record["parameters"]["L2"] == {"start": 1.0, "source": "case", "type": "Real", "variability": "tunable",
+                                          "unit": "m"}
+    assert record["parameters"]["theta2_start"]["start"] == 0.5235987755982988
     assert record["events"] == [{"type": "step", "time": 10.0, "variable": "L2", "value": 1.1}]
     assert record["fault_time"] == 10.0
     assert record["outputs"] == COLUMNS

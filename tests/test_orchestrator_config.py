@@ -284,7 +284,8 @@ def test_cli_summary_line_and_set(fourbar_fmu, tmp_path, capsys):
     assert len(lines) == 1 and lines[0].startswith("case1_normal: finished, 51 rows, t = 0 .. 0.5 s")
     assert captured.err == ""              # no progress bar: stderr is not a terminal here
     record = json.loads((out / "run.json").read_text())
-    assert record["parameters"]["L2"] == 1.05 and record["experiment"]["stop"] == 0.5
+    assert record["parameters"]["L2"]["start"] == 1.05 and record["experiment"]["stop"] == 0.5
+    assert record["parameters"]["L2"]["source"] == "set" and record["parameters"]["L1"]["source"] == "case"
     assert main([str(path), "--out", str(out), "--stop", "0.1", "--quiet"]) == 0
     assert capsys.readouterr().out == ""
 
