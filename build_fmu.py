@@ -5,12 +5,15 @@
 - build/FourBarNative.fmu  the same equations printed as C and compiled (needs nothing);
                            built when a C compiler is found
 
-Usage: python build_fmu.py [--only {pythonfmu,native}] [--out PATH] [--native-out PATH] [--no-validate]
+Usage: python build_fmu.py [--only {pythonfmu,native}] [--out PATH] [--native-out PATH] [--force] [--no-validate]
 """
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import zipfile
+from pathlib import Path
 
 _EPILOG = """\
 examples:
@@ -18,8 +21,50 @@ examples:
   python build_fmu.py --only native        # just build/FourBarNative.fmu
   CC=clang python build_fmu.py             # choose the C compiler
 
-exit status: 0 built (and valid), 1 a build failed or fmpy validate found problems, 2 usage error.
+--out and --native-out name files: an existing FMU there is replaced, any other existing
+file only with --force, a directory never (exit 2, nothing written).
+exit status: 0 built (and valid), 1 a build failed or fmpy validate found problems, 2 usage error,
+130 interrupted (Ctrl-C), 143 terminated (SIGTERM); an interrupted build leaves no partial file.
 """
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, handled like Ctrl-C."""
+
+
+def _raise_terminated(signum, frame) -> None:
+    raise _Terminated
+
+
+def _is_fmu(path: Path) -> bool:
+    """A zip archive with a modelDescription.xml (what this script would overwrite freely)."""
+    try:
+        with zipfile.ZipFile(path) as z:
+            return "modelDescription.xml" in z.namelist()
+    except (OSError, zipfile.BadZipFile):
+        return False
+
+
+def _native_leftover(dest: str) -> Path:
+    """The temporary file the native build writes before renaming it to ``dest``: removed
+    here after a failure or an interrupt (the pythonfmu build removes its own)."""
+    return Path(dest).resolve().with_suffix(".fmu.tmp")
+
+
+def _destination_problem(option: str, value: str, force: bool) -> str | None:
+    """Why ``value`` cannot be written as an FMU (a message naming ``option``), or None."""
+    path = Path(value)
+    if path.is_dir():
+        example = path / ("FourBar.fmu" if option == "--out" else "FourBarNative.fmu")
+        return f"{option} {value}: is a directory; expected the path of the .fmu file to write, e.g. {example}"
+    if path.exists() and not force and not _is_fmu(path):
+        return (f"{option} {value}: exists and is not an FMU (no zip with a modelDescription.xml); "
+                f"not overwritten: choose another path, or add --force to replace it")
+    parent = next((p for p in path.absolute().parents if p.exists()), None)
+    if parent is not None and not parent.is_dir():
+        return f"{option} {value}: {parent} is a file, not a directory"
+    return None
+
 
 
 def _report(label: str, path, guid: str, problems, validate: bool, extra: str = "") -> bool:
@@ -47,13 +92,38 @@ def main(argv=None) -> int:
                         help="where to write the pythonfmu FMU (default: %(default)s)")
     parser.add_argument("--native-out", default="build/FourBarNative.fmu",
                         help="where to write the native FMU (default: %(default)s)")
+    parser.add_argument("--force", action="store_true",
+                        help="replace an existing --out/--native-out file even if it is not an FMU "
+                             "(an existing FMU is always replaced; a directory never is)")
     parser.add_argument("--no-validate", dest="validate", action="store_false",
                         help="skip `fmpy validate` (not recommended)")
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:
         return int(exc.code or 0)
+    targets = [("--out", args.out)] if args.only in (None, "pythonfmu") else []
+    targets += [("--native-out", args.native_out)] if args.only in (None, "native") else []
+    problems = [p for p in (_destination_problem(option, value, args.force) for option, value in targets) if p]
+    for problem in problems:
+        print(f"build_fmu.py: error: {problem}", file=sys.stderr)
+    if problems:
+        return 2
+    previous = None
+    if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
+        previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        return _build(args)
+    except KeyboardInterrupt as exc:   # Ctrl-C or SIGTERM: the builds remove their partial files
+        terminated = isinstance(exc, _Terminated)
+        print(f"build_fmu.py: {'terminated by SIGTERM' if terminated else 'interrupted'}; "
+              f"no partial FMU was left", file=sys.stderr)
+        return 143 if terminated else 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
+
+def _build(args) -> int:
     ok = True
     if args.only in (None, "pythonfmu"):
         from fmu_src.build import build_fmu
@@ -76,6 +146,8 @@ def main(argv=None) -> int:
         except (RuntimeError, OSError) as exc:
             print(f"build_fmu.py: error: native FMU: {exc}", file=sys.stderr)
             return 1
+        finally:
+            _native_leftover(args.native_out).unlink(missing_ok=True)
         ok &= _report("native FMU", native.path, native.guid, native.problems, args.validate,
                       f", binaries: {', '.join(native.platforms)}")
     return 0 if ok else 1

@@ -5,14 +5,22 @@ pythonfmu writes no units and no ``<InitialUnknowns>`` (its issues #131/#193), s
 description with unit definitions, units on every Real variable and the initial
 unknowns FMI 2.0 requires (every output, whose ``initial`` defaults to calculated),
 then validates the result with FMPy.
+
+The GUID is a hash of the FMU's content (every file, the model description with its GUID
+and generation time left out), as the native FMU's is a hash of its sources: rebuilding
+unchanged sources gives the same GUID, so a run recorded before a rebuild still matches
+its FMU; any change to the model, the slave or pythonfmu gives a new one.  (pythonfmu
+writes a random ``uuid1``; its binary does not compare the GUID at fmi2Instantiate, so
+rewriting it in the model description is all it takes.)
 """
 from __future__ import annotations
 
-import re
+import hashlib
 import shutil
 import subprocess
 import sys
 import tempfile
+import uuid
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,7 +29,7 @@ from xml.etree import ElementTree as ET
 from .codegen import write_module
 from .fourbar_model.variables import BY_NAME, UNITS, VARIABLES
 
-__all__ = ["BuildResult", "build_fmu", "RUNTIME_REQUIREMENTS"]
+__all__ = ["BuildResult", "build_fmu", "content_guid", "RUNTIME_REQUIREMENTS"]
 
 HERE = Path(__file__).resolve().parent
 #: Run-time needs of the FMU's Python code (``pythonfmu deploy`` installs these).
@@ -87,6 +95,28 @@ def _complete_model_description(xml: bytes) -> bytes:
     return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
 
 
+def _with_guid(xml: bytes, guid: str | None) -> bytes:
+    """The model description with ``guid`` as its GUID; with None, the GUID and the generation
+    time removed (what the GUID is computed from)."""
+    root = ET.fromstring(xml)
+    if guid is None:
+        root.attrib.pop("guid", None)
+        root.attrib.pop("generationDateAndTime", None)
+    else:
+        root.set("guid", guid)
+    return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+
+
+def content_guid(files: dict[str, bytes]) -> str:
+    """A GUID from an FMU's files (archive name -> bytes): SHA-256 over the sorted names and
+    contents, the model description without its GUID and generation time."""
+    digest = hashlib.sha256()
+    for name in sorted(files):
+        data = _with_guid(files[name], None) if name == "modelDescription.xml" else files[name]
+        digest.update(name.encode() + b"\0" + data + b"\0")
+    return str(uuid.UUID(bytes=digest.digest()[:16], version=5))
+
+
 def _stage(stage: Path) -> Path:
     """Copy the slave and its run-time package into ``stage``, the equations generated first.
 
@@ -123,16 +153,20 @@ def build_fmu(dest: str | Path = "build/FourBar.fmu", validate: bool = True) -> 
             cwd=stage, capture_output=True, text=True)
         if proc.returncode != 0:
             raise RuntimeError(f"pythonfmu could not build the FMU:\n{proc.stderr.strip()}")
-        tmp_dest = dest.with_suffix(".fmu.tmp")
-        with zipfile.ZipFile(raw) as zin, zipfile.ZipFile(tmp_dest, "w", zipfile.ZIP_DEFLATED) as zout:
-            for item in zin.infolist():
-                data = zin.read(item.filename)
-                if item.filename == "modelDescription.xml":
-                    data = _complete_model_description(data)
-                zout.writestr(item, data)
-        tmp_dest.replace(dest)
-    with zipfile.ZipFile(dest) as z:
-        guid = re.search(rb'guid="([^"]+)"', z.read("modelDescription.xml")).group(1).decode()
+        with zipfile.ZipFile(raw) as zin:
+            items = zin.infolist()
+            files = {item.filename: zin.read(item.filename) for item in items}
+        files["modelDescription.xml"] = _complete_model_description(files["modelDescription.xml"])
+        guid = content_guid(files)
+        files["modelDescription.xml"] = _with_guid(files["modelDescription.xml"], guid)
+        tmp_dest = dest.with_name(f".{dest.name}.tmp")
+        try:
+            with zipfile.ZipFile(tmp_dest, "w", zipfile.ZIP_DEFLATED) as zout:
+                for item in items:
+                    zout.writestr(item, files[item.filename])
+            tmp_dest.replace(dest)
+        finally:
+            tmp_dest.unlink(missing_ok=True)     # a failure or Ctrl-C leaves nothing behind
     problems: tuple[str, ...] = ()
     if validate:
         from fmpy.validation import validate_fmu

@@ -181,6 +181,10 @@ def build_native_fmu(dest: str | Path = "build/FourBarNative.fmu", validate: boo
     """
     compiler = compiler or find_compiler()
     if not compiler:
+        if os.environ.get("CC"):
+            raise CompilerNotFound(f"no C compiler found: CC={os.environ['CC']} names no executable file or "
+                                   f"command on PATH; set CC to an installed C compiler, or unset it to use "
+                                   f"cc, gcc or clang")
         raise CompilerNotFound("no C compiler found (set CC, or install gcc or clang)")
     dest = Path(dest).resolve()
     dest.parent.mkdir(parents=True, exist_ok=True)

@@ -3,25 +3,47 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
+import secrets
 from pathlib import Path
 from typing import Any, Callable
 
 __all__ = ["replace_atomically", "write_json_atomic"]
 
+#: Mode asked for a new file, as ``open(path, "w")`` does; the process umask removes bits
+#: from it (usually 0o022, giving 0o644: readable by others, like exchange.csv and plots).
+_FILE_MODE = 0o666
+
+
+def _create_unique(directory: Path, prefix: str, suffix: str) -> Path:
+    """Create a new, empty file with a unique name in ``directory`` and return its path.
+
+    Like ``tempfile.mkstemp`` (``O_EXCL``: two writers never share a name), but created
+    with mode 0o666 minus the umask as an ordinary file, where mkstemp gives 0o600 and
+    the renamed file would be readable by its owner only.
+    """
+    for _ in range(100):
+        candidate = directory / f"{prefix}{secrets.token_hex(6)}{suffix}"
+        try:
+            fd = os.open(candidate, os.O_WRONLY | os.O_CREAT | os.O_EXCL, _FILE_MODE)
+        except FileExistsError:
+            continue
+        os.close(fd)
+        return candidate
+    raise FileExistsError(f"no unused temporary name {prefix}*{suffix} in {directory}")
+
 
 def replace_atomically(path: str | os.PathLike[str], write: Callable[[Path], None]) -> None:
     """Call ``write(tmp)`` on a fresh temporary path beside ``path``, then rename it over ``path``.
 
-    The temporary name is unique (``tempfile.mkstemp``), so concurrent writers of the same
-    file never share one; on any failure the temporary file is removed and ``path`` is
-    left as it was.
+    The temporary name is unique (created with ``O_EXCL``), so concurrent writers of the
+    same file never share one; on any failure the temporary file is removed and ``path`` is
+    left as it was.  The new file's mode is that of a file ``open(path, "w")`` creates
+    (0o666 minus the process umask), whether ``write`` writes into the temporary file or
+    replaces it.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    tmp = Path(name)
+    tmp = _create_unique(path.parent, f".{path.name}.", ".tmp")
     try:
         write(tmp)
         os.replace(tmp, path)

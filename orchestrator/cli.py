@@ -1,12 +1,14 @@
 """``fourbar-run``: run a case file through its FMU and write the exchange file.
 
 Exit codes: 0 finished, 1 the run failed (FMU error, I/O error), 2 usage or case-file
-error, 130 interrupted (Ctrl-C).  Heavy imports (FMPy, numpy) happen inside the handler,
-so ``--help`` and ``--version`` answer at once.
+error (nothing written), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).  Heavy
+imports (FMPy, numpy) happen inside the handler, so ``--help`` and ``--version`` answer
+at once.
 """
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 
 from fourbar_common import package_version
@@ -28,8 +30,13 @@ examples:
   fourbar-run --fmu build/FourBarNative.fmu cases/case2_fault_L2.toml   # the native FMU
 
 The row at an event's time shows the state before the change (the change acts from the
-next step on).  Case-file keys: docs/orchestrator.md.
-exit status: 0 finished, 1 run failed, 2 usage or case-file error, 130 interrupted.
+next step on).  A run writes at most exchange.max_rows rows (default 10,000,000) unless
+--max-rows allows more.  The FMU is initialised before anything is written; once the run
+starts, the folder's previous monitor/ and diagnosis/ outputs are removed.
+Case-file keys: docs/orchestrator.md.
+exit status: 0 finished, 1 run failed, 2 usage or case-file error (nothing written),
+130 interrupted (Ctrl-C), 143 terminated (SIGTERM); rows computed before a failure or a
+signal are kept.
 """
 
 
@@ -49,6 +56,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--set", metavar="NAME=VALUE", action="append", default=[], dest="overrides",
                         help="start value of an FMU parameter, replacing [parameters]; VALUE is read as "
                              "TOML (1.1, 3, true, \"RK45\"), else as a string; repeatable")
+    parser.add_argument("--max-rows", metavar="N", type=int,
+                        help="allow the run to write up to N rows (replaces exchange.max_rows; default "
+                             "10,000,000): a longer run is refused before anything is written")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no summary line")
     parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
     return parser
@@ -73,42 +83,48 @@ def _parse_overrides(items: list[str]) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = _parser()
+    from .pacing import raise_on_sigterm, signal_of, stop_reason
+
+    raise_on_sigterm()          # SIGTERM stops fourbar-run like Ctrl-C, at any moment
     try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:   # --help, --version (0) or a usage error (2, message printed)
-        return int(exc.code or 0)
-    try:
-        overrides = _parse_overrides(args.overrides)
-    except ValueError as exc:
-        print(f"fourbar-run: error: {exc}", file=sys.stderr)
-        return 2
-    return _run(args.case, out=args.out, stop=args.stop, realtime=args.realtime, overrides=overrides,
-                quiet=args.quiet, fmu=args.fmu)
+        parser = _parser()
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exc:   # --help, --version (0) or a usage error (2, message printed)
+            return int(exc.code or 0)
+        try:
+            overrides = _parse_overrides(args.overrides)
+        except ValueError as exc:
+            print(f"fourbar-run: error: {exc}", file=sys.stderr)
+            return 2
+        return _run(args.case, out=args.out, stop=args.stop, realtime=args.realtime, overrides=overrides,
+                    quiet=args.quiet, fmu=args.fmu, max_rows=args.max_rows)
+    except KeyboardInterrupt as exc:     # before or after the run (a run reports its own)
+        signum = signal_of(exc)
+        print(f"fourbar-run: {stop_reason(signum)}; no run was started, nothing was written", file=sys.stderr)
+        return 128 + signum
 
 
-def _run(case: str, *, out, stop, realtime, overrides, quiet: bool, fmu=None) -> int:
+def _run(case: str, *, out, stop, realtime, overrides, quiet: bool, fmu=None, max_rows=None) -> int:
     from .validation import ConfigError
     from .run import RunInterrupted, run_case
 
     try:
         result = run_case(case, out, stop=stop, realtime=realtime, overrides=overrides or None,
-                          progress=not quiet and sys.stderr.isatty(), fmu=fmu)
+                          progress=not quiet and sys.stderr.isatty(), fmu=fmu, max_rows=max_rows)
     except ConfigError as exc:
         print(f"fourbar-run: error: {exc}", file=sys.stderr)
+        print("fourbar-run: nothing was run or written", file=sys.stderr)
         return 2
     except RunInterrupted as exc:
         r = exc.result
-        print(f"fourbar-run: {r.case.name}: interrupted after {r.rows_written} rows "
-              f"(last t = {r.last_time!r} s); kept in {r.exchange_path}", file=sys.stderr)
-        return 130
-    except KeyboardInterrupt:
-        print("fourbar-run: interrupted before the run started", file=sys.stderr)
-        return 130
-    if result.start_values_rejected:     # a case error the FMU found: the model description cannot say it
-        print(f"fourbar-run: error: {result.case.name}: the FMU refused the case's start values: {result.error}; "
-              f"status in {result.run_json_path}", file=sys.stderr)
-        return 2
+        if r.started:
+            verb = "terminated by SIGTERM" if exc.signum == signal.SIGTERM else "interrupted"
+            print(f"fourbar-run: {r.case.name}: {verb} after {r.rows_written} rows (last t = {r.last_time!r} s); "
+                  f"kept in {r.exchange_path}; status in {r.run_json_path}", file=sys.stderr)
+        else:
+            print(f"fourbar-run: {r.case.name}: {r.error}; nothing was written", file=sys.stderr)
+        return 128 + exc.signum
     if not result.ok:
         where = (f"after {result.rows_written} rows (last t = {result.last_time!r} s)" if result.rows_written
                  else "before the first row")
@@ -116,11 +132,16 @@ def _run(case: str, *, out, stop, realtime, overrides, quiet: bool, fmu=None) ->
         if result.rows_written:
             print(f"fourbar-run: rows kept in {result.exchange_path}; status in {result.run_json_path}",
                   file=sys.stderr)
-        else:
+        elif result.started:
             print(f"fourbar-run: no rows were written; status in {result.run_json_path}", file=sys.stderr)
+        else:
+            print(f"fourbar-run: the run did not start; nothing was written in {result.out_dir}", file=sys.stderr)
         return 1
     if not quiet:
         exp = result.case.experiment
+        if result.replaced:
+            print(f"{result.case.name}: removed the previous run's "
+                  f"{' and '.join(name + '/' for name in result.replaced)} from {result.out_dir}")
         print(f"{result.case.name}: finished, {result.rows_written} rows, t = {exp.start:g} .. "
               f"{result.last_time:g} s, {len(result.case.events)} event(s), {result.wall_time_s:.2f} s wall "
               f"-> {result.exchange_path}")

@@ -34,36 +34,41 @@ _STEP_KEYS = ("type", "time", "variable", "value")
 _RAMP_KEYS = ("type", "variable", "from", "to", "start", "end")
 _OUTPUT_KEYS = ("variables",)
 _NOISE_KEYS = ("seed", "std")
-_EXCHANGE_KEYS = ("flush_interval", "realtime_factor")
+_EXCHANGE_KEYS = ("flush_interval", "realtime_factor", "max_rows")
+#: Rough size of one written value in exchange.csv (``repr`` of a double and a comma), for
+#: the size quoted when a run would exceed ``exchange.max_rows``.
+_BYTES_PER_VALUE = 20
 
 
 # ---------------------------------------------------------------------------- loading
 
 def load_case(path: str | Path, *, overrides: Mapping[str, Value] | None = None,
-              stop: float | None = None, realtime: float | None = None, fmu: str | Path | None = None) -> Case:
+              stop: float | None = None, realtime: float | None = None, fmu: str | Path | None = None,
+              max_rows: int | None = None) -> Case:
     """Read and validate a case file; raise :class:`ConfigError` listing every problem.
 
-    ``overrides`` (parameter start values), ``stop`` (s), ``realtime`` (factor) and ``fmu``
-    (a path, relative to the working directory) replace the file's values before validation,
-    as the CLI's ``--set``, ``--stop``, ``--realtime`` and ``--fmu``.
+    ``overrides`` (parameter start values), ``stop`` (s), ``realtime`` (factor), ``fmu``
+    (a path, relative to the working directory) and ``max_rows`` replace the file's values
+    before validation, as the CLI's ``--set``, ``--stop``, ``--realtime``, ``--fmu`` and
+    ``--max-rows``.
     """
     path = Path(path)
     label = str(path)
     raw = read_toml(path, "case file")
     raw.setdefault("name", path.stem)
-    raw, origins = _merge_overrides(raw, overrides, stop, realtime, fmu)
+    raw, origins = _merge_overrides(raw, overrides, stop, realtime, fmu, max_rows)
     return _Validator(raw, label, path.resolve().parent, origins, source=path.resolve()).case()
 
 
 def apply_overrides(case: Case, *, overrides: Mapping[str, Value] | None = None,
                     stop: float | None = None, realtime: float | None = None,
-                    fmu: str | Path | None = None) -> Case:
+                    fmu: str | Path | None = None, max_rows: int | None = None) -> Case:
     """A new :class:`Case` with the overrides applied, validated again in full.
 
     Also the way to check a :class:`Case` built or modified in code (all arguments None).
     The case's FMU description is reused while the FMU file is unchanged.
     """
-    raw, origins = _merge_overrides(case.as_dict(), overrides, stop, realtime, fmu)
+    raw, origins = _merge_overrides(case.as_dict(), overrides, stop, realtime, fmu, max_rows)
     for name in case.overridden:           # still an override: run.json records its source as "set"
         origins.setdefault(f"parameters.{name}", f"--set {name}")
     label = str(case.source) if case.source is not None else f"case {case.name!r}"
@@ -71,7 +76,7 @@ def apply_overrides(case: Case, *, overrides: Mapping[str, Value] | None = None,
     return _Validator(raw, label, base, origins, source=case.source, known=case.fmu_description).case()
 
 
-def _merge_overrides(raw: dict, overrides, stop, realtime, fmu=None) -> tuple[dict, dict[str, str]]:
+def _merge_overrides(raw: dict, overrides, stop, realtime, fmu=None, max_rows=None) -> tuple[dict, dict[str, str]]:
     raw = dict(raw)
     origins: dict[str, str] = {}
     if fmu is not None:
@@ -90,13 +95,23 @@ def _merge_overrides(raw: dict, overrides, stop, realtime, fmu=None) -> tuple[di
         exp["stop"] = stop
         raw["experiment"] = exp
         origins["experiment.stop"] = "--stop"
-    if realtime is not None:
-        exc = raw.get("exchange")
-        exc = dict(exc) if isinstance(exc, dict) else {}
-        exc["realtime_factor"] = realtime
-        raw["exchange"] = exc
-        origins["exchange.realtime_factor"] = "--realtime"
+    for key, value, flag in (("realtime_factor", realtime, "--realtime"), ("max_rows", max_rows, "--max-rows")):
+        if value is not None:
+            exc = raw.get("exchange")
+            exc = dict(exc) if isinstance(exc, dict) else {}
+            exc[key] = value
+            raw["exchange"] = exc
+            origins[f"exchange.{key}"] = flag
     return raw, origins
+
+
+def _show_bytes(size: float) -> str:
+    """``size`` bytes as '1.3 GB', '13 PB', ... (decimal units)."""
+    for unit in ("B", "kB", "MB", "GB", "TB", "PB"):
+        if size < 1000:
+            return f"{size:.3g} {unit}"
+        size /= 1000
+    return f"{size:.3g} EB"
 
 
 def _role(var) -> str:
@@ -148,7 +163,7 @@ class _Validator(ProblemReporter):
         outputs = self.outputs()
         events = self.events(experiment)
         noise = self.noise(outputs)
-        exchange = self.exchange(experiment)
+        exchange = self.exchange(experiment, outputs)
         if self.problems:
             raise ConfigError(self.label, self.problems)
         return Case(name=name, fmu=fmu, experiment=experiment, parameters=parameters, events=events,
@@ -211,7 +226,8 @@ class _Validator(ProblemReporter):
         if stop <= start:
             self.problem("experiment.stop", stop, f"expected a time after experiment.start = {start!r} s")
             return None
-        if self.whole_steps("experiment.stop", stop, stop - start, step, "(stop - start)/step") is None:
+        if self.whole_steps("experiment.stop", stop, stop - start, step, "(stop - start)/step",
+                            step_name="experiment.step") is None:
             return None
         return Experiment(start=start, stop=stop, step=step, tolerance=tolerance)
 
@@ -516,12 +532,32 @@ class _Validator(ProblemReporter):
             return None
         return Noise(seed=seed, std=std)
 
-    def exchange(self, experiment: Experiment | None) -> ExchangeSettings:
+    def exchange(self, experiment: Experiment | None, outputs: tuple[str, ...]) -> ExchangeSettings:
+        defaults = ExchangeSettings()
         table = self.table("exchange")
         if table is None:
-            return ExchangeSettings()
+            table = {}
         self.unknown_keys(table, _EXCHANGE_KEYS, "exchange")
-        flush = self.number("exchange.flush_interval", table.get("flush_interval", 1.0), "s", positive=True)
-        factor = self.number("exchange.realtime_factor", table.get("realtime_factor", 0.0), "", minimum=0.0)
-        return ExchangeSettings(flush_interval=flush if flush is not None else 1.0,
-                                realtime_factor=factor if factor is not None else 0.0)
+        flush = self.number("exchange.flush_interval", table.get("flush_interval", defaults.flush_interval), "s",
+                            positive=True)
+        factor = self.number("exchange.realtime_factor", table.get("realtime_factor", defaults.realtime_factor), "",
+                             minimum=0.0)
+        max_rows = self.integer("exchange.max_rows", table.get("max_rows", defaults.max_rows), minimum=1)
+        if experiment is not None and max_rows is not None:
+            self.row_bound(experiment, outputs, max_rows)
+        return ExchangeSettings(flush_interval=flush if flush is not None else defaults.flush_interval,
+                                realtime_factor=factor if factor is not None else defaults.realtime_factor,
+                                max_rows=max_rows if max_rows is not None else defaults.max_rows)
+
+    def row_bound(self, experiment: Experiment, outputs: tuple[str, ...], max_rows: int) -> None:
+        """A run may write at most ``max_rows`` rows unless the case (or ``--max-rows``) allows more:
+        a mistyped stop or step must not fill the disk."""
+        rows = experiment.n_steps + 1
+        if rows <= max_rows:
+            return
+        size = rows * (1 + len(outputs)) * _BYTES_PER_VALUE
+        self.problems.append(
+            f"experiment: start = {experiment.start!r}, stop = {experiment.stop!r}, step = {experiment.step!r} s "
+            f"would write {rows:,} rows (about {_show_bytes(size)} of exchange.csv), more than "
+            f"{self.field('exchange.max_rows')} = {max_rows:,}; shorten the run, or allow it with "
+            f"[exchange] max_rows = {rows} in the case file (or --max-rows {rows})")

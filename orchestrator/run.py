@@ -8,20 +8,31 @@ Loop (communication points ``t_k = start + k*step``, ``k = 0 .. n``; integer cou
     fmi2DoStep(t_k, t_{k+1} - t_k)
 
 So with L2 set at 10 s, the row at 10.00 s still shows the old geometry and the row at
-10.01 s the new one (ARCHITECTURE.md section 1).  The step passed to the FMU is
+10.01 s the new one (docs/contracts.md, "The FMUs").  The step passed to the FMU is
 ``t_{k+1} - t_k`` rather than ``step``: it makes the FMU end each step exactly on the grid
 (as ``fmpy.simulate_fmu`` does), instead of drifting by round-off.
+
+Order.  The FMU is instantiated and initialised (experiment set up, start values set,
+initialisation mode entered and left) *before* anything is written: an FMU that refuses
+the case's start values raises :class:`StartValuesRefused` (a :class:`ConfigError`) and
+the output folder is left exactly as it was, a previous run's files included.  Only then
+does the run start: it removes the previous run's derived outputs (``monitor/`` and
+``diagnosis/``, see :func:`remove_derived_outputs`), creates exchange.csv empty and writes
+run.json.
 
 run.json is written when the run starts (``running``, after exchange.csv was created
 empty, so a reader that sees the new ``run_id`` reads the new file), after flushes (at
 most every 0.2 s of wall time), by a heartbeat every ``HEARTBEAT_INTERVAL`` s of wall time
 whatever the loop does (``updated_at``; ``writer`` names the process and host), and at the
 end (``finished``, ``failed`` or ``interrupted``, with the reason).  Rows already appended
-stay whatever happens; the FMU instance is always freed.
+stay whatever happens; the FMU instance is always freed.  Ctrl-C and SIGTERM stop the loop
+at the next step (:mod:`orchestrator.pacing`).
 """
 from __future__ import annotations
 
 import os
+import shutil
+import signal
 import socket
 import sys
 import threading
@@ -38,13 +49,18 @@ from fourbar_common import (SCHEMA_VERSION, ParameterStart, RecordedExchange, Re
 from .case import Case, RampEvent, StepEvent, Value
 from .config import apply_overrides, load_case
 from .exchange import ExchangeWriter, format_row
-from .pacing import InterruptFlag, RealtimePacer
+from .pacing import InterruptFlag, RealtimePacer, signal_of, stop_reason
+from .validation import ConfigError
 
-__all__ = ["HEARTBEAT_INTERVAL", "RunInterrupted", "RunResult", "run_case", "SCHEMA_VERSION"]
+__all__ = ["DERIVED_OUTPUTS", "HEARTBEAT_INTERVAL", "RunInterrupted", "RunResult", "StartValuesRefused",
+           "remove_derived_outputs", "run_case", "SCHEMA_VERSION"]
 
 _RUN_JSON_MIN_INTERVAL = 0.2   # s of wall time between two "running" updates of run.json
 #: s of wall time: while the writer lives, run.json's ``updated_at`` is never older than this (plus a write).
 HEARTBEAT_INTERVAL = 2.0
+#: Folders of a run folder that tools derive from its exchange.csv, each with the file that
+#: marks it as theirs: a new run removes them when it starts (they describe the old rows).
+DERIVED_OUTPUTS = (("monitor", "summary.json"), ("diagnosis", "diagnosis.json"))
 
 
 @dataclass(frozen=True)
@@ -61,7 +77,11 @@ class RunResult:
     wall_time_s: float           # the whole run_case call, FMU loading included
     sim_wall_time_s: float | None  # from reading the first row to writing the last one
     error: str | None = None
-    start_values_rejected: bool = False   # the FMU refused the start values (fmi2ExitInitializationMode)
+    #: The run started: exchange.csv and run.json were (re)created.  False when it failed or
+    #: was stopped while the FMU was loaded and initialised: then nothing was written.
+    started: bool = True
+    #: The previous run's derived folders removed when this run started (e.g. ("monitor",)).
+    replaced: tuple[str, ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -69,35 +89,81 @@ class RunResult:
 
 
 class RunInterrupted(KeyboardInterrupt):
-    """Ctrl-C stopped a run; run.json says ``interrupted``; ``result`` describes what was kept."""
+    """Ctrl-C or SIGTERM stopped a run; run.json says ``interrupted`` (when the run had
+    started); ``result`` describes what was kept, ``signum`` is the signal."""
 
-    def __init__(self, result: RunResult):
+    def __init__(self, result: RunResult, signum: int = signal.SIGINT):
         super().__init__(result.error)
         self.result = result
+        self.signum = int(signum)
+
+
+class StartValuesRefused(ConfigError):
+    """The FMU refused the case's set-up (experiment, start values) before the first row.
+
+    A case error that only the FMU could find (e.g. a String value its model description
+    cannot restrict, or a length that makes its arithmetic overflow).  Raised before
+    anything is written.  ``problems`` has one line: the FMI call, its status and the FMU's
+    message, then which of the case's start values differ from the FMU's own.
+    """
 
 
 def run_case(case: Case | str | Path, out_dir: str | Path | None = None, *, stop: float | None = None,
              realtime: float | None = None, overrides: Mapping[str, Value] | None = None,
-             progress: bool = False, fmu: str | Path | None = None) -> RunResult:
+             progress: bool = False, fmu: str | Path | None = None, max_rows: int | None = None) -> RunResult:
     """Run ``case`` (a :class:`Case` or a case-file path) and write ``out_dir``.
 
     ``out_dir`` defaults to ``out/<case name>`` (relative to the working directory).
-    ``stop`` (s), ``realtime`` (factor), ``overrides`` (parameter start values) and ``fmu``
-    (another FMU with the case's variables, e.g. build/FourBarNative.fmu) replace the case's
-    values; the result is validated again (:class:`~orchestrator.ConfigError`).
+    ``stop`` (s), ``realtime`` (factor), ``overrides`` (parameter start values), ``fmu``
+    (another FMU with the case's variables, e.g. build/FourBarNative.fmu) and ``max_rows``
+    replace the case's values; the result is validated again (:class:`~orchestrator.ConfigError`).
     ``progress`` shows a tqdm bar on stderr.
 
-    A failure of the FMU or of writing returns a result with status ``failed`` and the
-    reason in ``error`` (also in run.json).  Ctrl-C records ``interrupted`` in run.json
+    Start values the FMU refuses raise :class:`StartValuesRefused` (a ``ConfigError``)
+    before anything is written.  A failure of the FMU or of writing returns a result with
+    status ``failed`` and the reason in ``error`` (also in run.json once the run started;
+    ``started`` says whether it did).  Ctrl-C or SIGTERM records ``interrupted`` in run.json
     and raises :class:`RunInterrupted` (a ``KeyboardInterrupt``).
     """
     wall0 = time.monotonic()
     if isinstance(case, Case):
-        case = apply_overrides(case, overrides=overrides, stop=stop, realtime=realtime, fmu=fmu)
+        case = apply_overrides(case, overrides=overrides, stop=stop, realtime=realtime, fmu=fmu, max_rows=max_rows)
     else:
-        case = load_case(case, overrides=overrides, stop=stop, realtime=realtime, fmu=fmu)
+        case = load_case(case, overrides=overrides, stop=stop, realtime=realtime, fmu=fmu, max_rows=max_rows)
     out = Path(out_dir) if out_dir is not None else Path("out") / case.name
     return _Run(case, out, progress, wall0).execute()
+
+
+def remove_derived_outputs(out_dir: Path) -> tuple[str, ...]:
+    """Remove the previous run's derived folders (:data:`DERIVED_OUTPUTS`) from ``out_dir``.
+
+    Only a folder that holds its tool's marker file, in a folder that holds a run.json, is
+    removed: ``--out`` pointed at a folder of something else (a source tree has a
+    ``monitor/`` package) loses nothing.  Returns the names removed.
+    """
+    if not (out_dir / "run.json").is_file():
+        return ()
+    removed = []
+    for name, marker in DERIVED_OUTPUTS:
+        folder = out_dir / name
+        if folder.is_dir() and not folder.is_symlink() and (folder / marker).is_file():
+            shutil.rmtree(folder)
+            removed.append(name)
+    return tuple(removed)
+
+
+def _same_value(value: Value, start: str | None) -> bool:
+    """``value`` equals a model description's ``start`` attribute (text; None when absent)."""
+    if start is None:
+        return False
+    if isinstance(value, bool):
+        return str(start).lower() == str(value).lower()
+    if isinstance(value, (int, float)):
+        try:
+            return float(start) == float(value)
+        except (TypeError, ValueError):
+            return False
+    return str(start) == str(value)
 
 
 def _now() -> str:
@@ -139,6 +205,8 @@ def _recorded_event(event) -> RecordedStep | RecordedRamp:
 class _Run:
     def __init__(self, case: Case, out_dir: Path, progress: bool, wall0: float):
         self.case = case
+        self.started = False                    # exchange.csv/run.json of this run (re)created
+        self.replaced: tuple[str, ...] = ()
         self.out_dir = out_dir
         self.exchange_path = out_dir / "exchange.csv"
         self.run_json_path = out_dir / "run.json"
@@ -157,8 +225,6 @@ class _Run:
         self.pending_v: list[list] = []
         self.noise = None
         self.pacer: RealtimePacer | None = None
-        self.initialized = False
-        self.setting_start_values = False
         self._record_lock = threading.Lock()
         self._heartbeat_stop = threading.Event()
         self._heartbeat: threading.Thread | None = None
@@ -183,7 +249,7 @@ class _Run:
             units=described.units(case.outputs),
             noise=RecordedNoise(seed=case.noise.seed, std=dict(case.noise.std)) if case.noise is not None else None,
             exchange=RecordedExchange(flush_interval=exchange.flush_interval,
-                                      realtime_factor=exchange.realtime_factor),
+                                      realtime_factor=exchange.realtime_factor, max_rows=exchange.max_rows),
             rows_written=0, last_time=None, started_at=_now(), updated_at=None, finished_at=None,
             wall_time_s=0.0, error=None,
             writer=RecordedWriter(pid=os.getpid(), host=socket.gethostname(), heartbeat_s=HEARTBEAT_INTERVAL),
@@ -243,49 +309,106 @@ class _Run:
     def execute(self) -> RunResult:
         from .instance import FmuError, FmuInstance
 
-        interrupted, note = False, ""
+        stopped_by: int | None = None      # the signal that stopped the run
+        note = ""
         try:
             with InterruptFlag() as flag:
                 try:
-                    self.out_dir.mkdir(parents=True, exist_ok=True)
-                    self.writer = ExchangeWriter(self.exchange_path, ("time", *self.case.outputs))
-                    self._write_record()
-                    self._start_heartbeat()
-                    if self.progress:
-                        from tqdm import tqdm
-
-                        self.bar = tqdm(total=self.case.experiment.n_steps + 1, unit="row", desc=self.case.name,
-                                        file=sys.stderr, dynamic_ncols=True, leave=False)
                     with FmuInstance(self.case.fmu_description, self.case.name) as fmu:
+                        self._initialize(fmu)      # refused: StartValuesRefused, nothing written
+                        flag.check()               # a signal while the FMU loaded: nothing written
+                        self._start_outputs()
                         self._loop(fmu, flag)
                     self.status = "finished"
                 except FmuError as exc:
                     note = self._after_failure()
                     if flag.requested:
-                        interrupted = True
+                        stopped_by = flag.signum
                     else:
                         self.status, self.error = "failed", str(exc) + note
-                except KeyboardInterrupt:
+                except KeyboardInterrupt as exc:
                     note = self._after_failure()
-                    interrupted = True
+                    stopped_by = flag.signum or signal_of(exc)
                 except OSError as exc:
                     self.status, self.error = "failed", f"{type(exc).__name__}: {exc}"
-                if interrupted:
-                    where = f" at t = {self.last_time!r} s" if self.last_time is not None else ""
-                    self.status, self.error = "interrupted", f"interrupted by Ctrl-C{where}{note}"
-        except KeyboardInterrupt:      # a second Ctrl-C while keeping the rows
-            self.status, self.error = "interrupted", "interrupted by Ctrl-C"
+                if stopped_by is not None:
+                    self.status, self.error = "interrupted", self._stop_message(stopped_by) + note
+        except ConfigError:            # the FMU refused the start values: nothing was written
             self._finish()
-            raise RunInterrupted(self._result()) from None
+            raise
+        except KeyboardInterrupt as exc:   # a second signal while keeping the rows
+            stopped_by = stopped_by or signal_of(exc)
+            self.status, self.error = "interrupted", self._stop_message(stopped_by)
+            self._finish()
+            raise RunInterrupted(self._result(), stopped_by) from None
         except BaseException as exc:   # a bug: record it, then let the traceback through
             self.status, self.error = "failed", f"internal error: {type(exc).__name__}: {exc}"
             self._finish()
             raise
         self._finish()
         result = self._result()
-        if interrupted:
-            raise RunInterrupted(result)
+        if stopped_by is not None:
+            raise RunInterrupted(result, stopped_by)
         return result
+
+    def _stop_message(self, signum: int) -> str:
+        """'interrupted by Ctrl-C at t = 12.3 s', 'terminated by SIGTERM before the run started', ..."""
+        if not self.started:
+            return f"{stop_reason(signum)} before the run started"
+        where = f" at t = {self.last_time!r} s" if self.last_time is not None else ""
+        return f"{stop_reason(signum)}{where}"
+
+    def _initialize(self, fmu) -> None:
+        """Set up the experiment, set the start values, enter and leave initialisation mode.
+
+        Runs before anything is written; a refusal raises :class:`StartValuesRefused`.
+        """
+        from .instance import FmuError
+
+        exp = self.case.experiment
+        try:
+            fmu.setup_experiment(exp.start, max(exp.stop, exp.time(exp.n_steps)), exp.tolerance)
+            if self.case.parameters:
+                fmu.set_values(self.case.parameters.items())
+            fmu.enter_initialization_mode()
+            fmu.exit_initialization_mode()
+        except FmuError as exc:
+            raise self._refused(exc) from None
+
+    def _refused(self, exc: Exception) -> StartValuesRefused:
+        """The message for start values the FMU refused: its own words, then the values the
+        case set away from the FMU's own start values (the likely culprits; the FMU's
+        message does not always name one, e.g. pythonfmu's bare ``OverflowError``)."""
+        variables = self.case.fmu_description.variables
+        differing = []
+        for name, value in self.case.parameters.items():
+            default = getattr(variables.get(name), "start", None)
+            if not _same_value(value, default):
+                origin = " (from --set)" if name in self.case.overridden else ""
+                differing.append(f"{name} = {value!r}{origin}")
+        if not self.case.parameters:
+            culprits = "the case sets no start values (the FMU's own were refused)"
+        elif differing:
+            culprits = "the case sets these away from the FMU's own start values: " + ", ".join(differing)
+        else:
+            culprits = "every start value the case sets equals the FMU's own"
+        label = str(self.case.source) if self.case.source is not None else f"case {self.case.name!r}"
+        return StartValuesRefused(label, [f"parameters: the FMU refused the case's start values: {exc}; {culprits}"])
+
+    def _start_outputs(self) -> None:
+        """The run starts: remove the previous run's derived folders, create exchange.csv
+        (header only), write run.json, start the heartbeat and the progress bar."""
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self.started = True
+        self.replaced = remove_derived_outputs(self.out_dir)
+        self.writer = ExchangeWriter(self.exchange_path, ("time", *self.case.outputs))
+        self._write_record()
+        self._start_heartbeat()
+        if self.progress:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=self.case.experiment.n_steps + 1, unit="row", desc=self.case.name,
+                            file=sys.stderr, dynamic_ncols=True, leave=False)
 
     def _after_failure(self) -> str:
         """Keep the rows read before a failure (they are valid), without real-time waiting.
@@ -305,6 +428,8 @@ class _Run:
             self.bar.close()
         if self.writer is not None:
             self.writer.close()
+        if not self.started:          # nothing of this run was written; keep it so
+            return
         try:
             self._write_record(final=True)
         except OSError as exc:
@@ -321,23 +446,13 @@ class _Run:
                          exchange_path=self.exchange_path, run_json_path=self.run_json_path,
                          rows_written=self.rows_written, last_time=self.last_time,
                          wall_time_s=time.monotonic() - self.wall0, sim_wall_time_s=sim_wall, error=self.error,
-                         start_values_rejected=(self.status == "failed" and self.setting_start_values
-                                                and not self.initialized))
+                         started=self.started, replaced=self.replaced)
 
     def _loop(self, fmu, flag: InterruptFlag) -> None:
         case = self.case
         exp = case.experiment
         n = exp.n_steps
         start, step = exp.start, exp.step
-        t_last = exp.time(n)
-
-        fmu.setup_experiment(start, max(exp.stop, t_last), exp.tolerance)
-        self.setting_start_values = True      # a failure from here to initialized: the values were refused
-        if case.parameters:
-            fmu.set_values(case.parameters.items())
-        fmu.enter_initialization_mode()
-        fmu.exit_initialization_mode()
-        self.initialized = True
 
         if case.noise is not None:
             from .noise import NoiseSource
@@ -367,8 +482,7 @@ class _Run:
             actions = schedule.get(k)
             if actions:
                 set_values(actions)
-            if flag.requested:
-                raise KeyboardInterrupt
+            flag.check()
             t_next = start + (k + 1) * step
             do_step(t, t_next - t)
             t = t_next

@@ -198,9 +198,21 @@ class ProblemReporter:
             return None
         return value
 
-    def whole_steps(self, name: str, value: float, span: float, step: float, what: str) -> int | None:
-        """``span/step`` as a whole number of communication steps, else a problem on ``name``
-        (``value`` is quoted; ``what`` names the ratio, e.g. "(stop - start)/step")."""
+    def whole_steps(self, name: str, value: float, span: float, step: float, what: str, *,
+                    step_name: str | None = None) -> int | None:
+        """``span/step`` as a whole number (at least one) of communication steps, else a problem
+        on ``name`` (``value`` is quoted; ``what`` names the ratio, e.g. "(stop - start)/step").
+
+        A span shorter than one step is reported on ``step_name`` (quoting ``step``) when
+        given: the step is what is too long.  (A ratio such as 12/1e9 = 1.2e-8 is within
+        :data:`GRID_TOLERANCE` of the whole number 0, so :func:`grid_steps` alone accepts it.)
+        """
+        count = span / step
+        if not count >= 1.0 - GRID_TOLERANCE:
+            where, shown = (step_name, step) if step_name else (name, value)
+            self.problem(where, shown, f"{what} = {count:.9g} is less than one step: the span is {span!r} s; "
+                                       f"expected a step that divides the span into a whole number (>= 1) of steps")
+            return None
         k = grid_steps(span, step)
         if k is None:
             self.problem(name, value, f"{what} = {span / step:.9g} is not a whole number of steps of {step!r} s")

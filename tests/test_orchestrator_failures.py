@@ -1,7 +1,7 @@
-"""Failures mid-run keep what was written: an FMU that cannot apply a fault, an FMU that
-cannot initialise, and a disk that fills up each leave a readable exchange file (complete
-lines only), a `failed` run.json with the reason (the FMU's own message), exit code 1
-and a freed FMU instance."""
+"""Failures mid-run keep what was written: an FMU that cannot apply a fault and a disk that
+fills up each leave a readable exchange file (complete lines only), a `failed` run.json with
+the reason (the FMU's own message), exit code 1 and a freed FMU instance.  An FMU that
+cannot initialise with the case's start values fails before anything is written (exit 2)."""
 from __future__ import annotations
 
 import errno
@@ -74,17 +74,17 @@ def test_failing_fmu_keeps_rows_and_reports_its_message(fourbar_fmu, tmp_path, c
 
 def test_failed_initialisation_is_reported(fourbar_fmu, tmp_path, capsys, instance_calls):
     """A start value the FMU refuses (an unknown integrator: no model description can say which
-    strings are allowed) fails fmi2ExitInitializationMode: header only, failed, exit 2."""
+    strings are allowed) fails fmi2ExitInitializationMode, which runs before anything is
+    written: exit 2, the FMU's message and the value set, and no output folder at all."""
     path = case_file("case1_normal", fourbar_fmu, tmp_path)
     out = tmp_path / "out"
     assert main([str(path), "--out", str(out), "--stop", "1", "--set", "integrator=Euler"]) == 2
     err = capsys.readouterr().err
+    assert "fmi2ExitInitializationMode returned fatal" in err
     assert "integrator = 'Euler': must be one of DOP853, RK45" in err
-    record = json.loads((out / "run.json").read_text())
-    assert record["status"] == "failed" and record["rows_written"] == 0
-    assert record["error"].startswith("fmi2ExitInitializationMode returned fatal")
-    assert "integrator = 'Euler': must be one of DOP853, RK45" in record["error"]
-    assert (out / "exchange.csv").read_text() == "time,x2,y2,x3,y3,x4,y4\n"
+    assert "integrator = 'Euler' (from --set)" in err      # the value the case set away from the FMU's
+    assert "nothing was run or written" in err
+    assert not out.exists()
     # FMI 2.0 allows no call after fmi2Fatal, not even fmi2FreeInstance (and freeing a
     # pythonfmu slave then corrupts the heap): the instance must be left alone.
     assert instance_calls == {"instantiate": 1, "freeInstance": 0}
@@ -173,6 +173,4 @@ def test_invalid_start_values_are_a_case_error(setting, text, runs, either_fmu, 
     assert "rows kept" not in proc.stderr
     if runs:
         assert "integrator = 'Euler'" in proc.stderr and "DOP853" in proc.stderr
-        assert json.loads((out / "run.json").read_text())["rows_written"] == 0
-    else:
-        assert not out.exists()                 # rejected before anything ran
+    assert not out.exists()       # rejected before anything was written (by validation or by the FMU)
