@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import platform
 import shutil
 import subprocess
 import sys
@@ -34,8 +35,11 @@ __all__ = ["NativeBuildResult", "CompilerNotFound", "build_native_fmu", "find_co
 
 HERE = Path(__file__).resolve().parent
 MODEL_IDENTIFIER = "FourBarNative"
-#: The hand-written C: FMI layer, model behind it, Runge-Kutta driver.
-HAND_WRITTEN = ("fmi2Functions.c", "model.c", "model.h", "rk.c", "rk.h")
+#: The hand-written C: FMI layer, model behind it, Runge-Kutta driver, and the header that
+#: pins glibc symbol versions for binaries/linux64 (force-included there only).
+HAND_WRITTEN = ("fmi2Functions.c", "model.c", "model.h", "rk.c", "rk.h", "glibc_compat.h")
+#: Force-included in the linux64 build: libm symbols bound to versions glibc 2.17 has.
+GLIBC_COMPAT = "glibc_compat.h"
 #: The generated C (``c_codegen``); also written to fmu_src/native/ (gitignored).
 GENERATED = ("fourbar_equations.c", "fourbar_equations.h", "rk_tableaus.c", "fourbar_variables.h")
 #: The standard FMI 2.0 headers (2-clause BSD), as FMPy ships them.
@@ -205,7 +209,8 @@ def build_native_fmu(dest: str | Path = "build/FourBarNative.fmu", validate: boo
             (src / name).write_bytes(data)
         folder, suffix = _platform()
         library = stage / (MODEL_IDENTIFIER + suffix)
-        _compile(compiler, src, c_files, library)
+        pin_glibc = folder == "linux64" and platform.libc_ver()[0] == "glibc"
+        _compile(compiler, src, c_files, library, extra=("-include", str(src / GLIBC_COMPAT)) if pin_glibc else ())
         binaries = [(f"binaries/{folder}/{MODEL_IDENTIFIER}{suffix}", library)]
         platforms.append(folder)
         cross = shutil.which(_WIN64_COMPILER)

@@ -1,9 +1,22 @@
 /* FMI 2.0 co-simulation interface of the native FourBar FMU.
  *
- * A thin layer over model.h: it checks each call against the FMI 2.0 state machine, maps
- * value references to the model's variables, and implements the FMU state functions as
- * copies of the instance's pointer-free ModelState.  Every message goes through the host's
- * logger callback.  No global or static mutable data: instances are independent.
+ * A thin layer over model.h: it checks each call, maps value references to the model's
+ * variables, and implements the FMU state functions as copies of the instance's pointer-free
+ * ModelState.  No global or static mutable data: instances are independent.
+ *
+ * The rules every entry point follows (tests/native_host/fmi2_strict_host.c checks them all):
+ * - ENTER, first: a NULL instance is refused with fmi2Error (no logger can be reached through
+ *   it); a call that the FMI 2.0 co-simulation state machine does not allow in the instance's
+ *   state is refused with fmi2Error and a message naming the function, the state and the
+ *   states the call is allowed in.
+ * - REQUIRE: a NULL pointer argument the call would use is refused with fmi2Error and a message.
+ * - A refused call changes nothing.  fmi2ExitInitializationMode and fmi2DoStep returning
+ *   fmi2Error leave the instance in the error state, where no value can be read: only
+ *   fmi2Reset, fmi2FreeInstance, fmi2SetFMUstate (back to a state saved before the failure),
+ *   the other FMU-state bookkeeping calls and fmi2SetDebugLogging are accepted.
+ * - The status a call returns is the worst status it logged (fmi2Discard only from the status
+ *   inquiries, for a status the FMU does not have).
+ * Every message goes through the host's logger callback.
  */
 #include <math.h>
 #include <stdarg.h>
@@ -16,11 +29,31 @@ static const int KINDS[FB_N_VARIABLES] = FB_VARIABLE_KINDS;
 static const char *const NAMES[FB_N_VARIABLES] = FB_VARIABLE_NAMES;
 static const char *const INTEGRATORS[FB_N_INTEGRATORS] = FB_INTEGRATOR_NAMES;
 enum { KIND_TUNABLE = 0, KIND_FIXED = 1, KIND_STRING = 2, KIND_OUTPUT = 3 };
+static const char *const KIND_TEXT[] = {"a tunable Real parameter", "a fixed Real parameter", "a String parameter",
+                                        "a Real output"};
+#define KIND(k) (1 << (k))
 
-#define ANY_MODE (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_STEP_FAILED | \
-                  MODE_TERMINATED | MODE_ERROR)
-#define GET_MODES (MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_STEP_FAILED | MODE_TERMINATED | MODE_ERROR)
-#define SET_MODES (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE)
+/* -- the FMI 2.0 co-simulation state machine ----------------------------------------- */
+
+/* fmi2DoStep is synchronous, so the state stepInProgress is never entered; it is named
+   because fmi2CancelStep and the status inquiries are defined for it.  The state fatal is
+   never entered either: the FMU shares nothing between instances and never returns fmi2Fatal. */
+#define MODE_STEP_IN_PROGRESS 64
+
+static const struct { int mode; const char *name; } STATES[] = {
+    {MODE_INSTANTIATED, "instantiated"}, {MODE_INITIALIZATION, "initializationMode"},
+    {MODE_STEP_COMPLETE, "stepComplete"}, {MODE_STEP_IN_PROGRESS, "stepInProgress"},
+    {MODE_STEP_FAILED, "stepFailed"}, {MODE_TERMINATED, "terminated"}, {MODE_ERROR, "error"}};
+#define N_STATES (sizeof STATES / sizeof *STATES)
+
+/* Where each group of calls is allowed (FMI 2.0, section 4.2.4; as the Reference-FMUs, except
+   that no value can be read in the error state). */
+#define ALL_STATES (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_STEP_FAILED | \
+                    MODE_TERMINATED | MODE_ERROR)
+#define INITIALIZED (MODE_STEP_COMPLETE | MODE_STEP_FAILED | MODE_TERMINATED)
+#define READABLE (MODE_INITIALIZATION | INITIALIZED)                       /* fmi2GetXXX */
+#define SETTABLE (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE)   /* fmi2SetXXX */
+#define STATUS_STATES (MODE_STEP_COMPLETE | MODE_STEP_IN_PROGRESS | MODE_STEP_FAILED | MODE_TERMINATED)
 
 /* Serialized FMU state: this header, then the ModelState's bytes. */
 typedef struct {
@@ -36,7 +69,7 @@ void model_log(ModelInstance *m, fmi2Status status, const char *category, const 
 {
     char text[1024];
     va_list args;
-    if (!m->functions || !m->functions->logger) return;
+    if (!m || !m->functions || !m->functions->logger) return;
     if (status == fmi2OK && !m->logging_on) return;
     va_start(args, fmt);
     vsnprintf(text, sizeof text, fmt, args);
@@ -44,26 +77,53 @@ void model_log(ModelInstance *m, fmi2Status status, const char *category, const 
     m->functions->logger(m->environment, m->instance_name, status, category, "%s", text);
 }
 
-static const char *mode_name(ModelMode mode)
+static const char *state_name(int mode)
 {
-    switch (mode) {
-    case MODE_INSTANTIATED: return "instantiated";
-    case MODE_INITIALIZATION: return "initialization mode";
-    case MODE_STEP_COMPLETE: return "step mode";
-    case MODE_STEP_FAILED: return "step failed";
-    case MODE_TERMINATED: return "terminated";
-    default: return "error";
-    }
+    for (size_t i = 0; i < N_STATES; i++)
+        if (STATES[i].mode == mode) return STATES[i].name;
+    return "(unknown)";
 }
 
-/* 1 when `function` may be called in the instance's mode, else logs why and returns 0. */
-static int allowed(ModelInstance *m, const char *function, int modes)
+/* 1 when `function` may be called in the instance's state; else logs why and returns 0.
+   A NULL instance gives 0 without a message: there is no logger to call. */
+static int allowed(ModelInstance *m, const char *function, int states)
 {
+    char list[200];
+    size_t used = 0;
     if (!m) return 0;
-    if (m->state.mode & modes) return 1;
-    model_log(m, fmi2Error, "logStatusError", "%s is not allowed in %s", function, mode_name(m->state.mode));
+    if (m->state.mode & states) return 1;
+    list[0] = '\0';
+    for (size_t i = 0; i < N_STATES; i++)
+        if ((states & STATES[i].mode) && used < sizeof list)
+            used += snprintf(list + used, sizeof list - used, "%s%s", used ? ", " : "", STATES[i].name);
+    model_log(m, fmi2Error, "logStatusError", "%s is not allowed in state %s (only in: %s)%s", function,
+              state_name(m->state.mode), list, m->state.mode == MODE_ERROR ?
+              "; after a failed fmi2ExitInitializationMode or fmi2DoStep, call fmi2Reset, fmi2SetFMUstate or "
+              "fmi2FreeInstance" : "");
     return 0;
 }
+
+/* The first statement of every entry point: names the instance `m` and returns fmi2Error when
+   it is NULL or the call is not allowed in its state. */
+#define ENTER(states) \
+    ModelInstance *const m = (ModelInstance *)c; \
+    if (!allowed(m, __func__, (states))) return fmi2Error
+
+/* 1 when `p` is not NULL; else logs which argument is missing and returns 0.  `n` is the
+   length of an array argument, 0 for a single pointer (REQUIRE_ARRAY checks only when n > 0). */
+static int present(ModelInstance *m, const char *function, const void *p, const char *name, size_t n)
+{
+    if (p) return 1;
+    if (n > 0)
+        model_log(m, fmi2Error, "logStatusError", "%s: argument %s is NULL but its length is %u", function, name,
+                  (unsigned)n);
+    else
+        model_log(m, fmi2Error, "logStatusError", "%s: argument %s is NULL", function, name);
+    return 0;
+}
+
+#define REQUIRE(p) if (!present(m, __func__, (const void *)(p), #p, 0)) return fmi2Error
+#define REQUIRE_ARRAY(p, n) if ((n) > 0 && !present(m, __func__, (const void *)(p), #p, (n))) return fmi2Error
 
 static void *allocate(const ModelInstance *m, size_t size)
 {
@@ -78,11 +138,37 @@ static void release(const ModelInstance *m, void *p)
     else free(p);
 }
 
-static int check_vr(ModelInstance *m, const char *function, fmi2ValueReference vr)
+/* 1 when every vr[i] is a variable of one of `kinds` (KIND bits); else logs the first that is
+   not and returns 0.  Checked before any value is read or written: a refused call changes nothing. */
+static int check_refs(ModelInstance *m, const char *function, const fmi2ValueReference vr[], size_t nvr, int kinds,
+                      const char *expected)
 {
-    if (vr < FB_N_VARIABLES) return 1;
-    model_log(m, fmi2Error, "logStatusError", "%s: unknown value reference %u", function, (unsigned)vr);
-    return 0;
+    for (size_t i = 0; i < nvr; i++) {
+        if (vr[i] >= FB_N_VARIABLES) {
+            model_log(m, fmi2Error, "logStatusError", "%s: unknown value reference %u", function, (unsigned)vr[i]);
+            return 0;
+        }
+        if (!(kinds & KIND(KINDS[vr[i]]))) {
+            model_log(m, fmi2Error, "logStatusError", "%s: %s (value reference %u) is %s; expected %s", function,
+                      NAMES[vr[i]], (unsigned)vr[i], KIND_TEXT[KINDS[vr[i]]], expected);
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* Fixed parameters (and the String integrator) can be set only before initialization ends. */
+static int settable_now(ModelInstance *m, const char *function, const fmi2ValueReference vr[], size_t nvr)
+{
+    if (m->state.mode != MODE_STEP_COMPLETE) return 1;
+    for (size_t i = 0; i < nvr; i++)
+        if (KINDS[vr[i]] == KIND_FIXED || KINDS[vr[i]] == KIND_STRING) {
+            model_log(m, fmi2Error, "logStatusError", "%s: %s is a fixed parameter; it can only be set before "
+                      "fmi2ExitInitializationMode (the instance is in state %s)", function, NAMES[vr[i]],
+                      state_name(m->state.mode));
+            return 0;
+        }
+    return 1;
 }
 
 /* -- inquiry ------------------------------------------------------------------------- */
@@ -95,8 +181,8 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
 {
     static const char *const known[] = {"logStatusWarning", "logStatusDiscard", "logStatusError",
                                         "logStatusFatal", "logAll"};
-    ModelInstance *m = (ModelInstance *)c;
-    if (!allowed(m, "fmi2SetDebugLogging", ANY_MODE)) return fmi2Error;
+    ENTER(ALL_STATES);
+    REQUIRE_ARRAY(categories, nCategories);
     for (size_t i = 0; i < nCategories; i++) {
         int found = 0;
         for (size_t k = 0; k < sizeof known / sizeof *known; k++)
@@ -126,6 +212,11 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     probe.environment = functions ? functions->componentEnvironment : NULL;
     probe.instance_name = (char *)name;
     if (!functions || !functions->logger) return NULL;
+    if (!functions->allocateMemory != !functions->freeMemory) {
+        model_log(&probe, fmi2Error, "logStatusError", "fmi2Instantiate: allocateMemory and freeMemory must be "
+                  "given together (memory allocated by one must be freed by the other)");
+        return NULL;
+    }
     if (!instanceName || !instanceName[0]) {
         model_log(&probe, fmi2Error, "logStatusError", "fmi2Instantiate: the instance name must not be empty");
         return NULL;
@@ -141,12 +232,16 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         return NULL;
     }
     ModelInstance *m = (ModelInstance *)allocate(&probe, sizeof(ModelInstance));
-    if (!m) return NULL;
+    char *copy = (char *)allocate(&probe, strlen(name) + 1);
+    if (!m || !copy) {
+        release(&probe, m);
+        release(&probe, copy);
+        model_log(&probe, fmi2Error, "logStatusError", "fmi2Instantiate: out of memory");
+        return NULL;
+    }
     m->functions = functions;
     m->environment = functions->componentEnvironment;
-    m->instance_name = (char *)allocate(&probe, strlen(name) + 1);
-    if (!m->instance_name) { release(&probe, m); return NULL; }
-    strcpy(m->instance_name, name);
+    m->instance_name = strcpy(copy, name);
     m->logging_on = loggingOn ? 1 : 0;
     model_reset(m);
     return m;
@@ -154,7 +249,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
 
 void fmi2FreeInstance(fmi2Component c)
 {
-    ModelInstance *m = (ModelInstance *)c;
+    ModelInstance *m = (ModelInstance *)c;   /* allowed in every state; NULL is ignored */
     if (!m) return;
     release(m, m->instance_name);
     m->instance_name = NULL;
@@ -164,10 +259,9 @@ void fmi2FreeInstance(fmi2Component c)
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
                                fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
 {
-    ModelInstance *m = (ModelInstance *)c;
+    ENTER(MODE_INSTANTIATED);
     (void)toleranceDefined;   /* the integrator's tolerances are the rtol and atol parameters */
     (void)tolerance;
-    if (!allowed(m, "fmi2SetupExperiment", MODE_INSTANTIATED)) return fmi2Error;
     if (!isfinite(startTime) || (stopTimeDefined && !(stopTime >= startTime))) {
         model_log(m, fmi2Error, "logStatusError", "fmi2SetupExperiment: need a finite start time and a stop "
                   "time not before it (got start %g s, stop %g s)", startTime, stopTime);
@@ -180,17 +274,15 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c)
 {
-    ModelInstance *m = (ModelInstance *)c;
-    if (!allowed(m, "fmi2EnterInitializationMode", MODE_INSTANTIATED)) return fmi2Error;
+    ENTER(MODE_INSTANTIATED);
     m->state.mode = MODE_INITIALIZATION;
     return fmi2OK;
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c)
 {
-    ModelInstance *m = (ModelInstance *)c;
-    if (!allowed(m, "fmi2ExitInitializationMode", MODE_INITIALIZATION)) return fmi2Error;
-    if (model_initialize(m) != fmi2OK) {
+    ENTER(MODE_INITIALIZATION);
+    if (model_initialize(m) != fmi2OK) {   /* model_initialize logged why */
         m->state.mode = MODE_ERROR;
         return fmi2Error;
     }
@@ -200,16 +292,14 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c)
 
 fmi2Status fmi2Terminate(fmi2Component c)
 {
-    ModelInstance *m = (ModelInstance *)c;
-    if (!allowed(m, "fmi2Terminate", MODE_STEP_COMPLETE | MODE_STEP_FAILED)) return fmi2Error;
+    ENTER(MODE_STEP_COMPLETE | MODE_STEP_FAILED);
     m->state.mode = MODE_TERMINATED;
     return fmi2OK;
 }
 
 fmi2Status fmi2Reset(fmi2Component c)
 {
-    ModelInstance *m = (ModelInstance *)c;
-    if (!allowed(m, "fmi2Reset", ANY_MODE)) return fmi2Error;
+    ENTER(ALL_STATES);
     model_reset(m);
     return fmi2OK;
 }
@@ -218,117 +308,110 @@ fmi2Status fmi2Reset(fmi2Component c)
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
 {
-    ModelInstance *m = (ModelInstance *)c;
-    if (!allowed(m, "fmi2GetReal", GET_MODES)) return fmi2Error;
-    if (m->state.mode == MODE_INITIALIZATION) model_preview_outputs(m);
-    for (size_t i = 0; i < nvr; i++) {
-        if (!check_vr(m, "fmi2GetReal", vr[i])) return fmi2Error;
-        if (KINDS[vr[i]] == KIND_STRING) {
-            model_log(m, fmi2Error, "logStatusError", "fmi2GetReal: %s is a String", NAMES[vr[i]]);
-            return fmi2Error;
-        }
-        value[i] = m->state.values[vr[i]];
-    }
+    ENTER(READABLE);
+    REQUIRE_ARRAY(vr, nvr);
+    REQUIRE_ARRAY(value, nvr);
+    if (!check_refs(m, __func__, vr, nvr, KIND(KIND_TUNABLE) | KIND(KIND_FIXED) | KIND(KIND_OUTPUT), "a Real"))
+        return fmi2Error;
+    if (m->state.mode == MODE_INITIALIZATION && nvr > 0) model_preview_outputs(m);
+    for (size_t i = 0; i < nvr; i++) value[i] = m->state.values[vr[i]];
     return fmi2OK;
 }
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
 {
-    ModelInstance *m = (ModelInstance *)c;
-    if (!allowed(m, "fmi2SetReal", SET_MODES)) return fmi2Error;
-    for (size_t i = 0; i < nvr; i++) {
-        if (!check_vr(m, "fmi2SetReal", vr[i])) return fmi2Error;
-        const int kind = KINDS[vr[i]];
-        if (kind == KIND_OUTPUT || kind == KIND_STRING) {
-            model_log(m, fmi2Error, "logStatusError", "fmi2SetReal: %s is %s and cannot be set", NAMES[vr[i]],
-                      kind == KIND_OUTPUT ? "an output" : "a String");
-            return fmi2Error;
-        }
-        if (kind == KIND_FIXED && m->state.mode == MODE_STEP_COMPLETE) {
-            model_log(m, fmi2Error, "logStatusError", "fmi2SetReal: %s is a fixed parameter; it can only be set "
-                      "before fmi2ExitInitializationMode", NAMES[vr[i]]);
-            return fmi2Error;
-        }
-        m->state.values[vr[i]] = value[i];   /* checked, and applied, at the next doStep */
-    }
+    ENTER(SETTABLE);
+    REQUIRE_ARRAY(vr, nvr);
+    REQUIRE_ARRAY(value, nvr);
+    if (!check_refs(m, __func__, vr, nvr, KIND(KIND_TUNABLE) | KIND(KIND_FIXED), "a Real parameter")
+        || !settable_now(m, __func__, vr, nvr))
+        return fmi2Error;
+    for (size_t i = 0; i < nvr; i++) m->state.values[vr[i]] = value[i];   /* checked, and applied, at the next doStep */
     return fmi2OK;
 }
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[])
 {
-    ModelInstance *m = (ModelInstance *)c;
-    if (!allowed(m, "fmi2GetString", GET_MODES)) return fmi2Error;
-    for (size_t i = 0; i < nvr; i++) {
-        if (!check_vr(m, "fmi2GetString", vr[i])) return fmi2Error;
-        if (KINDS[vr[i]] != KIND_STRING) {
-            model_log(m, fmi2Error, "logStatusError", "fmi2GetString: %s is not a String", NAMES[vr[i]]);
-            return fmi2Error;
-        }
-        value[i] = INTEGRATORS[m->state.integrator];
-    }
+    ENTER(READABLE);
+    REQUIRE_ARRAY(vr, nvr);
+    REQUIRE_ARRAY(value, nvr);
+    if (!check_refs(m, __func__, vr, nvr, KIND(KIND_STRING), "a String")) return fmi2Error;
+    for (size_t i = 0; i < nvr; i++) value[i] = INTEGRATORS[m->state.integrator];
     return fmi2OK;
+}
+
+static int integrator_index(const char *name)
+{
+    for (int k = 0; k < FB_N_INTEGRATORS; k++)
+        if (name && strcmp(name, INTEGRATORS[k]) == 0) return k;
+    return -1;
 }
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[])
 {
-    ModelInstance *m = (ModelInstance *)c;
-    if (!allowed(m, "fmi2SetString", MODE_INSTANTIATED | MODE_INITIALIZATION)) return fmi2Error;
-    for (size_t i = 0; i < nvr; i++) {
-        if (!check_vr(m, "fmi2SetString", vr[i])) return fmi2Error;
-        if (KINDS[vr[i]] != KIND_STRING) {
-            model_log(m, fmi2Error, "logStatusError", "fmi2SetString: %s is not a String", NAMES[vr[i]]);
+    ENTER(SETTABLE);
+    REQUIRE_ARRAY(vr, nvr);
+    REQUIRE_ARRAY(value, nvr);
+    if (!check_refs(m, __func__, vr, nvr, KIND(KIND_STRING), "a String") || !settable_now(m, __func__, vr, nvr))
+        return fmi2Error;
+    for (size_t i = 0; i < nvr; i++)
+        if (integrator_index(value[i]) < 0) {
+            model_log(m, fmi2Error, "logStatusError", "fmi2SetString: FourBar '%s': integrator = '%s': must be one "
+                      "of %s, %s", m->instance_name, value[i] ? value[i] : "(null)", INTEGRATORS[0], INTEGRATORS[1]);
             return fmi2Error;
         }
-        int found = -1;
-        for (int k = 0; k < FB_N_INTEGRATORS; k++)
-            if (value[i] && strcmp(value[i], INTEGRATORS[k]) == 0) found = k;
-        if (found < 0) {
-            model_log(m, fmi2Error, "logStatusError", "FourBar '%s': integrator = '%s': must be one of %s, %s",
-                      m->instance_name, value[i] ? value[i] : "(null)", INTEGRATORS[0], INTEGRATORS[1]);
-            return fmi2Error;
-        }
-        m->state.integrator = found;
-    }
+    for (size_t i = 0; i < nvr; i++) m->state.integrator = integrator_index(value[i]);
     return fmi2OK;
 }
 
-static fmi2Status no_such_type(ModelInstance *m, const char *function, size_t nvr)
+/* The FMU has no Integer or Boolean variables: every value reference of those types is unknown. */
+static fmi2Status no_variables(ModelInstance *m, const char *function, const fmi2ValueReference vr[], size_t nvr)
 {
     if (nvr == 0) return fmi2OK;
-    model_log(m, fmi2Error, "logStatusError", "%s: this FMU has no variables of that type", function);
+    model_log(m, fmi2Error, "logStatusError", "%s: unknown value reference %u (this FMU has no variables of "
+              "that type)", function, (unsigned)vr[0]);
     return fmi2Error;
 }
 
 fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[])
 {
-    (void)vr; (void)value;
-    return no_such_type((ModelInstance *)c, "fmi2GetInteger", nvr);
+    ENTER(READABLE);
+    REQUIRE_ARRAY(vr, nvr);
+    REQUIRE_ARRAY(value, nvr);
+    return no_variables(m, __func__, vr, nvr);
 }
 
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[])
 {
-    (void)vr; (void)value;
-    return no_such_type((ModelInstance *)c, "fmi2SetInteger", nvr);
+    ENTER(SETTABLE);
+    REQUIRE_ARRAY(vr, nvr);
+    REQUIRE_ARRAY(value, nvr);
+    return no_variables(m, __func__, vr, nvr);
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[])
 {
-    (void)vr; (void)value;
-    return no_such_type((ModelInstance *)c, "fmi2GetBoolean", nvr);
+    ENTER(READABLE);
+    REQUIRE_ARRAY(vr, nvr);
+    REQUIRE_ARRAY(value, nvr);
+    return no_variables(m, __func__, vr, nvr);
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[])
 {
-    (void)vr; (void)value;
-    return no_such_type((ModelInstance *)c, "fmi2SetBoolean", nvr);
+    ENTER(SETTABLE);
+    REQUIRE_ARRAY(vr, nvr);
+    REQUIRE_ARRAY(value, nvr);
+    return no_variables(m, __func__, vr, nvr);
 }
 
 /* -- FMU state ----------------------------------------------------------------------- */
 
+/* Not in the error state: a state saved there could only restore the failure. */
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
 {
-    ModelInstance *m = (ModelInstance *)c;
-    if (!allowed(m, "fmi2GetFMUstate", ANY_MODE)) return fmi2Error;
+    ENTER(ALL_STATES & ~MODE_ERROR);
+    REQUIRE(FMUstate);
     if (!*FMUstate) {
         *FMUstate = allocate(m, sizeof(ModelState));
         if (!*FMUstate) {
@@ -340,44 +423,41 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
     return fmi2OK;
 }
 
+/* Also in the error state: FMI 2.0's way to continue after a failure. */
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
 {
-    ModelInstance *m = (ModelInstance *)c;
-    if (!allowed(m, "fmi2SetFMUstate", ANY_MODE)) return fmi2Error;
-    if (!FMUstate) {
-        model_log(m, fmi2Error, "logStatusError", "fmi2SetFMUstate: no state given");
-        return fmi2Error;
-    }
+    ENTER(ALL_STATES);
+    REQUIRE(FMUstate);
     memcpy(&m->state, FMUstate, sizeof(ModelState));
     return fmi2OK;
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
 {
-    ModelInstance *m = (ModelInstance *)c;
-    if (!m) return fmi2Error;
-    if (FMUstate && *FMUstate) {
-        release(m, *FMUstate);
-        *FMUstate = NULL;
-    }
+    ENTER(ALL_STATES);
+    REQUIRE(FMUstate);
+    release(m, *FMUstate);   /* *FMUstate == NULL: nothing to free (FMI 2.0) */
+    *FMUstate = NULL;
     return fmi2OK;
 }
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
 {
-    (void)FMUstate;
-    if (!allowed((ModelInstance *)c, "fmi2SerializedFMUstateSize", ANY_MODE)) return fmi2Error;
+    ENTER(ALL_STATES);
+    REQUIRE(FMUstate);
+    REQUIRE(size);
     *size = sizeof(StateHeader) + sizeof(ModelState);
     return fmi2OK;
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size)
 {
-    ModelInstance *m = (ModelInstance *)c;
     StateHeader header;
-    if (!allowed(m, "fmi2SerializeFMUstate", ANY_MODE)) return fmi2Error;
-    if (!FMUstate || size < sizeof header + sizeof(ModelState)) {
-        model_log(m, fmi2Error, "logStatusError", "fmi2SerializeFMUstate: need a state and %u bytes (got %u)",
+    ENTER(ALL_STATES);
+    REQUIRE(FMUstate);
+    REQUIRE(serializedState);
+    if (size < sizeof header + sizeof(ModelState)) {
+        model_log(m, fmi2Error, "logStatusError", "fmi2SerializeFMUstate: need %u bytes (got %u)",
                   (unsigned)(sizeof header + sizeof(ModelState)), (unsigned)size);
         return fmi2Error;
     }
@@ -393,9 +473,10 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byt
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate)
 {
-    ModelInstance *m = (ModelInstance *)c;
     StateHeader header;
-    if (!allowed(m, "fmi2DeSerializeFMUstate", ANY_MODE)) return fmi2Error;
+    ENTER(ALL_STATES);
+    REQUIRE(serializedState);
+    REQUIRE(FMUstate);
     if (size != sizeof header + sizeof(ModelState)) {
         model_log(m, fmi2Error, "logStatusError", "fmi2DeSerializeFMUstate: expected %u bytes, got %u",
                   (unsigned)(sizeof header + sizeof(ModelState)), (unsigned)size);
@@ -410,7 +491,10 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
     }
     if (!*FMUstate) {
         *FMUstate = allocate(m, sizeof(ModelState));
-        if (!*FMUstate) return fmi2Error;
+        if (!*FMUstate) {
+            model_log(m, fmi2Error, "logStatusError", "fmi2DeSerializeFMUstate: out of memory");
+            return fmi2Error;
+        }
     }
     memcpy(*FMUstate, serializedState + sizeof header, sizeof(ModelState));
     return fmi2OK;
@@ -420,8 +504,9 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[])
 {
+    ENTER(READABLE);
     (void)vUnknown_ref; (void)nUnknown; (void)vKnown_ref; (void)nKnown; (void)dvKnown; (void)dvUnknown;
-    model_log((ModelInstance *)c, fmi2Error, "logStatusError",
+    model_log(m, fmi2Error, "logStatusError",
               "fmi2GetDirectionalDerivative: not provided (providesDirectionalDerivative is false)");
     return fmi2Error;
 }
@@ -431,82 +516,106 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                        const fmi2Integer order[], const fmi2Real value[])
 {
-    (void)vr; (void)order; (void)value;
-    return no_such_type((ModelInstance *)c, "fmi2SetRealInputDerivatives (the FMU has no inputs)", nvr);
+    ENTER(SETTABLE);
+    REQUIRE_ARRAY(vr, nvr);
+    REQUIRE_ARRAY(order, nvr);
+    REQUIRE_ARRAY(value, nvr);
+    if (nvr == 0) return fmi2OK;
+    model_log(m, fmi2Error, "logStatusError", "fmi2SetRealInputDerivatives: the FMU has no inputs "
+              "(value reference %u)", (unsigned)vr[0]);
+    return fmi2Error;
 }
 
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                         const fmi2Integer order[], fmi2Real value[])
 {
-    (void)vr; (void)order; (void)value;
+    ENTER(INITIALIZED);
+    REQUIRE_ARRAY(vr, nvr);
+    REQUIRE_ARRAY(order, nvr);
+    REQUIRE_ARRAY(value, nvr);
     if (nvr == 0) return fmi2OK;
-    model_log((ModelInstance *)c, fmi2Error, "logStatusError",
+    model_log(m, fmi2Error, "logStatusError",
               "fmi2GetRealOutputDerivatives: not provided (maxOutputDerivativeOrder is 0)");
     return fmi2Error;
 }
 
+/* A failure here, bad arguments included, leaves the instance in the error state. */
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
-    ModelInstance *m = (ModelInstance *)c;
+    ENTER(MODE_STEP_COMPLETE);
     (void)noSetFMUStatePriorToCurrentPoint;
-    if (!allowed(m, "fmi2DoStep", MODE_STEP_COMPLETE)) return fmi2Error;
     if (!(communicationStepSize > 0.0) || !isfinite(currentCommunicationPoint)) {
         model_log(m, fmi2Error, "logStatusError", "fmi2DoStep: the step size must be positive (got %g s at t = %g s)",
                   communicationStepSize, currentCommunicationPoint);
+        m->state.mode = MODE_ERROR;
         return fmi2Error;
     }
-    if (model_do_step(m, currentCommunicationPoint, communicationStepSize) != fmi2OK) {
+    if (model_do_step(m, currentCommunicationPoint, communicationStepSize) != fmi2OK) {   /* logged why */
         m->state.mode = MODE_ERROR;
         return fmi2Error;
     }
     return fmi2OK;
 }
 
+/* Only allowed in stepInProgress, which this FMU never enters (fmi2DoStep never returns
+   fmi2Pending): ENTER always refuses it, naming the instance's state. */
 fmi2Status fmi2CancelStep(fmi2Component c)
 {
-    model_log((ModelInstance *)c, fmi2Error, "logStatusError",
-              "fmi2CancelStep: doStep never returns fmi2Pending, so there is no step to cancel");
+    ENTER(MODE_STEP_IN_PROGRESS);
+    (void)m;
     return fmi2Error;
+}
+
+/* A status kind this FMU has no value for: those of an asynchronous fmi2DoStep, and a kind
+   asked of a function of another type.  FMI 2.0 (section 2.1.3): "fmi2Discard is returned
+   also if the slave is not able to return the required status information"; logged as such. */
+static fmi2Status no_status(ModelInstance *m, const char *function, fmi2StatusKind s)
+{
+    static const char *const kinds[] = {"fmi2DoStepStatus", "fmi2PendingStatus", "fmi2LastSuccessfulTime",
+                                        "fmi2Terminated"};
+    model_log(m, fmi2Discard, "logStatusDiscard", "%s(%s): no such status: fmi2DoStep never returns fmi2Pending, "
+              "so the only status values are fmi2GetRealStatus(fmi2LastSuccessfulTime) and "
+              "fmi2GetBooleanStatus(fmi2Terminated)", function,
+              (unsigned)s < sizeof kinds / sizeof *kinds ? kinds[s] : "an unknown kind");
+    return fmi2Discard;
 }
 
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value)
 {
-    (void)s; (void)value;
-    model_log((ModelInstance *)c, fmi2Error, "logStatusError", "fmi2GetStatus: doStep is never asynchronous");
-    return fmi2Discard;
+    ENTER(STATUS_STATES);
+    REQUIRE(value);
+    return no_status(m, __func__, s);
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)
 {
-    ModelInstance *m = (ModelInstance *)c;
-    if (!m) return fmi2Error;
-    if (s == fmi2LastSuccessfulTime) {
-        *value = m->state.t;
-        return fmi2OK;
-    }
-    return fmi2Discard;
+    ENTER(STATUS_STATES);
+    REQUIRE(value);
+    if (s != fmi2LastSuccessfulTime) return no_status(m, __func__, s);
+    *value = m->state.t;
+    return fmi2OK;
 }
 
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value)
 {
-    (void)c; (void)s; (void)value;
-    return fmi2Discard;
+    ENTER(STATUS_STATES);
+    REQUIRE(value);
+    return no_status(m, __func__, s);
 }
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value)
 {
-    ModelInstance *m = (ModelInstance *)c;
-    if (!m) return fmi2Error;
-    if (s == fmi2Terminated) {
-        *value = fmi2False;   /* the slave never asks to end the simulation */
-        return fmi2OK;
-    }
-    return fmi2Discard;
+    ENTER(STATUS_STATES);
+    REQUIRE(value);
+    if (s != fmi2Terminated) return no_status(m, __func__, s);
+    *value = fmi2False;   /* the slave never asks to end the simulation */
+    return fmi2OK;
 }
 
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value)
 {
-    (void)c; (void)s; (void)value;
-    return fmi2Discard;
+    ENTER(STATUS_STATES);
+    REQUIRE(value);
+    return no_status(m, __func__, s);
 }

@@ -1,0 +1,220 @@
+"""The native FMU's FMI 2.0 C layer is as strict as the Reference-FMUs (issue 23, item 6).
+
+- tests/native_host/fmi2_strict_host.c, compiled here against FMPy's FMI 2.0 headers, calls
+  every exported fmi2* function with a NULL instance, with NULL arguments and in every state
+  the FMU can reach (the error state after a failed initialization and after a failed step
+  included), and checks each status, each message and every allocation.  It must pass, and it
+  must fail on layers that break a rule (three mutants of fmi2Functions.c, compiled here).
+- What an FMI host gets after a failed initialization, through FMPy: fmi2Error from every read.
+- binaries/linux64 needs no glibc symbol version newer than 2.17 (read from the ELF file).
+- Under valgrind (when installed): no invalid access, nothing definitely lost.
+"""
+from __future__ import annotations
+
+import dataclasses
+import platform
+import re
+import shutil
+import struct
+import subprocess
+import sys
+import zipfile
+from ctypes import byref
+from pathlib import Path
+
+import pytest
+
+from native_host.strict_host import compile_host, find_cc, run_host, unpack
+
+REPO = Path(__file__).resolve().parents[1]
+GLIBC_BASELINE = (2, 17)        # manylinux2014
+linux_only = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the FMU's binary here is linux64")
+
+
+@pytest.fixture(scope="module")
+def host(tmp_path_factory) -> Path:
+    compiler = find_cc()
+    if compiler is None:
+        pytest.skip("no C compiler to build the strict host")
+    return compile_host(tmp_path_factory.mktemp("strict_host"), compiler)
+
+
+@pytest.fixture(scope="module")
+def target(native_fmu, tmp_path_factory):
+    return unpack(native_fmu, tmp_path_factory.mktemp("native_unpacked"))
+
+
+# -- the harness ---------------------------------------------------------------------------
+@linux_only
+def test_every_entry_point_is_null_safe_and_follows_the_state_machine(host, target):
+    run = run_host(host, target)
+    assert run.returncode == 0 and not run.failures, "\n".join(run.failures) or run.stderr[-2000:]
+    # 30 functions x 6 states, 30 with a NULL instance, 36 NULL arguments and 8 sequences
+    # (254 cases): fewer would mean the host stopped early.
+    assert run.cases is not None and run.cases >= 250, run.stdout[-2000:]
+
+
+# Each mutant breaks one rule in fmi2Functions.c; the host must name the broken call.
+MUTANTS = {
+    "outputs readable in the error state": (
+        "#define READABLE (MODE_INITIALIZATION | INITIALIZED)",
+        "#define READABLE (MODE_INITIALIZATION | INITIALIZED | MODE_ERROR)",
+        "FAIL fmi2GetReal in state error after a failed fmi2ExitInitializationMode: "
+        "fmi2GetReal returned fmi2OK, expected fmi2Error"),
+    "a NULL instance reaches the logger": (
+        "    if (!m) return 0;\n    if (m->state.mode & states) return 1;",
+        "    if (m->state.mode & states) return 1;",
+        "FAIL fmi2CancelStep with a NULL instance: crashed"),
+    "a status that is not what the log says": (
+        'model_log(m, fmi2Discard, "logStatusDiscard", "%s(%s): no such status',
+        'model_log(m, fmi2Error, "logStatusError", "%s(%s): no such status',
+        "FAIL fmi2GetStatus in state stepComplete: fmi2GetStatus returned fmi2Discard but logged fmi2Error"),
+}
+
+
+def _compile_fmu_sources(unpacked: Path, output: Path, extra=()) -> None:
+    """The FMU's shipped C sources compiled into ``output`` as build_fmu.py does (-O0: faster)."""
+    src = unpacked / "sources"
+    c_files = sorted(str(p) for p in src.glob("*.c"))
+    subprocess.run([find_cc(), "-std=c99", "-O0", "-fPIC", "-shared", "-fvisibility=hidden", *extra,
+                    "-I", str(src), "-o", str(output), *c_files, "-lm"], check=True, capture_output=True, text=True)
+
+
+@linux_only
+@pytest.mark.parametrize("mutant", sorted(MUTANTS))
+def test_the_harness_catches_a_layer_that_breaks_a_rule(host, target, mutant, tmp_path):
+    before, after, expected = MUTANTS[mutant]
+    mutated = tmp_path / "unpacked"
+    shutil.copytree(target.root / "sources", mutated / "sources")
+    layer = mutated / "sources" / "fmi2Functions.c"
+    text = layer.read_text()
+    assert text.count(before) == 1, f"the mutant's target text is no longer in fmi2Functions.c: {before!r}"
+    layer.write_text(text.replace(before, after))
+    library = tmp_path / "mutant.so"
+    _compile_fmu_sources(mutated, library)
+    run = run_host(host, dataclasses.replace(target, library=library))
+    assert run.returncode == 1, run.stdout[-2000:]
+    assert any(line.startswith(expected) for line in run.failures), "\n".join(run.failures)
+
+
+# -- what a host gets -----------------------------------------------------------------------
+@linux_only
+def test_after_a_failed_initialization_every_read_is_an_error(native_fmu, target):
+    """docs/fmi_hosts.md: fmi2ExitInitializationMode -> fmi2Error, then the instance is in the
+    error state: fmi2GetReal, fmi2DoStep and fmi2Terminate give fmi2Error with a message that
+    says so; fmi2Reset makes it usable again."""
+    from fmpy import read_model_description
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi2 import (FMU2Slave, calloc, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, free)
+    from fmpy.logging import addLoggerProxy
+
+    log: list[tuple[int, str]] = []
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(lambda env, name, status, category, message:
+                                              log.append((status, message.decode(errors="replace"))))
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    addLoggerProxy(byref(callbacks))
+    md = read_model_description(str(native_fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=str(target.root), modelIdentifier="FourBarNative",
+                      instanceName="failed")
+    slave.instantiate(callbacks=callbacks)
+    try:
+        slave.setupExperiment(startTime=0.0, stopTime=1.0)
+        slave.setReal([vr["L2"]], [-1.0])
+        slave.enterInitializationMode()
+        with pytest.raises(FMICallException) as failed:
+            slave.exitInitializationMode()
+        assert failed.value.status == 3 and any("L2 = -1.0 m" in m for _, m in log), log
+        for call in (lambda: slave.getReal([vr["x2"]]), lambda: slave.doStep(0.0, 0.01), slave.terminate):
+            log.clear()
+            with pytest.raises(FMICallException) as refused:
+                call()
+            assert refused.value.status == 3                  # fmi2Error, never fmi2OK with made-up values
+            assert log and log[-1][0] == 3 and "is not allowed in state error" in log[-1][1], log
+        slave.reset()
+        slave.setupExperiment(startTime=0.0, stopTime=1.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        slave.doStep(0.0, 0.01)
+        assert slave.getReal([vr["x2"]])[0] != 0.0
+    finally:
+        slave.freeInstance()
+
+
+# -- glibc ----------------------------------------------------------------------------------
+def glibc_versions_needed(library: Path) -> set[str]:
+    """The GLIBC_x.y versions an ELF64 little-endian shared object requires: its
+    SHT_GNU_verneed entries, which the dynamic loader checks when it loads the library."""
+    data = library.read_bytes()
+    if data[:4] != b"\x7fELF" or data[4] != 2 or data[5] != 1:
+        raise ValueError(f"{library}: not a 64-bit little-endian ELF file")
+    shoff, = struct.unpack_from("<Q", data, 0x28)
+    shentsize, shnum = struct.unpack_from("<HH", data, 0x3A)
+    sections = [struct.unpack_from("<IIQQQQIIQQ", data, shoff + i * shentsize) for i in range(shnum)]
+    names = set()
+    for _, sh_type, _, _, offset, _, link, info, _, _ in sections:
+        if sh_type != 0x6FFFFFFE:                       # SHT_GNU_verneed
+            continue
+        strings = sections[link][4]
+        for _ in range(info):                           # Elf64_Verneed entries
+            _, count, _, aux, next_entry = struct.unpack_from("<HHIII", data, offset)
+            a = offset + aux
+            for _ in range(count):                      # Elf64_Vernaux entries
+                _, _, _, name, next_aux = struct.unpack_from("<IHHII", data, a)
+                names.add(data[strings + name:data.index(b"\0", strings + name)].decode())
+                a += next_aux
+            offset += next_entry
+    return {n for n in names if n.startswith("GLIBC_")}
+
+
+def _version(name: str) -> tuple[int, ...]:
+    return tuple(int(x) for x in name.removeprefix("GLIBC_").split("."))
+
+
+@linux_only
+def test_linux_binary_needs_no_glibc_newer_than_2_17(target):
+    needed = glibc_versions_needed(target.library)
+    assert needed, "no GLIBC version found: the ELF reader is broken"
+    newer = sorted(n for n in needed if _version(n) > GLIBC_BASELINE)
+    assert not newer, f"{target.library.name} needs {newer}: it will not load on glibc 2.17 (manylinux2014)"
+    objdump = shutil.which("objdump")
+    if objdump:   # binutils' reading of the same file agrees
+        dump = subprocess.run([objdump, "-T", str(target.library)], capture_output=True, text=True, check=True)
+        assert set(re.findall(r"\((GLIBC_[\d.]+)\)", dump.stdout)) == needed
+
+
+@linux_only
+def test_without_the_pinning_header_this_glibc_would_require_more(target, tmp_path):
+    """The check above can fail: the same sources built without glibc_compat.h need pow@GLIBC_2.29
+    on a glibc >= 2.29 (this machine's, when it is one)."""
+    libc, version = platform.libc_ver()
+    if libc != "glibc" or _version(version) < (2, 29):
+        pytest.skip(f"this machine's C library ({libc} {version}) has no libm symbols newer than 2.17")
+    unpinned, pinned = tmp_path / "unpinned.so", tmp_path / "pinned.so"
+    _compile_fmu_sources(target.root, unpinned)
+    _compile_fmu_sources(target.root, pinned, extra=("-include", str(target.root / "sources" / "glibc_compat.h")))
+    assert max(map(_version, glibc_versions_needed(unpinned))) >= (2, 29)
+    assert max(map(_version, glibc_versions_needed(pinned))) <= GLIBC_BASELINE
+
+
+# -- valgrind ---------------------------------------------------------------------------------
+@linux_only
+@pytest.mark.skipif(shutil.which("valgrind") is None,
+                    reason="valgrind is not installed (apt-get install valgrind); benchmarks/native_valgrind.py "
+                           "runs the same check")
+def test_harness_under_valgrind_finds_no_invalid_access_or_leak(host, target):
+    run = run_host(host, target, valgrind=shutil.which("valgrind"))
+    report = run.valgrind
+    assert run.returncode == 0 and not run.failures, "\n".join(run.failures) or run.stderr[-3000:]
+    assert report.errors == 0 and report.invalid_accesses == 0, run.stderr[-3000:]
+    assert report.definitely_lost == 0, run.stderr[-3000:]
+
+
+def test_valgrind_benchmark_without_valgrind_says_how_to_install_it(tmp_path):
+    proc = subprocess.run([sys.executable, str(REPO / "benchmarks" / "native_valgrind.py")],
+                          capture_output=True, text=True, timeout=60, env={"PATH": str(tmp_path)})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "valgrind not found: apt-get install valgrind" in proc.stdout
