@@ -201,7 +201,22 @@ class _Validator(ProblemReporter):
             return path
         self.description = description
         self.fmu_name = path.name
+        self.binary(value, path)
         return path
+
+    def binary(self, value: str, path: Path) -> None:
+        """The FMU must hold a binary for this machine (FMPy loads ``binaries/<platform>/``)."""
+        from fmpy import platform as here, supported_platforms
+
+        try:
+            platforms = supported_platforms(str(path))
+        except Exception:          # unreadable as a zip: already reported by the description check
+            return
+        if here not in platforms:
+            has = ", ".join("sources" if p == "c-code" else p for p in platforms) or "no binaries"
+            hint = (f"; compile one with `fmpy compile {value}`" if "c-code" in platforms
+                    else "; use an FMU built for this platform")
+            self.problem("fmu", value, f"has no binary for this platform ({here}); it has: {has}{hint}")
 
     def experiment(self) -> Experiment | None:
         table = self.table("experiment", required=True)

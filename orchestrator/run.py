@@ -16,8 +16,8 @@ Order.  The FMU is instantiated and initialised (experiment set up, start values
 initialisation mode entered and left) *before* anything is written: an FMU that refuses
 the case's start values raises :class:`StartValuesRefused` (a :class:`ConfigError`) and
 the output folder is left exactly as it was, a previous run's files included.  Only then
-does the run start: it removes the previous run's derived outputs (``monitor/`` and
-``diagnosis/``, see :func:`remove_derived_outputs`), creates exchange.csv empty and writes
+does the run start: it creates exchange.csv empty, removes the previous run's derived
+outputs (``monitor/`` and ``diagnosis/``, see :func:`remove_derived_outputs`) and writes
 run.json.
 
 run.json is written when the run starts (``running``, after exchange.csv was created
@@ -396,12 +396,13 @@ class _Run:
         return StartValuesRefused(label, [f"parameters: the FMU refused the case's start values: {exc}; {culprits}"])
 
     def _start_outputs(self) -> None:
-        """The run starts: remove the previous run's derived folders, create exchange.csv
-        (header only), write run.json, start the heartbeat and the progress bar."""
+        """The run starts: create exchange.csv (header only), remove the previous run's
+        derived folders, write run.json, start the heartbeat and the progress bar.  If
+        exchange.csv cannot be created, nothing of this run was written (``started`` False)."""
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        self.started = True
-        self.replaced = remove_derived_outputs(self.out_dir)
         self.writer = ExchangeWriter(self.exchange_path, ("time", *self.case.outputs))
+        self.started = True         # from here on, run.json reports what happens
+        self.replaced = remove_derived_outputs(self.out_dir)
         self._write_record()
         self._start_heartbeat()
         if self.progress:

@@ -101,6 +101,25 @@ def test_the_row_bound_is_exact_and_can_be_raised(native_fmu, tmp_path):
     no_traceback(proc)
 
 
+def test_an_fmu_without_a_binary_for_this_platform_is_a_case_error(native_fmu, tmp_path):
+    """The native FMU without binaries/ (its sources kept): FMPy cannot load it; that used to be
+    a Python traceback from inside FMPy."""
+    import zipfile
+
+    stripped = tmp_path / "NoBinary.fmu"
+    with zipfile.ZipFile(native_fmu) as zin, zipfile.ZipFile(stripped, "w") as zout:
+        for item in zin.infolist():
+            if not item.filename.startswith("binaries/"):
+                zout.writestr(item, zin.read(item.filename))
+    out = tmp_path / "out"
+    proc = run(case_file("case1_normal", native_fmu, tmp_path), "--fmu", stripped, "--out", out, "--stop", 1)
+    assert proc.returncode == 2, proc.stderr
+    assert "has no binary for this platform" in proc.stderr and "it has: sources" in proc.stderr
+    assert "fmpy compile" in proc.stderr
+    no_traceback(proc)
+    assert not out.exists()
+
+
 # ---------------------------------------------------------------------- signals
 
 def _wait_for_rows(csv: Path, rows: int, proc, timeout=30.0) -> None:
