@@ -8,22 +8,36 @@ longer found); ``--write`` puts the fresh values into the files.  ``tests/test_d
 runs the check, so a change of code that moves a figure fails the suite until the docs are
 rewritten with ``python benchmarks/doc_figures.py --write``.
 
-Only figures that a rerun reproduces are here (detection, accuracy, FMU outputs).  Timings
-depend on load and live in docs/benchmarks.md, written by ``make benchmarks``.
+Two kinds of figure:
 
-Measured: Case 1 and Case 2 from fourbar-run, clean and with σ = 5 mm on x2 (5 seeds), both
-monitor models at default settings (``benchmarks/monitor_replay.py`` makes and scores the
-runs); Case 2 through ``fmpy.simulate_fmu`` as docs/fmi_hosts.md shows it.  About a minute
-on 2 cores.
+- **measured** (``measure``): what a rerun reproduces.  Case 1 and Case 2 from fourbar-run,
+  clean and with σ = 5 mm on x2 (5 seeds), both monitor models and both detectors
+  (``benchmarks/monitor_replay.py`` makes the runs); ``make demo``'s verdict and diagnosis
+  (``scripts/demo.py`` run in full, as ``make demo`` runs it), whose history plot is also the
+  README's image (``--write`` copies it to docs/img/monitor_case2.png); the text
+  ``fourbar-monitor`` prints for Case 2; Case 2 through the ``fmpy.simulate_fmu`` code that
+  docs/fmi_hosts.md shows (the block itself is executed) and through
+  ``examples/libcosim_case2.py``.  Printed wall times are masked in the comparison.  About
+  two minutes on 2 cores.
+- **copied** (``copied_figures``, no run, a second): timings and counts that the README and
+  docs/ quote from the files the benchmarks generate (docs/benchmarks.md from ``make
+  benchmarks``, docs/detection.md from ``benchmarks/detection.py``) and the scenario counts
+  of the shipped sweep files.  Timings depend on load, so they are measured only by the
+  benchmarks; this check keeps every copy equal to its source.
 
 Usage: python benchmarks/doc_figures.py [--check | --write] [--data DIR]
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import math
+import os
 import re
+import shutil
 import statistics
+import subprocess
 import sys
 import tempfile
 from dataclasses import dataclass
@@ -43,6 +57,11 @@ FAULT_TIME = 10.0        # s, Case 2
 #: 3e-8 at 10 s.
 FMPY_ROWS = (0.0, 10.0, 10.01)
 ROW_RTOL = 1e-9
+#: Printed text quoted whole, compared with its wall-clock times masked (they vary with load).
+MASKED = {"monitor_replay_text": re.compile(r"fitted in [0-9.]+ s"),
+          "libcosim_text": re.compile(r"[0-9.]+ s wall")}
+DEMO_CASE = "case2_fault_L2"
+DEMO_IMAGE = "docs/img/monitor_case2.png"     # make demo's history plot
 
 
 @dataclass(frozen=True)
@@ -98,18 +117,229 @@ QUOTES = (
     Quote("README.md", r"MAE (\S+) m in the first 0\.5 s window after training, ≤ (\S+) m over all of Case 1 "
                        r"\((\S+) × the 5 mm threshold\); Prophet and harmonic forecasts within (\S+) m over 91 s",
           ("mae_first_window", "mae_max_case1", "ratio_clean", "models_apart")),
-    # docs/monitor.md: detection table
-    *(Quote("docs/monitor.md", rf"\| {model} \| none \| (\S+) s \| (\d+) \| (\d+) \| (\S+) \|",
-            (f"latency_clean.{model}", f"false_alarms_case2_clean.{model}", f"alarms_case1_clean.{model}",
-             f"ratio_clean.{model}")) for model in ("prophet", "harmonic")),
-    *(Quote("docs/monitor.md", rf"\| {model} \| σ = 5 mm \| (\S+)–(\S+) s \(median (\S+)\) \| (\d+) \| (\d+) \| (\S+) \|",
-            (f"latency_noisy_min.{model}", f"latency_noisy_max.{model}", f"latency_noisy_median.{model}",
-             f"false_alarms_case2_noisy.{model}", f"alarms_case1_noisy.{model}", f"ratio_noisy.{model}"))
-      for model in ("prophet", "harmonic")),
+    # README: the image's caption, the opening, make demo's output
+    Quote("README.md", r"grows at 10 s; first alarm at (\S+) s\]\(docs/img/monitor_case2\.png\)", ("cusum_first_alarm",)),
+    Quote("README.md", r"This monitor alarms at \*\*t = (\S+) s\*\*", ("cusum_first_alarm",)),
+    Quote("README.md", r"(?s)```\n(== verdict ==\n.*?\ndiagnosis: [^\n]*)\n  \.\.\.\n```", ("demo_block",)),
+    # docs/monitor.md: the opening, a replay's printed text, the detection table
+    Quote("docs/monitor.md", r"this monitor alarms (\S+) s after the fault \(clean data\) and (\S+)–(\S+) s after it",
+          ("cusum_latency_clean", "cusum_latency_noisy_min", "cusum_latency_noisy_max")),
+    Quote("docs/monitor.md", r"(?s)```\n(fourbar-monitor: replaying .*?)\n```", ("monitor_replay_text",)),
+    *(Quote("docs/monitor.md", rf"\| {det} \| {model} \| none \| (\S+) s \| (\d+) \| (\d+) \| (\S+) \|",
+            (f"{pre}latency_clean.{model}", f"{pre}false_alarms_case2_clean.{model}", f"{pre}alarms_case1_clean.{model}",
+             f"{pre}ratio_clean.{model}"))
+      for det, pre in (("cusum", "cusum_"), ("mae", "")) for model in ("prophet", "harmonic")),
+    *(Quote("docs/monitor.md", rf"\| {det} \| {model} \| σ = 5 mm \| (\S+)–(\S+) s \(median (\S+)\) \| (\d+) \| (\d+) \| (\S+) \|",
+            (f"{pre}latency_noisy_min.{model}", f"{pre}latency_noisy_max.{model}", f"{pre}latency_noisy_median.{model}",
+             f"{pre}false_alarms_case2_noisy.{model}", f"{pre}alarms_case1_noisy.{model}", f"{pre}ratio_noisy.{model}"))
+      for det, pre in (("cusum", "cusum_"), ("mae", "")) for model in ("prophet", "harmonic")),
+    # docs/fmi_hosts.md: what examples/libcosim_case2.py prints
+    Quote("docs/fmi_hosts.md", r"(?s)```\n(libcosim: \d+ samples.*?\nwrote \S+)\n```", ("libcosim_text",)),
+    # README: timings and counts copied from the generated docs and the sweep files
+    Quote("README.md", r"the same variables, (\S+)× faster through FMPy", ("native_faster_range",)),
+    Quote("README.md", r"\| Case 2 through FMPy \| (\S+) s \| (\S+) s, (\S+)× FMPy's own floor",
+          ("pythonfmu_s_case2_short", "native_s_case2_short", "native_floor_case2_short")),
+    Quote("README.md", r"sweeps/l2_step\.toml`: (\d+) scenarios of 30 s, [^;]*; (\d+) s on 2 cores on the pythonfmu FMU, "
+                       r"(\d+) s on the native FMU", ("scenarios.l2_step", "sweep_pythonfmu_s", "sweep_native_s")),
+    Quote("README.md", r"identical in all (\d+) pairs\)\. None of the (\d+)\s+runs raised",
+          ("fault_runs_per_model.l2_step", "scenarios.l2_step")),
+    Quote("README.md", r"CUSUM: median (\S+) s \((\S+)–(\S+) s\), (\S+) alarm episode per run; MAE rule: median (\S+) s, "
+                       r"(\d+) episodes per run",
+          ("seeds_cusum_median", "seeds_cusum_min", "seeds_cusum_max", "seeds_cusum_episodes", "seeds_mae_median",
+           "seeds_mae_episodes")),
+    Quote("README.md", r"no false alarm \(sweep of (\d+) runs\)", ("scenarios.l2_step",)),
+    Quote("README.md", r"σ = 5 mm, (\d+) seeds \| — \| CUSUM: first alarm (\S+)–(\S+) s after the ramp starts \(median "
+                       r"(\S+); target ≤ 2 s: at the limit\), \*\*(\S+)\*\* episode per run; MAE rule: (\S+)–(\S+) s, "
+                       r"(\S+) episodes",
+          ("case3_n", "case3_cusum_min", "case3_cusum_max", "case3_cusum_median", "case3_cusum_episodes",
+           "case3_mae_min", "case3_mae_max", "case3_mae_episodes")),
+    Quote("README.md", r"\| (\S+) m \(Case 1\), (\S+) m \(Case 2\) at rtol = atol = 1e-12; (\S+) m / (\S+) m at Table 1's "
+                       r"tolerances \|", ("acc_pos_tight_case1", "acc_pos_tight_case2", "acc_pos_table1_case1",
+                                          "acc_pos_table1_case2")),
+    Quote("README.md", r"\| (\S+) J at 1e-12; (\S+) J at Table 1's tolerances", ("acc_energy_tight", "acc_energy_table1")),
+    Quote("README.md", r"constraint residual at every output \| — \| ≤ (\S+) \|", ("acc_constraint",)),
+    Quote("README.md", r"native (\S+) s / (\S+) s \(Case 1 / 2\) = \*\*(\S+)× / (\S+)× the floor\*\* \(target ≤ 1\.5×\); "
+                       r"pythonfmu (\S+) s / (\S+) s: native \*\*(\S+)× / (\S+)× faster\*\*[^|]*is 1/(\S+) of the "
+                       r"pythonfmu time",
+          ("native_s_case1", "native_s_case2", "native_floor_case1", "native_floor_case2", "pythonfmu_s_case1",
+           "pythonfmu_s_case2", "native_faster_case1", "native_faster_case2", "floor_share_case2")),
+    Quote("README.md", r"\| (\S+) ms, (\S+) RHS evaluations \(Case 1\), (\S+) µs per evaluation all work included; "
+                       r"pythonfmu's model in-process (\S+) s \|", ("cmodel_ms", "cmodel_rhs", "cmodel_us", "replay_model_s")),
+    Quote("README.md", r"\| native (\S+) s \(rtol = atol = (\S+); \*\*(\S+)×\*\* faster than 38 s\), pythonfmu (\S+) s \|",
+          ("to1e6_native_s", "to1e6_tol", "to1e6_exudyn", "to1e6_pythonfmu_s")),
+    Quote("README.md", r"\| (\S+) m at rtol = atol = 1e-12; up to (\S+) m at Table 1's", ("agree_tight", "agree_table1")),
+    Quote("README.md", r"\| (\S+) s vs (\S+) s: (\S+)× \(Case 1\), (\S+)× \(Case 2\); scipy's DOP853 stepping alone "
+                       r"\(replay with the model's arithmetic removed\) already makes (\S+)× / (\S+)×; (\S+) RHS evaluations",
+          ("speed_wall_case1", "speed_floor_case1", "speed_ratio_case1", "speed_ratio_case2", "replay_ratio_case1",
+           "replay_ratio_case2", "speed_rhs_range")),
+    Quote("README.md", r"plain `fmpy.simulate_fmu` \| — \| (\S+)× \(target ≤ 1\.2×\)", ("overhead_ratio",)),
+    Quote("README.md", r"\| Prophet (\d+)× / (\d+)×, harmonic (\d+)× / (\d+)× \(targets",
+          ("monitor_prophet", "monitor_prophet_outputs", "monitor_harmonic", "monitor_harmonic_outputs")),
+    Quote("README.md", r"\| (\d+) scenarios/min on 1 worker, (\d+) on 2 \(×(\S+)\) \|", ("scaling_1", "scaling_2", "scaling_speedup")),
+    Quote("README.md", r"\(248 scenarios, Prophet and harmonic\) \| — \| (\d+) s on the pythonfmu FMU, (\d+) s on the native FMU \|",
+          ("sweep_pythonfmu_s", "sweep_native_s")),
+    Quote("README.md", r"The pythonfmu FMU is (\S+)× slower than a trivial pythonfmu FMU", ("speed_ratio_range",)),
+    Quote("README.md", r"scipy's own stepping alone already costs (\S+)×", ("replay_ratio_range",)),
+    # docs/sweep.md: counts, timings and the headline table, copied
+    Quote("docs/sweep.md", r"# (\d+) scenarios, each a 20 s run", ("scenarios.smoke",)),
+    Quote("docs/sweep.md", r"the headline sweep: (\d+) scenarios \((\d+) s on 2 cores in docs/benchmarks\.md\)",
+          ("scenarios.l2_step", "sweep_pythonfmu_s")),
+    Quote("docs/sweep.md", r"took (\d+) s on it against (\d+) s on the pythonfmu FMU", ("sweep_native_s", "sweep_pythonfmu_s")),
+    Quote("docs/sweep.md", r"From the same (\d+) runs:", ("scenarios.l2_step",)),
+    Quote("docs/sweep.md", r"none of the (\d+) runs raised a false alarm", ("scenarios.l2_step",)),
+    Quote("docs/sweep.md", r"in all (\d+) pairs of", ("fault_runs_per_model.l2_step",)),
+    Quote("docs/sweep.md", r"Command \((\d+) s on 2 cores on the pythonfmu FMU, (\d+) s on the native FMU",
+          ("sweep_pythonfmu_s", "sweep_native_s")),
+    Quote("docs/sweep.md", r"(\d+) scenarios/min on 1 worker,\s+(\d+) on 2 \(×(\S+)\) in the last run",
+          ("scaling_1", "scaling_2", "scaling_speedup")),
+    *(Quote("docs/sweep.md", rf"\| {noise} \| {model} \| \*\*(\S+) %\*\*(?: \([^)]*\))? \| (\S+) s \| (\d+) / (\d+) \|",
+            tuple(f"l2table.{4 * row + i}" for i in range(1, 5)))
+      for row, (noise, model) in enumerate((("none", "Prophet"), ("none", "harmonic"), ("σ = 5 mm", "Prophet"),
+                                            ("σ = 5 mm", "harmonic")))),
     # docs/fmi_hosts.md: rows of fmpy simulate's Case 2 output
     *(Quote("docs/fmi_hosts.md", rf"(?m)^{re.escape(repr(t))},((?:[-+0-9.e]+,){{5}}[-+0-9.e]+)$",
             (f"fmpy_row.{t!r}",)) for t in FMPY_ROWS),
 )
+
+
+#: Figures the README and docs copy from generated files: (key prefix, file, pattern), each
+#: group of the pattern a figure ``<prefix>.<i>`` (1-based), formatted by ``copied_figures``.
+SOURCES = (
+    ("fmpy", "docs/benchmarks.md", r"\| Case 1 \| ([\d.]+) \| ([\d.]+) \| ([\d.]+) \| ([\d.]+)x \| ([\d.]+)x \|\n"
+                                   r"\| Case 2 \| ([\d.]+) \| ([\d.]+) \| ([\d.]+) \| ([\d.]+)x \| ([\d.]+)x \|"),
+    ("cmodel", "docs/benchmarks.md", r"\| Case 1 \| 1e-9, 1e-6 \(Table 1\) \| ([\d.]+) \| ([\d,]+) \| \d+ \| ([\d.]+) \|"),
+    ("to1e6", "docs/benchmarks.md", r"\| native \| ([\de.+-]+) \| [\de.+-]+ \| ([\d.]+) \| (\d+)x faster \|\n"
+                                    r"\| pythonfmu \| [\de.+-]+ \| [\de.+-]+ \| ([\d.]+) \|"),
+    ("agree", "docs/benchmarks.md", r"\| Case 1 \| Table 1 \(1e-9, 1e-6\) \| ([\de.+-]+) \|[^\n]*\n\| Case 1 \| 1e-12 \| ([\de.+-]+) \|"
+                                    r"[^\n]*\n\| Case 2 \| Table 1 \(1e-9, 1e-6\) \| ([\de.+-]+) \|[^\n]*\n"
+                                    r"\| Case 2 \| 1e-12 \| ([\de.+-]+) \|"),
+    ("sweep", "docs/benchmarks.md", r"\| pythonfmu \| (\d+) \| (\d+) \| \d+ \|\n\| native \| \d+ \| (\d+) \| \d+ \|"),
+    ("speed", "docs/benchmarks.md", r"\| FourBar Case 1 \| ([\d.]+) \| ([\d.]+) \| ([\d.]+)x \|[^\n]*\| (\d+) \|\n"
+                                    r"\| FourBar Case 2 \| ([\d.]+) \| ([\d.]+) \| ([\d.]+)x \|[^\n]*\| (\d+) \|"),
+    ("replay", "docs/benchmarks.md", r"\| FourBar Case 1 \| ([\d.]+) \| [\d.]+ \| ([\d.]+)x \|\n"
+                                     r"\| FourBar Case 2 \| [\d.]+ \| [\d.]+ \| ([\d.]+)x \|"),
+    ("accuracy", "docs/benchmarks.md", r"\| Case 1 \| Table 1: rtol 1e-9, atol 1e-6 \| ([\de.+-]+) \| ([\de.+-]+) \| ([\de.+-]+) \|\n"
+                                       r"\| Case 1 \| rtol = atol = 1e-12 \| ([\de.+-]+) \| ([\de.+-]+) \| ([\de.+-]+) \|\n"
+                                       r"\| Case 2 \| Table 1: rtol 1e-9, atol 1e-6 \| ([\de.+-]+) \| ([\de.+-]+) \| ([\de.+-]+) \|\n"
+                                       r"\| Case 2 \| rtol = atol = 1e-12 \| ([\de.+-]+) \| ([\de.+-]+) \| ([\de.+-]+) \|"),
+    ("overhead", "docs/benchmarks.md", r"ratio of medians \(orchestrator / FMPy\): \*\*([\d.]+)\*\*"),
+    ("monitor", "docs/benchmarks.md", r"\| prophet \|(?: [^|]+ \|){5} \*\*(\d+)×\*\* \| [\d.]+ / (\d+)× \|[^\n]*\n"
+                                      r"\| harmonic \|(?: [^|]+ \|){5} \*\*(\d+)×\*\* \| [\d.]+ / (\d+)× \|"),
+    ("scaling", "docs/benchmarks.md", r"\| 1 \| ([\d.]+) \([^)]*\) \|[^\n]*\n\| 2 \| ([\d.]+) \([^)]*\) \| ([\d.]+) \|"),
+    ("l2table", "docs/detection.md", r"\| none \| prophet \| (\S+) % \| (\S+) s \| (\d+)/(\d+) \|\n"
+                                     r"\| none \| harmonic \| (\S+) % \| (\S+) s \| (\d+)/(\d+) \|\n"
+                                     r"\| σ = 5 mm \| prophet \| (\S+) % \| (\S+) s \| (\d+)/(\d+) \|\n"
+                                     r"\| σ = 5 mm \| harmonic \| (\S+) % \| (\S+) s \| (\d+)/(\d+) \|"),
+    ("case2seeds", "docs/detection.md", r"\| cusum \| prophet \| \S+ s \| (\S+) s \(median; (\S+)–(\S+) s, n = (\d+)\) \| \d+ \| (\d+) \|"
+                                        r"(?:\n[^\n]*)*?\n\| mae \| prophet \| \S+ s \| (\S+) s \(median; [^)]*\) \| \d+ \| (\d+) \|"),
+    ("case3", "docs/detection.md", r"\| cusum \| (\S+) s \(median; (\S+)–(\S+) s, n = (\d+)\) \| (\d+) \| \d+ \|\n"
+                                   r"\| mae \| \S+ s \(median; (\S+)–(\S+) s, n = \d+\) \| (\d+), (\d+) \| \d+ \|"),
+)
+
+
+def copied_figures(root: Path = REPO) -> dict[str, str]:
+    """The figures quoted from generated files and counted from the sweep files, as quoted (no runs)."""
+    raw: dict[str, str] = {}
+    for prefix, file, pattern in SOURCES:
+        match = re.search(pattern, (root / file).read_text(encoding="utf-8"))
+        for i in range(1, re.compile(pattern).groups + 1):
+            raw[f"{prefix}.{i}"] = match.group(i) if match else None
+    figures: dict[str, str] = {}
+
+    def put(key: str, parts: tuple[str, ...], fmt) -> None:
+        if any(raw[p] is None for p in parts):
+            figures[key] = f"(not found in {next(f for p_, f, _ in SOURCES if p_ == parts[0].split('.')[0])})"
+        else:
+            figures[key] = fmt(*(raw[p] for p in parts))
+
+    f2, f1, f0 = (lambda v: f"{float(v):.2f}"), (lambda v: f"{float(v):.1f}"), (lambda v: f"{float(v):.0f}")
+    ratio = lambda a, b: float(a) / float(b)                                   # noqa: E731
+    put("native_s_case1", ("fmpy.1",), str)
+    put("native_s_case2", ("fmpy.6",), str)
+    put("native_floor_case1", ("fmpy.4",), f2)
+    put("native_floor_case2", ("fmpy.9",), f2)
+    put("pythonfmu_s_case1", ("fmpy.2",), f2)
+    put("pythonfmu_s_case2", ("fmpy.7",), f2)
+    put("native_faster_case1", ("fmpy.5",), f1)
+    put("native_faster_case2", ("fmpy.10",), f1)
+    put("floor_share_case2", ("fmpy.7", "fmpy.8"), lambda a, b: f"{ratio(a, b):.1f}")
+    put("native_faster_range", ("fmpy.5", "fmpy.10"),
+        lambda a, b: f"{min(float(a), float(b)):.0f}–{max(float(a), float(b)):.0f}")
+    put("pythonfmu_s_case2_short", ("fmpy.7",), f1)
+    put("native_s_case2_short", ("fmpy.6",), f2)
+    put("native_floor_case2_short", ("fmpy.9",), f1)
+    put("cmodel_ms", ("cmodel.1",), f0)
+    put("cmodel_rhs", ("cmodel.2",), str)
+    put("cmodel_us", ("cmodel.3",), str)
+    put("to1e6_tol", ("to1e6.1",), lambda v: sig_up(float(v)))
+    put("to1e6_native_s", ("to1e6.2",), str)
+    put("to1e6_exudyn", ("to1e6.3",), str)
+    put("to1e6_pythonfmu_s", ("to1e6.4",), f1)
+    put("agree_tight", ("agree.2", "agree.4"), lambda a, b: sig(max(float(a), float(b))))
+    put("agree_table1", ("agree.1", "agree.3"), lambda a, b: sig(max(float(a), float(b))))
+    put("sweep_scenarios_bm", ("sweep.1",), str)
+    put("sweep_pythonfmu_s", ("sweep.2",), str)
+    put("sweep_native_s", ("sweep.3",), str)
+    put("speed_wall_case1", ("speed.1",), f2)
+    put("speed_floor_case1", ("speed.2",), f2)
+    put("speed_ratio_case1", ("speed.3",), f1)
+    put("speed_ratio_case2", ("speed.7",), f1)
+    put("speed_ratio_range", ("speed.3", "speed.7"),
+        lambda a, b: f"{min(float(a), float(b)):.1f}–{max(float(a), float(b)):.1f}")
+    put("speed_rhs_range", ("speed.4", "speed.8"), lambda a, b: f"{min(int(a), int(b))}–{max(int(a), int(b))}")
+    put("replay_model_s", ("replay.1",), f2)
+    put("replay_ratio_case1", ("replay.2",), f1)
+    put("replay_ratio_case2", ("replay.3",), f1)
+    put("replay_ratio_range", ("replay.2", "replay.3"),
+        lambda a, b: f"{min(float(a), float(b)):.1f}–{max(float(a), float(b)):.1f}")
+    put("acc_pos_tight_case1", ("accuracy.4",), lambda v: sig(float(v)))
+    put("acc_pos_tight_case2", ("accuracy.10",), lambda v: sig(float(v)))
+    put("acc_pos_table1_case1", ("accuracy.1",), lambda v: sig(float(v)))
+    put("acc_pos_table1_case2", ("accuracy.7",), lambda v: sig(float(v)))
+    put("acc_energy_tight", ("accuracy.5",), lambda v: sig(float(v)))
+    put("acc_energy_table1", ("accuracy.2",), lambda v: sig(float(v)))
+    put("acc_constraint", ("accuracy.3", "accuracy.6", "accuracy.9", "accuracy.12"),
+        lambda *v: sig(max(float(x) for x in v)))
+    put("overhead_ratio", ("overhead.1",), f2)
+    put("monitor_prophet", ("monitor.1",), str)
+    put("monitor_prophet_outputs", ("monitor.2",), str)
+    put("monitor_harmonic", ("monitor.3",), str)
+    put("monitor_harmonic_outputs", ("monitor.4",), str)
+    put("scaling_1", ("scaling.1",), f0)
+    put("scaling_2", ("scaling.2",), f0)
+    put("scaling_speedup", ("scaling.3",), str)
+    put("seeds_cusum_median", ("case2seeds.1",), str)
+    put("seeds_cusum_min", ("case2seeds.2",), str)
+    put("seeds_cusum_max", ("case2seeds.3",), str)
+    put("seeds_n", ("case2seeds.4",), str)
+    put("seeds_cusum_episodes", ("case2seeds.5",), lambda v: "one" if v == "1" else v)
+    put("seeds_mae_median", ("case2seeds.6",), str)
+    put("seeds_mae_episodes", ("case2seeds.7",), str)
+    put("case3_cusum_median", ("case3.1",), str)
+    put("case3_cusum_min", ("case3.2",), str)
+    put("case3_cusum_max", ("case3.3",), str)
+    put("case3_n", ("case3.4",), str)
+    put("case3_cusum_episodes", ("case3.5",), lambda v: "one" if v == "1" else v)
+    put("case3_mae_min", ("case3.6",), f1)
+    put("case3_mae_max", ("case3.7",), f1)
+    put("case3_mae_episodes", ("case3.8", "case3.9"), lambda a, b: f"{a}–{b}")
+    for i in range(1, 17):
+        put(f"l2table.{i}", (f"l2table.{i}",), str)
+    figures.update(sweep_counts(root))
+    return figures
+
+
+def sweep_counts(root: Path = REPO) -> dict[str, str]:
+    """Scenario counts of the shipped sweep files, as ``fourbar-sweep`` plans them."""
+    from sweep import load_sweep, plan_scenarios
+
+    counts = {}
+    for name in ("smoke", "l2_step"):
+        plan = plan_scenarios(load_sweep(root / "sweeps" / f"{name}.toml"))
+        counts[f"scenarios.{name}"] = str(len(plan))
+        models = {s.model for s in plan}
+        counts[f"fault_runs_per_model.{name}"] = str(sum(1 for s in plan if s.kind != "none") // len(models))
+    return counts
 
 
 def detection_figures(c1, c2, n1, n2) -> dict[str, str]:
@@ -136,7 +366,6 @@ def detection_figures(c1, c2, n1, n2) -> dict[str, str]:
 def measure(data: Path) -> dict[str, str]:
     """Every figure, formatted as quoted."""
     import numpy as np
-    from fmpy import simulate_fmu
     from monitor import dominant_period, read_exchange, replay
     from monitor_replay import MODELS, make_runs
 
@@ -188,13 +417,69 @@ def measure(data: Path) -> dict[str, str]:
     whole = read_exchange(paths["case1"])
     figures["period_whole_run"] = f"{dominant_period(whole.time.to_numpy(), whole.x2.to_numpy()).period:.7f}"
 
-    l2 = np.array([(0.0, 1.0), (FAULT_TIME, 1.0), (FAULT_TIME, 1.1)], dtype=[("time", float), ("L2", float)])
-    result = simulate_fmu(str(fmu), stop_time=100.0, output_interval=0.01, input=l2,
-                          output=["x2", "y2", "x3", "y3", "x4", "y4"])
+    # docs/fmi_hosts.md's FMPy example, executed as written (its paths are relative to the repository)
+    result = run_python_block("docs/fmi_hosts.md", "### Python API")["result"]
     for t in FMPY_ROWS:
         row = result[int(round(t / 0.01))]
         figures[f"fmpy_row.{t!r}"] = ",".join(repr(float(row[name])) for name in ("x2", "y2", "x3", "y3", "x4", "y4"))
+
+    figures["monitor_replay_text"] = monitor_text(paths["case2"])
+    figures["demo_block"] = demo_block(data)
+    figures["libcosim_text"] = printed(data, [sys.executable, str(REPO / "examples" / "libcosim_case2.py"),
+                                              "--out", "case2_libcosim.csv"]).strip()
     return figures
+
+
+def python_blocks(text: str) -> list[str]:
+    """The ```python blocks of a markdown text, in order."""
+    return re.findall(r"(?ms)^```python\n(.*?)^```", text)
+
+
+def run_python_block(file: str, heading: str) -> dict:
+    """Execute the first python block after ``heading`` in ``file`` from the repository's folder; its names."""
+    text = (REPO / file).read_text(encoding="utf-8")
+    start = text.index(heading)
+    block = python_blocks(text[start:])[0]
+    names: dict = {"__name__": "__doc_example__"}
+    cwd = os.getcwd()
+    os.chdir(REPO)
+    try:
+        exec(compile(block, f"{file} ({heading})", "exec"), names)
+    finally:
+        os.chdir(cwd)
+    return names
+
+
+def printed(cwd: Path, command: list[str]) -> str:
+    """What ``command`` prints on stdout (run in ``cwd``); a failure stops the measurement."""
+    proc = subprocess.run(command, cwd=cwd, capture_output=True, text=True, timeout=900)
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(command)} exited {proc.returncode}:\n{proc.stderr[-2000:]}")
+    return proc.stdout
+
+
+def monitor_text(exchange: Path) -> str:
+    """What ``fourbar-monitor out/case2_fault_L2/exchange.csv`` prints (in-process, same code as the command)."""
+    from monitor import cli
+
+    buffer = io.StringIO()
+    with contextlib.redirect_stdout(buffer):
+        code = cli.main([str(exchange), "--no-plots"])
+    if code not in (0, 1):
+        raise RuntimeError(f"fourbar-monitor {exchange} exited {code}")
+    return buffer.getvalue().strip().replace(str(exchange.parent), f"out/{DEMO_CASE}")
+
+
+def demo_block(data: Path) -> str:
+    """``make demo``'s verdict and the first line of its diagnosis (scripts/demo.py as ``make demo``
+    runs it, 10x real time: at much higher speeds the run can end before the monitor, still
+    importing, looks for it)."""
+    out = data / "demo"
+    text = printed(REPO, [sys.executable, str(REPO / "scripts" / "demo.py"), "--speedup", "10", "--out", str(out)])
+    text = text.replace(str(out), f"out/{DEMO_CASE}")
+    start = text.index("== verdict ==")
+    end = text.index("\n", text.index("\ndiagnosis: ", start) + 1)
+    return text[start:end]
 
 
 @dataclass(frozen=True)
@@ -208,6 +493,9 @@ class Finding:
     def ok(self) -> bool:
         if self.quoted is None:
             return False
+        if self.key in MASKED:
+            mask = MASKED[self.key]
+            return mask.sub("…", self.quoted) == mask.sub("…", self.fresh)
         if self.key.startswith("fmpy_row."):
             a = [float(v) for v in self.quoted.split(",")]
             b = [float(v) for v in self.fresh.split(",")]
@@ -215,10 +503,14 @@ class Finding:
         return self.quoted == self.fresh
 
 
-def compare(figures: dict[str, str], root: Path = REPO) -> list[Finding]:
-    """Each quote's text against the fresh figures (a quote found in no place is a finding)."""
+def compare(figures: dict[str, str], root: Path = REPO, *, partial: bool = False) -> list[Finding]:
+    """Each quote's text against the fresh figures (a quote found in no place is a finding).
+
+    ``partial``: compare only the quotes whose figures are all in ``figures`` (the copied ones)."""
     findings = []
     for quote in QUOTES:
+        if partial and not set(quote.keys) <= set(figures):
+            continue
         text = (root / quote.file).read_text(encoding="utf-8")
         matches = list(re.finditer(quote.pattern, text))
         if not matches:
@@ -231,12 +523,12 @@ def compare(figures: dict[str, str], root: Path = REPO) -> list[Finding]:
 
 
 def rewrite(figures: dict[str, str], root: Path = REPO) -> list[str]:
-    """Put the fresh figures into the files; returns the files changed."""
+    """Put the fresh figures into the files (the quotes whose figures are known); returns the files changed."""
     changed = []
     for file in sorted({q.file for q in QUOTES}):
         path = root / file
         text = original = path.read_text(encoding="utf-8")
-        for quote in (q for q in QUOTES if q.file == file):
+        for quote in (q for q in QUOTES if q.file == file and set(q.keys) <= set(figures)):
             def fill(match: re.Match, quote: Quote = quote) -> str:
                 out, last = [], match.start()
                 for i, key in enumerate(quote.keys):
@@ -256,14 +548,21 @@ def main(argv: list[str] | None = None) -> int:
                                      epilog="Without --check or --write: print the fresh figures.")
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--check", action="store_true", help="compare the quotes with fresh figures (exit 1 if stale)")
-    mode.add_argument("--write", action="store_true", help="write the fresh figures into the files")
+    mode.add_argument("--write", action="store_true", help="write the fresh figures into the files "
+                      f"(and make demo's history plot into {DEMO_IMAGE})")
+    parser.add_argument("--copied", action="store_true",
+                        help="only the figures copied from generated files and sweep files (no runs; a second)")
     parser.add_argument("--data", type=Path, help="folder for the runs (reused when present); default: a temp dir")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="doc_figures_") as tmp:
         data = args.data or Path(tmp)
         data.mkdir(parents=True, exist_ok=True)
-        figures = measure(data)
-    findings = compare(figures)
+        figures = copied_figures()
+        if not args.copied:
+            figures.update(measure(data))
+            if args.write:
+                shutil.copyfile(data / "demo" / "monitor" / "history.png", REPO / DEMO_IMAGE)
+    findings = compare(figures, partial=args.copied)
     if args.write:
         missing = [f for f in findings if f.quoted is None]
         for f in missing:
@@ -275,14 +574,19 @@ def main(argv: list[str] | None = None) -> int:
     width = max(len(f.key) for f in findings)
     for f in findings:
         mark = "ok   " if f.ok else "STALE"
-        print(f"{mark} {f.file:<18} {f.key:<{width}}  quoted {f.quoted if f.quoted is not None else '(not found)'}"
-              f"{'' if f.ok else f'  fresh {f.fresh}'}")
+        quoted = f.quoted if f.quoted is not None else "(not found)"
+        print(f"{mark} {f.file:<18} {f.key:<{width}}  quoted {_one_line(quoted)}"
+              f"{'' if f.ok else f'  fresh {_one_line(f.fresh)}'}")
     stale = [f for f in findings if not f.ok]
     if args.check:
         print(f"{len(findings) - len(stale)} of {len(findings)} quoted figures current"
               + ("; rewrite with: python benchmarks/doc_figures.py --write" if stale else ""))
         return 1 if stale else 0
     return 0
+
+
+def _one_line(text: str) -> str:
+    return text if "\n" not in text else text.replace("\n", " ⏎ ")
 
 
 if __name__ == "__main__":

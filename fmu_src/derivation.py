@@ -1,7 +1,7 @@
 """Symbolic derivation of the four-bar linkage's constrained equations of motion.
 
-Model (see ARCHITECTURE.md §1)
-------------------------------
+Model (README.md, "The mechanical part")
+----------------------------------------
 Planar four-bar, link 1 is the ground.  The crank (link 2, length ``L2``) is pinned
 at the origin, the coupler (link 3, ``L3``) joins the crank tip to the rocker tip,
 the rocker (link 4, ``L4``) is pinned at ``(L1, 0)``.  Angles are measured from +x,
