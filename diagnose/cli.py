@@ -1,7 +1,9 @@
 """``fourbar-diagnose``: after an alarm, name the parameter that changed, its new value and when.
 
 Exit codes: 0 explained by one parameter, 1 not explained (or no change found), 2 bad input
-(no alarm in the run, a missing or stale summary, an FMU that is not the run's, ...).
+(no alarm in the run, a missing or stale summary, an FMU that is not the run's, an --out
+that cannot be written, ...; nothing written), 4 the verdict was printed but its files could
+not be written, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).
 """
 from __future__ import annotations
 
@@ -12,7 +14,10 @@ from pathlib import Path
 
 from fourbar_common import package_version
 
-__all__ = ["build_parser", "main"]
+__all__ = ["OUTPUTS_NOT_WRITTEN", "build_parser", "main"]
+
+#: Exit status when the diagnosis was computed (and printed) but its files could not be written.
+OUTPUTS_NOT_WRITTEN = 4
 
 _EPILOG = """\
 what it does:
@@ -36,7 +41,15 @@ examples:
   fourbar-diagnose out/case3_ramp_noise --horizon 5
   fourbar-diagnose RUN_DIR --columns x2,y2,x3,y3,x4,y4    # all written columns, not only the monitored ones
 
-exit status: 0 explained, 1 unexplained or no change, 2 bad input
+--out is checked before the diagnosis: a file, a folder that cannot be created or written
+is refused at once (exit 2). The verdict is printed before the files are written; if they
+cannot be written then, the message says which (exit 4).
+Ctrl-C or SIGTERM stops the diagnosis with one line and writes nothing (exit 130 / 143); a
+signal during the writing of the files lets them finish first.
+
+exit status: 0 explained, 1 unexplained or no change, 2 bad input or unusable --out (nothing
+written), 4 verdict printed but its files not (all) written, 130 interrupted (Ctrl-C),
+143 terminated (SIGTERM)
 """
 
 
@@ -68,6 +81,18 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from fourbar_common.signals import StopSignals, exit_code, signal_of, stop_reason
+
+    with StopSignals():        # Ctrl-C and SIGTERM end the command with one line, at any moment
+        try:
+            return _main(argv)
+        except KeyboardInterrupt as exc:     # before the diagnosis began (the diagnosis reports its own)
+            signum = signal_of(exc)
+            print(f"fourbar-diagnose: {stop_reason(signum)}; nothing was written", file=sys.stderr)
+            return exit_code(signum)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -79,36 +104,68 @@ def main(argv: list[str] | None = None) -> int:
             print(f"fourbar-diagnose: error: --{name.replace('_', '-')} {value!r}: expected a positive number of "
                   f"seconds", file=sys.stderr)
             return 2
-    from .diagnosis import diagnose
+    from fourbar_common.signals import deferred, exit_code, signal_of, stop_reason
+
+    from .diagnosis import DiagnoseOptions, diagnose_inputs
     from .errors import DiagnoseError, NoAlarm
-    from .outputs import write_outputs
+    from .inputs import read_inputs
+    from .outputs import OutputError, prepare_out_dir, remove_empty, write_outputs
 
     columns = [c.strip() for c in args.columns.split(",") if c.strip()] if args.columns else None
+    out = Path(args.out) if args.out else Path(args.run_dir) / "diagnosis"
+    options = DiagnoseOptions(lookback=args.lookback, horizon=args.horizon, noise_span=args.noise_span,
+                              ramp=not args.no_ramp)
+    created: list[Path] = []
+    d = failure = None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            d = diagnose(args.run_dir, summary=args.summary, fmu=args.fmu, columns=columns,
-                         use_run_fmu=args.use_run_fmu, lookback=args.lookback, horizon=args.horizon,
-                         noise_span=args.noise_span, ramp=not args.no_ramp)
+            inputs = read_inputs(args.run_dir, summary=args.summary, fmu=args.fmu, columns=columns,
+                                 use_run_fmu=args.use_run_fmu)
+            created = prepare_out_dir(out, plot=not args.no_plot)      # before the long part
+            d = diagnose_inputs(inputs, options)
         except (NoAlarm, DiagnoseError) as exc:
-            d, failure = None, exc
+            failure = exc
+        except OSError as exc:       # an input file that cannot be read
+            failure = DiagnoseError(f"{exc.filename or ''}: {exc.strerror or exc}")
+        except KeyboardInterrupt as exc:
+            remove_empty(created)
+            signum = signal_of(exc)
+            print(f"fourbar-diagnose: {stop_reason(signum)} before the diagnosis was complete; nothing was written",
+                  file=sys.stderr)
+            return exit_code(signum)
     for w in caught:      # e.g. malformed rows skipped in exchange.csv: one line each, no source trace
         print(f"fourbar-diagnose: warning: {w.message}", file=sys.stderr)
     if d is None:
+        remove_empty(created)
         label = "" if isinstance(failure, NoAlarm) else "error: "
         print(f"fourbar-diagnose: {label}{failure}", file=sys.stderr)
         return 2
-    out = Path(args.out) if args.out else Path(args.run_dir) / "diagnosis"
-    written = write_outputs(d, out, plot=not args.no_plot)
-    print(f"diagnosis: {d.message}")
+    # The verdict is printed before the files are written: it is not lost if they cannot be.
+    print(f"diagnosis: {d.message}", flush=True)
     if not args.quiet:
         print(f"  fitted {', '.join(d.columns)} over t = {d.window[0]:.2f}..{d.window[1]:.2f} s "
               f"(first alarm {d.alarm_time:.2f} s); noise {', '.join(f'{k} {v:.2g}' for k, v in d.noise.items())}")
         print(f"  {'hypothesis':<10} {'new value':>14} {'change':>9} {'at t [s]':>9} {'residual RMS':>13}")
         for f in d.ranking:
             print(f"  {f.parameter:<10} {f.value:>14.6g} {f.relative_change:>+9.3%} {f.change_time:>9.2f} {f.rms:>13.3g}")
-        print(f"  {d.branches} branches on {d.simulator} in {d.seconds:.1f} s; wrote "
-              f"{', '.join(str(p) for p in written)}")
+        print(f"  {d.branches} branches on {d.simulator} in {d.seconds:.1f} s", flush=True)
+    written: list[Path] = []
+    try:
+        with deferred():       # a signal now waits until the files are complete
+            written = write_outputs(d, out, plot=not args.no_plot)
+    except OutputError as exc:
+        kept = f"; written: {', '.join(map(str, exc.written))}" if exc.written else " (the verdict above is not saved)"
+        print(f"fourbar-diagnose: error: cannot write {exc.path}: {exc.reason}; not written: "
+              f"{', '.join(map(str, exc.not_written))}{kept}", file=sys.stderr)
+        return OUTPUTS_NOT_WRITTEN
+    except KeyboardInterrupt as exc:
+        signum = signal_of(exc)
+        print(f"fourbar-diagnose: {stop_reason(signum)} after the verdict above; wrote "
+              f"{', '.join(map(str, written))}", file=sys.stderr)
+        return exit_code(signum)
+    if not args.quiet:
+        print(f"  wrote {', '.join(str(p) for p in written)}")
     return 0 if d.explained else 1
 
 

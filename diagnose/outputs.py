@@ -1,25 +1,126 @@
-"""What a diagnosis writes: ``diagnosis.json`` and ``diagnosis.png``."""
+"""What a diagnosis writes: ``diagnosis.json`` and ``diagnosis.png``, and the check that it can.
+
+:func:`prepare_out_dir` runs before the diagnosis (which takes seconds to minutes): it
+creates the output folder and a probe file there, so an unusable ``--out`` (a file, a
+read-only folder) is refused before anything is computed.  :func:`write_outputs` writes
+each file atomically (a reader sees the old file or the new one); when one cannot be
+written it raises :class:`OutputError`, which says which files were written and which not.
+"""
 from __future__ import annotations
 
+import os
+import secrets
 from pathlib import Path
 
 import numpy as np
 
-from fourbar_common import write_json_atomic
+from fourbar_common import replace_atomically, write_json_atomic
 
 from .diagnosis import Diagnosis
+from .errors import DiagnoseError
 
-__all__ = ["write_outputs"]
+__all__ = ["OUTPUT_FILES", "OutputError", "prepare_out_dir", "remove_empty", "write_outputs"]
+
+#: The files a diagnosis writes into its output folder (the plot unless --no-plot).
+OUTPUT_FILES = ("diagnosis.json", "diagnosis.png")
+
+
+class OutputError(OSError):
+    """An output file could not be written after the diagnosis was computed.
+
+    ``written`` are the files written before ``path`` failed (with ``reason``);
+    ``not_written`` is ``path`` and every file that was to follow it.
+    """
+
+    def __init__(self, path: Path, reason: str, written: list[Path], not_written: list[Path]):
+        super().__init__(f"{path}: {reason}")
+        self.path, self.reason = path, reason
+        self.written, self.not_written = written, not_written
+
+
+def _reason(exc: OSError) -> str:
+    return exc.strerror or str(exc)
+
+
+def prepare_out_dir(out_dir: str | Path, plot: bool = True) -> list[Path]:
+    """Make sure ``out_dir`` can receive the outputs, before the diagnosis runs.
+
+    Creates the folder (and missing parents) and a probe file in it, removed at once.
+    Returns the folders it created, deepest first (:func:`remove_empty` removes them again
+    when the diagnosis then stops).  Raises :class:`~diagnose.errors.DiagnoseError` naming
+    the path: ``out_dir`` or a parent is a file, cannot be created, is not writable, or one
+    of its output files is a folder.
+    """
+    out = Path(out_dir)
+    where = f"--out {out}"
+    names = OUTPUT_FILES if plot else OUTPUT_FILES[:1]
+    created: list[Path] = []
+    try:
+        if out.exists() and not out.is_dir():
+            raise DiagnoseError(f"{where}: exists and is not a folder; --out names the folder that receives "
+                                f"{' and '.join(names)}")
+        missing = []
+        parent = out
+        while not parent.exists() and parent.parent != parent:
+            missing.append(parent)
+            parent = parent.parent
+        if not parent.is_dir():
+            raise DiagnoseError(f"{where}: {parent} is not a folder, so {missing[-1].name}/ cannot be created in it")
+        for folder in reversed(missing):
+            try:
+                folder.mkdir()
+            except FileExistsError:
+                continue
+            except OSError as exc:
+                raise DiagnoseError(f"{where}: cannot create the folder {folder}: {_reason(exc)}; choose a writable "
+                                    "folder with --out") from None
+            created.insert(0, folder)
+        for name in names:
+            if (out / name).is_dir():
+                raise DiagnoseError(f"{where}: {out / name} is a folder; remove it or choose another --out")
+        probe = out / f".diagnosis-probe-{secrets.token_hex(6)}"
+        fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        os.close(fd)
+        probe.unlink()
+    except OSError as exc:
+        remove_empty(created)
+        raise DiagnoseError(f"{where}: cannot write there: {_reason(exc)}; choose a writable folder with --out") \
+            from None
+    except DiagnoseError:
+        remove_empty(created)
+        raise
+    return created
+
+
+def remove_empty(folders: list[Path]) -> None:
+    """Remove the folders (deepest first) that are still empty; leave the rest."""
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except OSError:
+            pass
 
 
 def write_outputs(diagnosis: Diagnosis, out_dir: str | Path, plot: bool = True) -> list[Path]:
-    """Write diagnosis.json (and diagnosis.png) into ``out_dir``; return the paths written."""
+    """Write diagnosis.json (and diagnosis.png) into ``out_dir``; return the paths written.
+
+    Raises :class:`OutputError` (which lists what was written) when a file cannot be written.
+    """
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    written = [out / "diagnosis.json"]
-    write_json_atomic(written[0], diagnosis.to_json())
+    targets = [out / OUTPUT_FILES[0]]
     if plot and diagnosis.curves is not None:
-        written.append(_plot(diagnosis, out / "diagnosis.png"))
+        targets.append(out / OUTPUT_FILES[1])
+    written: list[Path] = []
+    for i, path in enumerate(targets):
+        try:
+            if i == 0:
+                out.mkdir(parents=True, exist_ok=True)
+                write_json_atomic(path, diagnosis.to_json())
+            else:
+                _plot(diagnosis, path)
+        except OSError as exc:
+            raise OutputError(path, _reason(exc), written, targets[i:]) from None
+        written.append(path)
     return written
 
 
@@ -66,8 +167,10 @@ def _plot(d: Diagnosis, path: Path) -> Path:
              "no_change": "No change found"}[d.verdict]
     fig.suptitle(f"{title} — {d.case}\n{_wrap(d.message)}", fontsize=9)
     fig.tight_layout(rect=(0, 0, 1, 0.97))
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        replace_atomically(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -20,6 +20,10 @@ Grid point ``k`` is the time ``start + k*step`` (the orchestrator's grid).  Befo
 window the FMU takes one-second communication steps (an FMU integrates each step to its
 tolerance, so this changes the result by less than that tolerance and makes hour-long
 runs cheap to replay).
+
+Every FMU call runs inside :func:`fourbar_common.signals.deferred`: Ctrl-C or SIGTERM is
+raised between two calls (at the latest at the end of a branch), never inside a pythonfmu
+FMU's own Python code, where it would make the FMU fail fatally and crash the process.
 """
 from __future__ import annotations
 
@@ -27,6 +31,8 @@ from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
+
+from fourbar_common.signals import checkpoint, deferred
 
 __all__ = ["BranchFailed", "Grid", "Simulator"]
 
@@ -84,27 +90,29 @@ class Simulator:
     def __enter__(self) -> "Simulator":
         from orchestrator.instance import FmuInstance
 
-        self._fmu = FmuInstance(self.description, "fourbar-diagnose").__enter__()
-        try:
-            self._read = self._fmu.reader(self.columns)
-            self._initialise()
-            self._healthy_pass()
-        except BaseException:
-            self.__exit__(None, None, None)
-            raise
+        with deferred():
+            self._fmu = FmuInstance(self.description, "fourbar-diagnose").__enter__()
+            try:
+                self._read = self._fmu.reader(self.columns)
+                self._initialise()
+                self._healthy_pass()
+            except BaseException:
+                self.__exit__(None, None, None)
+                raise
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
         fmu, self._fmu = self._fmu, None
         if fmu is None:
             return
-        for state in self._states:
-            try:
-                fmu.free_state(state)
-            except Exception:    # freeing must not hide the diagnosis' own result
-                pass
-        self._states = []
-        fmu.__exit__(exc_type, exc, tb)
+        with deferred():
+            for state in self._states:
+                try:
+                    fmu.free_state(state)
+                except Exception:    # freeing must not hide the diagnosis' own result
+                    pass
+            self._states = []
+            fmu.__exit__(exc_type, exc, tb)
 
     # -- the FMU ------------------------------------------------------------------------
     def _initialise(self) -> None:
@@ -120,6 +128,7 @@ class Simulator:
         per = max(1, int(round(_FAST_STEP / self.grid.step)))
         k = k_from
         while k < k_to:
+            checkpoint()
             k_next = min(k + per, k_to)
             t = self.grid.time(k)
             self._fmu.do_step(t, self.grid.time(k_next) - t)
@@ -137,6 +146,7 @@ class Simulator:
             return
         self._states.append(fmu.get_state())
         for k in range(self.first, self.last):
+            checkpoint()
             fmu.step_through(self._times(k, k + 1), self.columns, self.healthy[k - self.first + 1:])
             self._states.append(fmu.get_state())
 
@@ -166,11 +176,12 @@ class Simulator:
         self.branches += 1
         out = np.empty((until - start, len(self.columns)))
         values = [float(v) for v in np.atleast_1d(np.asarray(values, dtype=float))]
-        try:
-            self._restart_at(start)
-            self._fmu.step_through(self._times(start, until), self.columns, out, changes=(name, values))
-        except FmuError as exc:
-            if self.method == "resimulate":
-                self._fmu.reset()     # the next branch initialises again
-            raise BranchFailed(str(exc)) from None
+        with deferred():
+            try:
+                self._restart_at(start)
+                self._fmu.step_through(self._times(start, until), self.columns, out, changes=(name, values))
+            except FmuError as exc:
+                if self.method == "resimulate":
+                    self._fmu.reset()     # the next branch initialises again
+                raise BranchFailed(str(exc)) from None
         return out
