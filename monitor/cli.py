@@ -1,8 +1,9 @@
 """``fourbar-monitor``: the paper's analysis part as a command (see ``--help``).
 
 Exit codes: 0 no alarm, 1 alarm (or the monitored run failed), 2 usage or input error,
-3 the run was cut off (its writer died without closing run.json), 130 interrupted.  Input problems are reported in one line naming the file, field and
-value — never with a traceback.
+3 the run was cut off (its writer died without closing run.json), 130 interrupted (Ctrl-C),
+143 terminated (SIGTERM).  Input problems are reported in one line naming the file, field
+and value — never with a traceback.
 """
 from __future__ import annotations
 
@@ -53,8 +54,17 @@ examples:
   fourbar-monitor exchange.csv --signal x2,x3,x4 --false-alarm-rate 0.001
   fourbar-monitor exchange.csv --detector mae --model harmonic --threshold 0.01 --window 0.3
 
-exit status: 0 no alarm, 1 alarm or failed run, 2 usage/input error, 3 the run was cut off
-(its writer died: run.json still says running), 130 interrupted
+options of the other detector (--window with cusum, --false-alarm-rate with mae, ...) are
+refused unless left at their defaults; --every shorter than the file's sample step is refused
+once the step is known (after the training window), before anything is written.
+
+Ctrl-C or SIGTERM: --follow ends as if the run had ended (summary.json, plots and the verdict
+are written); a replay stops at once, keeps the events and evaluations written so far (no
+summary.json) and says so in one line.
+
+exit status: 0 no alarm, 1 alarm or failed run, 2 usage/input error (nothing written), 3 the
+run was cut off (its writer died: run.json still says running), 130 interrupted (Ctrl-C),
+143 terminated (SIGTERM)
 """
 
 
@@ -111,6 +121,7 @@ class _Printer:
         self.err = err
         self.next_status = -math.inf
         self.n_warnings = 0
+        self.last_time: float | None = None     # of the latest evaluation
 
     def _line(self, text: str) -> None:
         print(text, file=self.out, flush=True)
@@ -146,6 +157,7 @@ class _Printer:
             self._line(f"t={e.time:8.2f} s  {e.kind.upper():8s}{stat}  {e.message}")
 
     def evaluation(self, t: float, statistic: float, threshold: float, state: Any) -> None:
+        self.last_time = t
         if self.args.quiet:
             return
         if self.args.verbose or t >= self.next_status - 1e-9:
@@ -167,7 +179,7 @@ class _Printer:
             self._line(f"fourbar-monitor: {message} (--timeout {self.args.timeout:g} s)")
 
 
-def _verdict(result: Any, out_dir: Path) -> str:
+def _verdict(result: Any, out_dir: Path, stopped: str = "interrupted") -> str:
     s = result.summary
     first = s.first_alarm
     if first is not None:
@@ -187,7 +199,7 @@ def _verdict(result: Any, out_dir: Path) -> str:
         if s.fault_time is not None:
             head += f"; fault at {s.fault_time:g} s (run.json) NOT detected"
     if result.status == "interrupted":
-        head = f"interrupted; {head}"
+        head = f"{stopped}; {head}"
     extra = ""
     if result.status in ("run_failed", "run_lost"):
         extra = f"; {result.error}"
@@ -200,6 +212,20 @@ def _verdict(result: Any, out_dir: Path) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    from fourbar_common.signals import StopSignals, exit_code, signal_of, stop_reason
+
+    with StopSignals() as stop:     # Ctrl-C and SIGTERM end the monitor with one line, at any moment
+        try:
+            return _main(argv, stop)
+        except KeyboardInterrupt as exc:      # before the monitoring began
+            signum = signal_of(exc)
+            print(f"fourbar-monitor: {stop_reason(signum)}; nothing was written", file=sys.stderr, flush=True)
+            return exit_code(signum)
+
+
+def _main(argv: Sequence[str] | None, stop: Any) -> int:
+    from fourbar_common.signals import signal_of
+
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -214,12 +240,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     settings = {f.name: getattr(args, f.name) for f in fields(MonitorOptions) if hasattr(args, f.name)}
     from .errors import MonitorError
 
-    previous = _terminate_as_interrupt()
+    out_dir = None
     try:
-        from .outputs import checked_default_out_dir
+        from .options import merged
+        from .outputs import checked_default_out_dir, checked_out_dir
         from .session import follow, replay
 
-        out_dir = args.out if args.out is not None else checked_default_out_dir(exchange)
+        merged(MonitorOptions(), settings)      # inconsistent options are refused before anything is read
+        out_dir = checked_out_dir(args.out) if args.out is not None else checked_default_out_dir(exchange)
 
         if not args.quiet:
             mode = "following" if args.follow else "replaying"
@@ -238,43 +266,46 @@ def main(argv: Sequence[str] | None = None) -> int:
         else:
             result = replay(exchange, **common)
     except MonitorError as exc:
+        if stop.received is not None:       # e.g. Prophet's optimiser killed by the same Ctrl-C
+            return _stopped(stop.received, printer, out_dir, err)
         print(f"fourbar-monitor: error: {exc}", file=err, flush=True)
         return 2
-    except KeyboardInterrupt:
-        print("fourbar-monitor: interrupted", file=err, flush=True)
-        return 130
+    except KeyboardInterrupt as exc:
+        return _stopped(signal_of(exc), printer, out_dir, err)
     except ImportError as exc:            # an optional library missing from this environment
         print(f"fourbar-monitor: error: cannot import {exc.name or exc}: {exc}; install it, or use "
               "--model harmonic", file=err, flush=True)
         return 2
     except OSError as exc:                # e.g. --out not writable
+        if stop.received is not None:
+            return _stopped(stop.received, printer, out_dir, err)
         print(f"fourbar-monitor: error: {exc.filename or ''}: {exc.strerror or exc}", file=err, flush=True)
         return 2
-    finally:
-        _restore_terminate(previous)
-    print(_verdict(result, out_dir), file=out, flush=True)
+    except Exception:
+        if stop.received is not None:     # a library that failed because the signal reached it too
+            return _stopped(stop.received, printer, out_dir, err)
+        raise
+    print(_verdict(result, out_dir, stop.reason), file=out, flush=True)
+    if result.status == "interrupted":     # --follow stopped by a signal: the outputs are complete
+        return stop.exit_code
     return result.exit_code
 
 
-def _terminate_as_interrupt() -> Any:
-    """SIGTERM ends the monitor like Ctrl-C (outputs written, exit 130); main thread only."""
-    import signal
-    import threading
+def _stopped(signum: int, printer: "_Printer", out_dir: Path | None, err: TextIO) -> int:
+    """One line for a monitor stopped by a signal before its summary: what is kept where."""
+    from fourbar_common.signals import exit_code, stop_reason
 
-    if threading.current_thread() is not threading.main_thread():
-        return None
+    from .outputs import OUTPUT_FILES
 
-    def handler(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
-
-    return signal.signal(signal.SIGTERM, handler)
-
-
-def _restore_terminate(previous: Any) -> None:
-    import signal
-
-    if previous is not None:
-        signal.signal(signal.SIGTERM, previous)
+    kept = [name for name in OUTPUT_FILES if out_dir is not None and (out_dir / name).is_file()]
+    where = f" at t = {printer.last_time:g} s of data" if printer.last_time is not None else ""
+    if kept:
+        what = (f"kept {', '.join(kept)} in {out_dir}" + ("" if "summary.json" in kept else
+                                                           " (up to then; no summary.json: the replay did not end)"))
+    else:
+        what = "nothing was written"
+    print(f"fourbar-monitor: {stop_reason(signum)}{where}; {what}", file=err, flush=True)
+    return exit_code(signum)
 
 
 if __name__ == "__main__":  # pragma: no cover

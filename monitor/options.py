@@ -7,6 +7,11 @@ read) are frozen dataclasses.  Each field carries an :class:`Rule` in its metada
 fields the command line exposes, the flag, the help text and the argument group.
 :func:`add_arguments` builds the ``fourbar-monitor`` arguments from these fields, so the
 command line and the Python API cannot disagree on a default, a choice or a message.
+
+Which detector an option belongs to is part of its field too (``option(..., detector=...)``):
+an option of one detector set to anything but its default while the other detector runs is
+refused, with the same message from the command line, :func:`monitor.replay` and a sweep
+file (:meth:`MonitorOptions.validated`; :func:`detector_options` lists them).
 """
 from __future__ import annotations
 
@@ -18,8 +23,8 @@ from typing import Any, Callable, Mapping
 from .errors import OptionError
 from .forecasters import MODELS
 
-__all__ = ["DETECTORS", "FollowOptions", "MonitorOptions", "REFIT_POLICIES", "Rule", "add_arguments", "merged",
-           "split_signals"]
+__all__ = ["DETECTORS", "FollowOptions", "MonitorOptions", "REFIT_POLICIES", "Rule", "add_arguments", "check_every",
+           "detector_options", "merged", "split_signals"]
 
 REFIT_POLICIES = ("none", "paper")
 #: ``cusum``: the sequential detector (default); ``mae``: the paper's windowed-MAE rule.
@@ -104,9 +109,13 @@ FRACTION = Rule(lambda v: isinstance(v, float) and 0.2 <= v <= 0.9, "a fraction 
 TIMEOUT = Rule(lambda v: _is_number(v) and v >= 0, "a number of seconds ≥ 0 (0 = no limit)")
 
 
-def option(default: Any, rule: Rule, help: str = "", *, flag: str | None = None, group: str = "") -> Any:
-    """A dataclass field with its rule; ``flag`` exposes it on the command line."""
-    return field(default=default, metadata={"rule": rule, "help": help, "flag": flag, "group": group})
+def option(default: Any, rule: Rule, help: str = "", *, flag: str | None = None, group: str = "",
+           detector: str | None = None) -> Any:
+    """A dataclass field with its rule; ``flag`` exposes it on the command line; ``detector``
+    names the one detector that uses it (None: every detector does)."""
+    assert detector is None or detector in DETECTORS, detector
+    return field(default=default, metadata={"rule": rule, "help": help, "flag": flag, "group": group,
+                                            "detector": detector})
 
 
 @dataclass(frozen=True)
@@ -148,41 +157,45 @@ class MonitorOptions(_Checked):
                            "residuals, designed by --false-alarm-rate; mae: the paper's windowed MAE against a "
                            "threshold", flag="--detector", group="detection")
     false_alarm_rate: float = option(0.01, RATE, "cusum: false alarms per hour of data the detector is designed for",
-                                     flag="--false-alarm-rate", group="detection")
+                                     flag="--false-alarm-rate", group="detection", detector="cusum")
     design_shift: float = option(0.5, positive("in noise standard deviations"), "cusum: the mean shift, in noise "
                                  "standard deviations, the CUSUM is tuned to (reference k = shift/2)",
-                                 flag="--design-shift", group="detection")
+                                 flag="--design-shift", group="detection", detector="cusum")
     noise_floor: float = option(1e-3, NON_NEGATIVE, "cusum: smallest noise scale, as a fraction of the training "
-                                "amplitude (the scale of a noise-free signal)", flag="--noise-floor", group="detection")
+                                "amplitude (the scale of a noise-free signal)", flag="--noise-floor", group="detection",
+                                detector="cusum")
     guard: float = option(3.0, NON_NEGATIVE, "cusum: phase tracking learns only from data at least GUARD s old "
-                          "and quiet since", flag="--guard", group="detection")
+                          "and quiet since", flag="--guard", group="detection", detector="cusum")
     track_time: float = option(15.0, positive("of seconds"), "cusum: time constant of the phase tracker; phase "
-                               "drifts slower than this are followed", flag="--track-time", group="detection")
+                               "drifts slower than this are followed", flag="--track-time", group="detection",
+                               detector="cusum")
     shape_time: float = option(60.0, NON_NEGATIVE, "cusum: time constant of the waveform-shape correction, learnt "
                                "like the phase from quiet data; shape changes slower than this are followed; 0 = "
-                               "no correction", flag="--shape-time", group="detection")
+                               "no correction", flag="--shape-time", group="detection", detector="cusum")
     clear_after: float = option(30.0, positive("of seconds"), "cusum: a latched alarm clears after this long "
-                                "without a CUSUM crossing", flag="--clear-after", group="detection")
-    tracker_block: float = option(1.0, positive("of seconds"))
-    rate_prior: float = option(3e-5, NON_NEGATIVE)
+                                "without a CUSUM crossing", flag="--clear-after", group="detection",
+                                detector="cusum")
+    tracker_block: float = option(1.0, positive("of seconds"), detector="cusum")
+    rate_prior: float = option(3e-5, NON_NEGATIVE, detector="cusum")
     threshold: float | str = option("auto", THRESHOLD, "mae: MAE threshold in the signal's units, or 'auto' from the "
-                                    "training data", flag="--threshold", group="detection")
+                                    "training data", flag="--threshold", group="detection", detector="mae")
     window: float = option(0.5, positive("of seconds"), "mae: evaluation window: the newest WINDOW s of data",
-                           flag="--window", group="detection")
+                           flag="--window", group="detection", detector="mae")
     every: float = option(0.1, positive("of seconds"), "evaluation cadence in s of data time (cusum: "
                           "the statistic is recorded at this cadence; it is updated at every sample)",
                           flag="--every", group="detection")
     persistence: int = option(2, at_least(1), "mae: consecutive evaluations above the threshold before an alarm",
-                              flag="--persistence", group="detection")
+                              flag="--persistence", group="detection", detector="mae")
     refit: str = option("none", choice(REFIT_POLICIES), "mae: none: fit once; paper: refit on the latest "
                         "--refit-samples samples until the first evaluation passes (the paper's policy)",
-                        flag="--refit", group="detection")
-    refit_samples: int = option(1000, at_least(32), "samples per refit", flag="--refit-samples", group="detection")
-    max_refits: int = option(10, at_least(0))
+                        flag="--refit", group="detection", detector="mae")
+    refit_samples: int = option(1000, at_least(32), "mae: samples per refit", flag="--refit-samples",
+                                group="detection", detector="mae")
+    max_refits: int = option(10, at_least(0), detector="mae")
     seed: int = option(0, at_least(0))
-    auto_k: float = option(2.0, positive(""))
-    auto_floor: float = option(0.01, NON_NEGATIVE)
-    auto_z: float = option(4.0, positive(""))
+    auto_k: float = option(2.0, positive(""), detector="mae")
+    auto_floor: float = option(0.01, NON_NEGATIVE, detector="mae")
+    auto_z: float = option(4.0, positive(""), detector="mae")
     validation_fraction: float = option(2 / 3, FRACTION)
     chunk_seconds: float = option(20.0, positive("of seconds"))
     history_points: int = option(20000, at_least(100))
@@ -198,12 +211,15 @@ class MonitorOptions(_Checked):
         if checked.detector == "mae" and len(checked.signals) > 1:
             problems.append(f"signal: the paper's MAE rule watches one column, got {checked.signal!r}; use "
                             "detector cusum to monitor several jointly")
-        if checked.detector == "cusum":
-            if checked.threshold != "auto":
-                problems.append(f"threshold: {checked.threshold!r} is an MAE level, used only by detector mae "
-                                "(the CUSUM is set by false_alarm_rate)")
-            if checked.refit != "none":
-                problems.append(f"refit: {checked.refit!r} is the paper's policy for detector mae")
+        for f in fields(checked):
+            owner = f.metadata["detector"]
+            value = getattr(checked, f.name)
+            if owner is not None and owner != checked.detector and value != f.default:
+                flag = f.metadata["flag"]
+                problems.append(f"{f.name}: {value!r} is an option of detector {owner} only; detector "
+                                f"{checked.detector} does not use it (leave {f.name}"
+                                f"{' (' + flag + ')' if flag else ''} at its default {f.default!r}, or choose "
+                                f"detector {owner})")
         if problems:
             raise OptionError("invalid monitor options:\n  " + "\n  ".join(problems))
         return checked
@@ -224,6 +240,25 @@ class FollowOptions(_Checked):
     timeout: float = option(60.0, TIMEOUT, "with --follow: give up after this many seconds without the file or "
                             "without new rows when run.json does not say the run ended and its writer cannot "
                             "be checked; 0 = wait for ever", flag="--timeout", group="following")
+
+
+def detector_options(detector: str) -> tuple[str, ...]:
+    """The :class:`MonitorOptions` fields that only ``detector`` uses."""
+    return tuple(f.name for f in fields(MonitorOptions) if f.metadata["detector"] == detector)
+
+
+def check_every(every: float, sample_step: float, source: str) -> None:
+    """Refuse an evaluation cadence shorter than the data's sample step (raises :class:`OptionError`).
+
+    Between two samples neither detector's statistic changes, so a shorter ``every`` only
+    repeats evaluations: 1e-9 s on a 0.01 s grid would be ten million per sample.
+    ``sample_step`` is the median step of the training window; a relative 1e-6 allows for
+    the rounding of the file's times.
+    """
+    if every < sample_step * (1.0 - 1e-6):
+        raise OptionError(f"{source}: every (--every) = {every!r} s is shorter than the data's sample step "
+                          f"{sample_step:.6g} s; expected every ≥ {sample_step:.6g} s (between two samples the "
+                          "statistic does not change: a shorter cadence only repeats evaluations)")
 
 
 def merged(base: Any, settings: Mapping[str, Any]) -> Any:

@@ -18,7 +18,9 @@
     spectrum of the training window with the FFT and refined periods.
 
 When the exchange file is replaced while following, ``events.jsonl`` and
-``evaluations.csv`` start again with the new file.
+``evaluations.csv`` start again with the new file.  A new session in a folder removes the
+``summary.json`` and plots an earlier one left there as it starts writing, so a session
+stopped by a signal before its summary leaves only its own (partial) events and evaluations.
 """
 from __future__ import annotations
 
@@ -39,8 +41,8 @@ from .errors import OutputDirError
 if TYPE_CHECKING:  # pragma: no cover
     from .summary import MonitorResult
 
-__all__ = ["OUTPUT_FILES", "OutputWriters", "PLOT_FILES", "checked_default_out_dir", "default_out_dir", "jsonable",
-           "write_plots"]
+__all__ = ["OUTPUT_FILES", "OutputWriters", "PLOT_FILES", "checked_default_out_dir", "checked_out_dir",
+           "default_out_dir", "jsonable", "write_plots"]
 
 PLOT_FILES = ("history.png", "statistic.png", "spectrum.png")
 #: Every file the monitor writes into its output folder.
@@ -73,6 +75,27 @@ def checked_default_out_dir(exchange_path: str | os.PathLike[str]) -> Path:
     return out
 
 
+def checked_out_dir(out_dir: str | os.PathLike[str]) -> Path:
+    """An output folder given with ``--out``, refused (:class:`OutputDirError`) when it is a
+    file, cannot be created where it is, or cannot be written.  Nothing is created here: the
+    folder is made once the input has been accepted."""
+    out = Path(out_dir)
+    try:
+        if out.exists() and not out.is_dir():
+            raise OutputDirError(f"--out {out}: exists and is not a folder; --out names the folder that receives "
+                                 f"{', '.join(OUTPUT_FILES[:3])} and the plots")
+        parent = out
+        while not parent.exists() and parent.parent != parent:
+            parent = parent.parent
+        if not parent.is_dir():
+            raise OutputDirError(f"--out {out}: {parent} is not a folder, so the output folder cannot be made there")
+        if not os.access(parent, os.W_OK | os.X_OK):
+            raise OutputDirError(f"--out {out}: {parent} is not writable; choose a writable folder with --out")
+    except OSError as exc:
+        raise OutputDirError(f"--out {out}: {exc.strerror or exc}") from None
+    return out
+
+
 def jsonable(value: Any) -> Any:
     """Convert numpy scalars/arrays, Paths and non-finite floats (→ None) for JSON."""
     if isinstance(value, dict):
@@ -101,6 +124,10 @@ class OutputWriters:
     def __init__(self, out_dir: Path):
         self.out_dir = Path(out_dir)
         self.out_dir.mkdir(parents=True, exist_ok=True)
+        # The summary and plots of an earlier session here describe other data: removed, so a
+        # session that is stopped before its own summary does not leave them beside its events.
+        for name in ("summary.json", *PLOT_FILES):
+            (self.out_dir / name).unlink(missing_ok=True)
         self._events = open(self.out_dir / "events.jsonl", "w", encoding="utf-8")
         try:
             self._evals = open(self.out_dir / "evaluations.csv", "w", encoding="utf-8")

@@ -36,7 +36,7 @@ from .detector import Detector, Event, SequentialDetector, State, ThresholdRule,
     window_mae
 from .errors import TrainingError
 from .forecasters import Forecaster, fit_forecaster
-from .options import MonitorOptions
+from .options import MonitorOptions, check_every
 from .sequential import CusumDesign, NoiseScale, ResidualCusum, design_cusum, noise_scale
 from .spectrum import PeriodEstimate, dominant_period
 from .tracking import PeriodicTemplate, PhaseTracker, ShapeCorrection
@@ -233,6 +233,7 @@ class Monitor:
             raise TrainingError(f"{self.source}: the training window {o.train[0]:g}–{o.train[1]:g} s holds "
                                 f"{int(sel.sum())} samples of {o.signal}; at least 16 are needed")
         self._dt = float(np.median(np.diff(self._t[sel])))
+        check_every(o.every, self._dt, self.source)    # before anything is written
         tt, xx = self._t[sel], self._x[sel]
         # samples before the window end are training data; they go to the history as such
         self.history.extend(np.column_stack([tt, xx[:, 0], np.full(tt.size, np.nan)]))

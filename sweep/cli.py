@@ -1,8 +1,9 @@
 """``fourbar-sweep``: run a sweep file's fault scenarios on Dask and report detection figures.
 
 Exit codes: 0 every scenario of the sweep has a row and none failed, 1 some scenario
-failed (its row says why) or the cluster could not be used, 2 usage or sweep-file error,
-130 interrupted (Ctrl-C; finished rows are kept, re-run to resume).  Heavy imports (Dask,
+failed (its row says why) or the cluster could not be used, 2 usage or sweep-file error
+or an unusable --out (nothing run), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM):
+finished rows are kept, re-run to resume.  Heavy imports (Dask,
 FMPy, pandas) happen inside the handler, so ``--help`` and ``--version`` answer at once.
 """
 from __future__ import annotations
@@ -34,8 +35,12 @@ examples:
   fourbar-sweep sweeps/l2_step.toml --scheduler tcp://10.0.0.5:8786 --out /shared/sweeps/l2
 
 Sweep-file keys, cluster set-up and the meaning of every column: docs/sweep.md.
+Ctrl-C or SIGTERM (to the sweep, or Ctrl-C to its whole process group) cancels the
+scenarios still running, writes the table, summary and plots from the rows finished so far
+and says where; re-run the same command to resume.
 exit status: 0 all scenarios done and none failed, 1 a scenario failed or no cluster,
-2 usage or sweep-file error, 130 interrupted (re-run the same command to resume).
+2 usage or sweep-file error or unusable --out (nothing run), 130 interrupted (Ctrl-C),
+143 terminated (SIGTERM).
 """
 
 
@@ -74,6 +79,18 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from fourbar_common.signals import StopSignals, exit_code, signal_of, stop_reason
+
+    with StopSignals() as stop:      # Ctrl-C and SIGTERM end the sweep in order, with one line
+        try:
+            return _main(argv, stop)
+        except KeyboardInterrupt as exc:     # before the sweep began (the sweep reports its own)
+            signum = signal_of(exc)
+            _err(f"{stop_reason(signum)}; nothing was run")
+            return exit_code(signum)
+
+
+def _main(argv: list[str] | None, stop=None) -> int:
     parser = _parser()
     try:
         args = parser.parse_args(argv)
@@ -84,7 +101,8 @@ def main(argv: list[str] | None = None) -> int:
               "cluster's own workers are used (start them with `dask worker`)", file=sys.stderr)
         return 2
     return _sweep(args.sweep, scheduler=args.scheduler, workers=args.workers, out=args.out, limit=args.limit,
-                  retry_failed=args.retry_failed, dry_run=args.dry_run, quiet=args.quiet, dashboard=args.dashboard)
+                  retry_failed=args.retry_failed, dry_run=args.dry_run, quiet=args.quiet, dashboard=args.dashboard,
+                  stop=stop)
 
 
 def _err(message: str) -> None:
@@ -95,7 +113,12 @@ def _percent(x: float | None) -> str:
     return "none" if x is None else f"{100 * x:.3g} %"
 
 
-def _sweep(path: str, *, scheduler, workers, out, limit, retry_failed: bool, dry_run: bool, quiet: bool, dashboard: str | None = None) -> int:
+def _sweep(path: str, *, scheduler, workers, out, limit, retry_failed: bool, dry_run: bool, quiet: bool,
+           dashboard: str | None = None, stop=None) -> int:
+    from pathlib import Path
+
+    from fourbar_common.signals import exit_code, signal_of, stop_reason
+
     from .config import SweepError, load_sweep
     from .results import ResultsError
 
@@ -132,12 +155,20 @@ def _sweep(path: str, *, scheduler, workers, out, limit, retry_failed: bool, dry
         return 1
     except SweepInterrupted as exc:
         r = exc.result
-        _err(f"{sweep.name}: interrupted: {len(r.table)} of {r.planned} scenarios in {r.files['csv']}; "
+        signum = stop.received if stop is not None and stop.received is not None else signal_of(exc)
+        _err(f"{sweep.name}: {stop_reason(signum)}: {len(r.table)} of {r.planned} scenarios in {r.files['csv']}; "
              f"run the same command again to resume")
-        return 130
-    except KeyboardInterrupt:
-        _err(f"{sweep.name}: interrupted before any scenario ran")
-        return 130
+        return exit_code(signum)
+    except KeyboardInterrupt as exc:     # before the first scenario, or a second signal while writing the table
+        signum = signal_of(exc)
+        csv = (Path(out) if out else Path("out") / "sweeps" / sweep.name) / "results.csv"
+        kept = (f"the rows of finished scenarios are kept in {csv}; run the same command again to resume"
+                if csv.is_file() else "nothing was run")
+        _err(f"{sweep.name}: {stop_reason(signum)}; {kept}")
+        return exit_code(signum)
+    except OSError as exc:               # writing the results: disk full, folder removed meanwhile
+        _err(f"error: {exc.filename or sweep.name}: {exc.strerror or exc}; the rows written so far are kept")
+        return 1
     if not quiet:
         _report(result)
     failed = result.failed
@@ -156,7 +187,9 @@ def _dry_run(sweep, out) -> int:
     plan = plan_scenarios(sweep)
     directory = Path(out) if out else Path("out") / "sweeps" / sweep.name
     try:
-        rows = ResultsStore(directory).load()
+        store = ResultsStore(directory)
+        store.check_dir()
+        rows = store.load()
     except ResultsError as exc:
         _err(f"error: {exc}")
         return 2

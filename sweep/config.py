@@ -393,17 +393,23 @@ class _Validator(ProblemReporter):
                                threshold_check)
         options = {k: v for k, v in table.items() if k not in ("signal", "model", "threshold") and k in fields}
         # the remaining options are checked by the monitor itself, all problems at once
+        # a numeric threshold (an MAE level) joins the check, so a detector that does not use it is refused
+        level = thresholds.min if isinstance(thresholds, Range) else \
+            next((t for t in thresholds or () if t != "auto"), None)
         try:
             trial = dict(options)
             if isinstance(trial.get("train"), list):
                 trial["train"] = tuple(trial["train"])
+            if level is not None:
+                trial["threshold"] = level
             MonitorOptions(**trial).validated()
         except OptionError as exc:
             lines = str(exc).splitlines()[1:] or [str(exc)]
             for line in lines:
                 line = line.strip()
                 key, _, rest = line.partition(":")
-                shown = show_value(options.get(key)) if key in options else "(default)"
+                shown = show_value(options.get(key)) if key in options else \
+                    show_value(table["threshold"]) if key == "threshold" and level is not None else "(default)"
                 self.problems.append(f"monitor.{key} = {shown}:{rest}")
             ok = False
         except TypeError as exc:       # a wrong type the dataclass could not even take

@@ -177,10 +177,33 @@ class ResultsStore:
             self._fh.close()
             self._fh = None
 
+    def check_dir(self) -> None:
+        """Raise :class:`ResultsError` naming the path when the output directory cannot be
+        used: it (or a parent) is a file, or it cannot be created or written.  Creates nothing."""
+        out = self.out_dir
+        try:
+            if out.exists() and not out.is_dir():
+                raise ResultsError(f"--out {out}: exists and is not a folder; --out names the folder that receives "
+                                   "results.csv, results.parquet, summary.json, plots/ and runs/")
+            parent = out
+            while not parent.exists() and parent.parent != parent:
+                parent = parent.parent
+            if not parent.is_dir():
+                raise ResultsError(f"--out {out}: {parent} is not a folder, so the output folder cannot be made there")
+            if not os.access(parent, os.W_OK | os.X_OK):
+                raise ResultsError(f"--out {out}: {parent} is not writable; choose a writable folder with --out")
+        except OSError as exc:
+            raise ResultsError(f"--out {out}: {exc.strerror or exc}") from None
+
     def lock(self) -> None:
         """Claim the directory (``.lock`` with this process id); ResultsError if another live
-        process on this host holds it.  A lock left by a dead process is taken over."""
-        self.out_dir.mkdir(parents=True, exist_ok=True)
+        process on this host holds it, or if the directory cannot be used (:meth:`check_dir`).
+        A lock left by a dead process is taken over."""
+        self.check_dir()
+        try:
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ResultsError(f"--out {self.out_dir}: cannot create the folder: {exc.strerror or exc}") from None
         path = self.out_dir / ".lock"
         for _ in range(2):
             try:
@@ -195,6 +218,8 @@ class ResultsStore:
                                        f"wait for it, or choose another --out") from None
                 path.unlink(missing_ok=True)      # stale: its process is gone
                 continue
+            except OSError as exc:                # read-only, permission
+                raise ResultsError(f"--out {self.out_dir}: cannot write there: {exc.strerror or exc}") from None
             with os.fdopen(fd, "w") as fh:
                 fh.write(str(os.getpid()))
             self._locked = True
