@@ -430,6 +430,11 @@ def measure(data: Path) -> dict[str, str]:
     return figures
 
 
+def all_figures(data: Path) -> dict[str, str]:
+    """Every figure: the copied ones and the measured ones (runs in ``data``)."""
+    return {**copied_figures(), **measure(data)}
+
+
 def python_blocks(text: str) -> list[str]:
     """The ```python blocks of a markdown text, in order."""
     return re.findall(r"(?ms)^```python\n(.*?)^```", text)
@@ -557,9 +562,8 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="doc_figures_") as tmp:
         data = args.data or Path(tmp)
         data.mkdir(parents=True, exist_ok=True)
-        figures = copied_figures()
+        figures = copied_figures() if args.copied else all_figures(data)
         if not args.copied:
-            figures.update(measure(data))
             if args.write:
                 shutil.copyfile(data / "demo" / "monitor" / "history.png", REPO / DEMO_IMAGE)
     findings = compare(figures, partial=args.copied)
