@@ -10,7 +10,6 @@ Usage: python build_fmu.py [--only {pythonfmu,native}] [--out PATH] [--native-ou
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import zipfile
 from pathlib import Path
@@ -26,14 +25,6 @@ file only with --force, a directory never (exit 2, nothing written).
 exit status: 0 built (and valid), 1 a build failed or fmpy validate found problems, 2 usage error,
 130 interrupted (Ctrl-C), 143 terminated (SIGTERM); an interrupted build leaves no partial file.
 """
-
-
-class _Terminated(KeyboardInterrupt):
-    """SIGTERM, handled like Ctrl-C."""
-
-
-def _raise_terminated(signum, frame) -> None:
-    raise _Terminated
 
 
 def _is_fmu(path: Path) -> bool:
@@ -108,19 +99,15 @@ def main(argv=None) -> int:
         print(f"build_fmu.py: error: {problem}", file=sys.stderr)
     if problems:
         return 2
-    previous = None
-    if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
-        previous = signal.signal(signal.SIGTERM, _raise_terminated)
-    try:
-        return _build(args)
-    except KeyboardInterrupt as exc:   # Ctrl-C or SIGTERM: the builds remove their partial files
-        terminated = isinstance(exc, _Terminated)
-        print(f"build_fmu.py: {'terminated by SIGTERM' if terminated else 'interrupted'}; "
-              f"no partial FMU was left", file=sys.stderr)
-        return 143 if terminated else 130
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+    from fourbar_common.signals import StopSignals, exit_code, signal_of, stop_reason
+
+    with StopSignals():
+        try:
+            return _build(args)
+        except KeyboardInterrupt as exc:   # Ctrl-C or SIGTERM: the builds remove their partial files
+            signum = signal_of(exc)
+            print(f"build_fmu.py: {stop_reason(signum)}; no partial FMU was left", file=sys.stderr)
+            return exit_code(signum)
 
 
 def _build(args) -> int:

@@ -83,9 +83,15 @@ def _parse_overrides(items: list[str]) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from .pacing import raise_on_sigterm, signal_of, stop_reason
+    from fourbar_common.signals import StopSignals
 
-    raise_on_sigterm()          # SIGTERM stops fourbar-run like Ctrl-C, at any moment
+    with StopSignals():         # Ctrl-C and SIGTERM end fourbar-run with one line, at any moment
+        return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
+    from fourbar_common.signals import exit_code, signal_of, stop_reason
+
     try:
         parser = _parser()
         try:
@@ -102,10 +108,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as exc:     # before or after the run (a run reports its own)
         signum = signal_of(exc)
         print(f"fourbar-run: {stop_reason(signum)}; no run was started, nothing was written", file=sys.stderr)
-        return 128 + signum
+        return exit_code(signum)
 
 
 def _run(case: str, *, out, stop, realtime, overrides, quiet: bool, fmu=None, max_rows=None) -> int:
+    from fourbar_common.signals import exit_code
+
     from .validation import ConfigError
     from .run import RunInterrupted, run_case
 
@@ -124,7 +132,7 @@ def _run(case: str, *, out, stop, realtime, overrides, quiet: bool, fmu=None, ma
                   f"kept in {r.exchange_path}; status in {r.run_json_path}", file=sys.stderr)
         else:
             print(f"fourbar-run: {r.case.name}: {r.error}; nothing was written", file=sys.stderr)
-        return 128 + exc.signum
+        return exit_code(exc.signum)
     if not result.ok:
         where = (f"after {result.rows_written} rows (last t = {result.last_time!r} s)" if result.rows_written
                  else "before the first row")

@@ -6,9 +6,10 @@ the wall clock: the block ending at ``t`` is released at
 
 :class:`InterruptFlag` turns Ctrl-C (SIGINT) and SIGTERM into a flag the loop checks
 between steps, so the signal never lands inside the FMU's own code (a pythonfmu FMU runs
-Python in this interpreter); a second signal raises at once.  SIGTERM is handled like
-Ctrl-C: it raises :class:`Terminated`, a ``KeyboardInterrupt`` that carries its signal
-number, so every ``except KeyboardInterrupt`` that keeps rows also keeps them on SIGTERM.
+Python in this interpreter); a second signal raises at once.  What is raised is
+:class:`fourbar_common.signals.Stopped`, a ``KeyboardInterrupt`` that carries the signal's
+number, so every ``except KeyboardInterrupt`` that keeps rows also keeps them on SIGTERM,
+and a command ends with :func:`fourbar_common.signals.exit_code` (130 or 143).
 """
 from __future__ import annotations
 
@@ -16,48 +17,29 @@ import signal
 import threading
 import time
 
-__all__ = ["InterruptFlag", "RealtimePacer", "Terminated", "raise_on_sigterm", "signal_of", "stop_reason"]
+from fourbar_common.signals import STOP_SIGNALS, StopSignals, Stopped
+
+__all__ = ["InterruptFlag", "RealtimePacer"]
 
 _SLICE = 0.05   # s: longest single sleep, so a signal is noticed quickly while waiting
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised where Ctrl-C raises ``KeyboardInterrupt``."""
-
-    signum = signal.SIGTERM
-
-
-def signal_of(exc: BaseException) -> int:
-    """The signal behind a ``KeyboardInterrupt``: SIGTERM for :class:`Terminated`, else SIGINT."""
-    return int(getattr(exc, "signum", signal.SIGINT))
-
-
-def stop_reason(signum: int) -> str:
-    """'interrupted by Ctrl-C' or 'terminated by SIGTERM': what run.json and messages say."""
-    return "terminated by SIGTERM" if signum == signal.SIGTERM else "interrupted by Ctrl-C"
-
-
-def _raise_terminated(signum, frame) -> None:
-    raise Terminated
-
-
-def raise_on_sigterm() -> None:
-    """Make SIGTERM raise :class:`Terminated` in the main thread (for a CLI's whole life:
-    outside a run's loop it stops the program like Ctrl-C does, without a traceback when
-    the CLI catches ``KeyboardInterrupt``).  Leaves a handler someone else installed alone."""
-    if threading.current_thread() is threading.main_thread() \
-            and signal.getsignal(signal.SIGTERM) in (signal.SIG_DFL, None):
-        signal.signal(signal.SIGTERM, _raise_terminated)
+def _default_stop(signum: int, handler) -> bool:
+    """``handler`` stops the program at once on ``signum``: Python's own Ctrl-C handler,
+    SIGTERM's default (termination), or a command's :class:`StopSignals` (what every CLI
+    of this project runs under).  A handler someone else installed is left alone, and so
+    is a signal the process inherited as ignored."""
+    if signum == signal.SIGINT and handler is signal.default_int_handler:
+        return True
+    if signum == signal.SIGTERM and handler in (signal.SIG_DFL, None):
+        return True
+    return isinstance(getattr(handler, "__self__", None), StopSignals)
 
 
 class InterruptFlag:
     """Context manager: while active (main thread only), SIGINT and SIGTERM set ``requested``
-    and ``signum``.
-
-    A signal is taken over only while it has its default behaviour (Python's
-    ``KeyboardInterrupt`` for SIGINT; termination, or :func:`raise_on_sigterm`'s handler,
-    for SIGTERM), so a program that handles the signal itself keeps doing so.
-    """
+    and ``signum`` instead of stopping the program at once (:func:`_default_stop` says when
+    a signal is taken over)."""
 
     def __init__(self):
         self.requested = False
@@ -66,28 +48,27 @@ class InterruptFlag:
 
     def __enter__(self) -> "InterruptFlag":
         if threading.current_thread() is threading.main_thread():
-            defaults = {signal.SIGINT: (signal.default_int_handler,),
-                        signal.SIGTERM: (signal.SIG_DFL, _raise_terminated)}
-            for signum, default in defaults.items():
-                if signal.getsignal(signum) in default:
+            for signum in STOP_SIGNALS:
+                current = signal.getsignal(signum)
+                if _default_stop(signum, current):
                     self._previous[signum] = signal.signal(signum, self._handle)
         return self
 
     def __exit__(self, *exc) -> None:
         for signum, previous in self._previous.items():
-            signal.signal(signum, previous)
+            signal.signal(signum, previous if previous is not None else signal.SIG_DFL)
         self._previous = {}
 
     def _handle(self, signum, frame) -> None:
         if self.requested:
-            raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+            raise Stopped(signum)
         self.requested = True
         self.signum = signum
 
     def check(self) -> None:
-        """Raise ``KeyboardInterrupt`` (:class:`Terminated` for SIGTERM) if a signal came."""
+        """Raise :class:`~fourbar_common.signals.Stopped` if a signal came."""
         if self.requested:
-            raise Terminated if self.signum == signal.SIGTERM else KeyboardInterrupt
+            raise Stopped(self.signum)
 
 
 class RealtimePacer:

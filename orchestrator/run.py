@@ -49,7 +49,9 @@ from fourbar_common import (SCHEMA_VERSION, ParameterStart, RecordedExchange, Re
 from .case import Case, RampEvent, StepEvent, Value
 from .config import apply_overrides, load_case
 from .exchange import ExchangeWriter, format_row
-from .pacing import InterruptFlag, RealtimePacer, signal_of, stop_reason
+from fourbar_common.signals import signal_of, stop_reason
+
+from .pacing import InterruptFlag, RealtimePacer
 from .validation import ConfigError
 
 __all__ = ["DERIVED_OUTPUTS", "HEARTBEAT_INTERVAL", "RunInterrupted", "RunResult", "StartValuesRefused",

@@ -66,7 +66,7 @@ def test_a_cc_that_does_not_exist_is_named(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("sig, code, said", [(signal.SIGINT, 130, "interrupted"),
+@pytest.mark.parametrize("sig, code, said", [(signal.SIGINT, 130, "interrupted by Ctrl-C"),
                                              (signal.SIGTERM, 143, "terminated by SIGTERM")])
 def test_a_signal_during_a_build_leaves_no_partial_fmu(sig, code, said, tmp_path):
     """The signal lands during the pythonfmu build (about 3 s; sent after 1 s).  SIGINT is
