@@ -112,6 +112,7 @@ def _unwritable(tmp_path: Path) -> Path:
     pytest.skip("no folder here refuses this process's writes")
 
 
+@pytest.mark.slow
 def test_diagnose_out_that_cannot_take_the_outputs_is_refused_before_the_diagnosis(pythonfmu_run, tmp_path):
     """--out on a file, under a file, or in a read-only place: exit 2 at once with the path named.
 
@@ -175,6 +176,21 @@ def test_a_signal_stops_a_diagnosis_with_one_line(request, tmp_path, fmu, signum
     assert stderr.strip().splitlines() == [f"fourbar-diagnose: {REASON[signum]} before the diagnosis was complete; "
                                            "nothing was written"], stderr
     assert stdout == "" and not out.exists()        # the folder made by the check is removed again
+
+
+@pytest.mark.slow
+def test_ctrl_c_in_the_python_api_is_a_keyboardinterrupt_not_a_crash(pythonfmu_run, tmp_path):
+    """``diagnose.diagnose`` called from a script (Python's own Ctrl-C handler, no command): Ctrl-C
+    during the pythonfmu FMU's calls is raised between two of them, as a KeyboardInterrupt the
+    caller may catch; raised inside the FMU it crashed the process (SIGSEGV)."""
+    script = tmp_path / "api.py"
+    script.write_text("import sys\nfrom diagnose import diagnose\ntry:\n"
+                      f"    diagnose({str(pythonfmu_run)!r}, use_run_fmu=True)\n"
+                      "except KeyboardInterrupt:\n    print('caught KeyboardInterrupt')\n    sys.exit(7)\n")
+    proc = _start([sys.executable, str(script)], tmp_path)
+    time.sleep(6.0)          # imports (~2 s), then the healthy pass and branches: minutes of FMU calls
+    stdout, stderr = _send(proc, signal.SIGINT)
+    assert proc.returncode == 7 and stdout.strip() == "caught KeyboardInterrupt", (proc.returncode, stdout, stderr)
 
 
 # -- signals during monitoring -------------------------------------------------------------------------
