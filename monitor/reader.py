@@ -335,7 +335,9 @@ class ExchangeReader:
         except (ValueError, pd.errors.ParserError, pd.errors.EmptyDataError):
             return None
         n = body.count(b"\n")
-        if arr.shape != (n, self._ncols):
+        # pandas pads a row with too few fields with NaN (and refuses one with too many): a
+        # short row whose time and signal survived would pass the checks below; count commas
+        if arr.shape != (n, self._ncols) or body.count(b",") != n * (self._ncols - 1):
             return None
         sub = arr[:, list(self._index)]
         t = sub[:, 0]
@@ -394,7 +396,7 @@ class ExchangeReader:
             if t <= last:
                 kind = "duplicate_time" if t == last else "decreasing_time"
                 self._skip(kind, line_no, f"column time: value {fields[index[0]].strip()!r} is "
-                           f"{'equal to' if t == last else 'before'} the previous row's time {last!r}; "
+                           f"{'equal to' if t == last else 'before'} the previous row's time {float(last)!r}; "
                            "row skipped", TIME_COLUMN, fields[index[0]].strip())
                 continue
             last = t
