@@ -47,6 +47,7 @@ check: $(FMU)
 benchmarks: $(FMU)
 	$(BIN)/python benchmarks/run_all.py --write docs/benchmarks.md
 	$(BIN)/python benchmarks/doc_figures.py --write
+	$(BIN)/python benchmarks/robustness.py --write docs/robustness.md
 
 figures: $(FMU)
 	$(BIN)/python benchmarks/doc_figures.py --check
