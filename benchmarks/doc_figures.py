@@ -180,6 +180,11 @@ QUOTES = (
           ("sweep_pythonfmu_s", "sweep_native_s")),
     Quote("README.md", r"The pythonfmu FMU is (\S+)× slower than a trivial pythonfmu FMU", ("speed_ratio_range",)),
     Quote("README.md", r"scipy's own stepping alone already costs (\S+)×", ("replay_ratio_range",)),
+    Quote("README.md", r"beyond Table 1: (\d+) generated configurations .*? false alarms per healthy hour: (\S+) clean, "
+          r"(\S+) noisy \((\S+) h in all\); median delay of a 1 % length step (\S+) s clean, (\S+) s noisy, of a "
+          r"10 % mass step (\S+) s / (\S+) s; right parameter named for (\S+) % / (\S+) %",
+          ("robust_configs", "robust_fa_clean", "robust_fa_noisy", "robust_hours", "robust_length_clean",
+           "robust_length_noisy", "robust_mass_clean", "robust_mass_noisy", "robust_right_clean", "robust_right_noisy")),
     # docs/sweep.md: counts, timings and the headline table, copied
     Quote("docs/sweep.md", r"# (\d+) scenarios, each a 20 s run", ("scenarios.smoke",)),
     Quote("docs/sweep.md", r"the headline sweep: (\d+) scenarios \((\d+) s on 2 cores in docs/benchmarks\.md\)",
@@ -232,6 +237,17 @@ SOURCES = (
                                      r"\| σ = 5 mm \| harmonic \| (\S+) % \| (\S+) s \| (\d+)/(\d+) \|"),
     ("case2seeds", "docs/detection.md", r"\| cusum \| prophet \| \S+ s \| (\S+) s \(median; (\S+)–(\S+) s, n = (\d+)\) \| \d+ \| (\d+) \|"
                                         r"(?:\n[^\n]*)*?\n\| mae \| prophet \| \S+ s \| (\S+) s \(median; [^)]*\) \| \d+ \| (\d+) \|"),
+    # docs/robustness.md's per-family table, in its order (family × clean/noisy): per row the
+    # false alarms per healthy hour, the median delays of the 1 % length and 10 % mass steps,
+    # and the share of right diagnoses
+    ("robust", "docs/robustness.md", r"\| table1_swing \| none \| \d+ \| [\d.]+ \| \d+ \(([\d.]+)\) \| [\d.]+ \| ([\d.]+) / [\d.]+ s[^|]* \| ([\d.]+) / [\d.]+ s[^|]* \| \d+/\d+ \((\d+) %\) \|[^\n]*\n"
+                                     r"\| table1_swing \| σ = 3–5 mm \| \d+ \| [\d.]+ \| \d+ \(([\d.]+)\) \| [\d.]+ \| ([\d.]+) / [\d.]+ s[^|]* \| ([\d.]+) / [\d.]+ s[^|]* \| \d+/\d+ \((\d+) %\) \|[^\n]*\n" 
+                                     r"\| rotating \| none \| \d+ \| [\d.]+ \| \d+ \(([\d.]+)\) \| [\d.]+ \| ([\d.]+) / [\d.]+ s[^|]* \| ([\d.]+) / [\d.]+ s[^|]* \| \d+/\d+ \((\d+) %\) \|[^\n]*\n" 
+                                     r"\| rotating \| σ = 3–5 mm \| \d+ \| [\d.]+ \| \d+ \(([\d.]+)\) \| [\d.]+ \| ([\d.]+) / [\d.]+ s[^|]* \| ([\d.]+) / [\d.]+ s[^|]* \| \d+/\d+ \((\d+) %\) \|[^\n]*\n" 
+                                     r"\| other_swing \| none \| \d+ \| [\d.]+ \| \d+ \(([\d.]+)\) \| [\d.]+ \| ([\d.]+) / [\d.]+ s[^|]* \| ([\d.]+) / [\d.]+ s[^|]* \| \d+/\d+ \((\d+) %\) \|[^\n]*\n" 
+                                     r"\| other_swing \| σ = 3–5 mm \| \d+ \| [\d.]+ \| \d+ \(([\d.]+)\) \| [\d.]+ \| ([\d.]+) / [\d.]+ s[^|]* \| ([\d.]+) / [\d.]+ s[^|]* \| \d+/\d+ \((\d+) %\) \|"),
+    ("robusth", "docs/robustness.md", r"\(do not edit by hand\): (\d+) configurations \((?s:.*?)up to the fault "
+                                      r"\(or the end\): ([\d.]+) h in all"),
     ("case3", "docs/detection.md", r"\| cusum \| (\S+) s \(median; (\S+)–(\S+) s, n = (\d+)\) \| (\d+) \| \d+ \|\n"
                                    r"\| mae \| \S+ s \(median; (\S+)–(\S+) s, n = \d+\) \| (\d+), (\d+) \| \d+ \|"),
 )
@@ -325,6 +341,13 @@ def copied_figures(root: Path = REPO) -> dict[str, str]:
     put("case3_mae_episodes", ("case3.8", "case3.9"), lambda a, b: f"{a}–{b}")
     for i in range(1, 17):
         put(f"l2table.{i}", (f"l2table.{i}",), str)
+    # robustness: ranges over the three families, clean rows (0, 2, 4) and noisy rows (1, 3, 5)
+    span = lambda *v: (lambda lo, hi: lo if lo == hi else f"{lo}–{hi}")(min(v, key=float), max(v, key=float))  # noqa: E731
+    for noise, rows in (("clean", (0, 2, 4)), ("noisy", (1, 3, 5))):
+        for field, col in (("fa", 1), ("length", 2), ("mass", 3), ("right", 4)):
+            put(f"robust_{field}_{noise}", tuple(f"robust.{4 * r + col}" for r in rows), span)
+    put("robust_configs", ("robusth.1",), str)
+    put("robust_hours", ("robusth.2",), str)
     figures.update(sweep_counts(root))
     return figures
 

@@ -39,7 +39,7 @@ def main(argv=None) -> int:
           "| energy drift, max-min (J) | max constraint residual |")
     print("|---|---|---|---|---|")
     for case in ("Case 1", "Case 2"):
-        for label, tol in (("Table 1: rtol 1e-9, atol 1e-6", {}), ("rtol = atol = 1e-12", {"rtol": 1e-12, "atol": 1e-12})):
+        for label, tol in (("Table 1: rtol 1e-9, atol 1e-6", {"rtol": 1e-9, "atol": 1e-6}), ("rtol = atol = 1e-12", {"rtol": 1e-12, "atol": 1e-12})):
             r = simulate_fmu(args.fmu, stop_time=100, output_interval=0.01, start_values=tol,
                              input=step if case == "Case 2" else None)
             err = np.abs(np.column_stack([r[n] for n in CENTRES]) - refs[case]).max()

@@ -264,11 +264,6 @@ def test_a_generated_fault_is_detected_in_time_and_named(case, tmp_path_factory,
         assert e.diagnose.code == 0 and names_the_fault(e.diagnosis, fault.variable), e.diagnosis["message"]
 
 
-# Known to fail on the current detector (issue 23 stays open on it): a generated rotating crank
-# (L 4.43/0.95/4.09/3.22 m, 5.03 rad/s, 3 mm) false-alarms at 150.46 s, and docs/robustness.md
-# measures 6.1 / 2.9 false alarms per healthy hour for rotating cranks (clean / noisy).  strict:
-# the day it passes, pytest says so and the mark must go.
-@pytest.mark.xfail(strict=True, reason="rotating cranks still false-alarm (docs/robustness.md); issue 23 open")
 @pytest.mark.slow
 @examples(4)
 @given(case=generated_cases(fault=False))

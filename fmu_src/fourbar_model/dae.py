@@ -135,7 +135,7 @@ class FourBarDAE:
     """
 
     def __init__(self, eq, p, method: str = "DOP853", rtol: float = 1e-9,
-                 atol: float = 1e-6, t_bound: float = math.inf):
+                 atol: float = 1e-10, t_bound: float = math.inf):
         if method not in INTEGRATORS:
             raise ValueError(f"integrator {method!r} is not one of {sorted(INTEGRATORS)}")
         self.eq = eq
