@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
-from fourbar_common import RecordedEvent, RunRecord, RunRecordError, read_run_record
+from fourbar_common import Event, RunRecord, RunRecordError, read_run_record
 
 from .errors import DiagnoseError, NoAlarm
 from .simulator import Grid
@@ -56,7 +56,7 @@ class RunInputs:
     simulator_fmu: Any              # orchestrator FmuDescription of the FMU that simulates
     case: str
     run_id: str | None
-    events: tuple[RecordedEvent, ...]   # the injected truth, for scoring only
+    events: tuple[Event, ...]   # the injected truth, for scoring only
     record: RunRecord | None = None     # run.json as read (schema 1: completed with the FMU's defaults)
 
 

@@ -5,26 +5,28 @@ may all import this package, which imports nothing of theirs and only the standa
 """
 from __future__ import annotations
 
+from .events import Event, RampEvent, StepEvent, Value
 from .files import replace_atomically, write_json_atomic
-from .run_record import (PARAMETER_SOURCES, SCHEMA_VERSION, ParameterStart, RecordedEvent, RecordedExchange,
-                         RecordedExperiment, RecordedFmu, RecordedNoise, RecordedRamp, RecordedStep, RecordedWriter,
-                         RunRecord, RunRecordError, read_run_record, write_run_record)
+from .run_record import (PARAMETER_SOURCES, SCHEMA_VERSION, ParameterStart, RecordedExchange, RecordedExperiment,
+                         RecordedFmu, RecordedNoise, RecordedWriter, RunRecord, RunRecordError, read_run_record,
+                         write_run_record)
 from .version import package_version
 
 __all__ = [
+    "Event",
     "PARAMETER_SOURCES",
     "ParameterStart",
-    "RecordedEvent",
     "RecordedExchange",
     "RecordedExperiment",
     "RecordedFmu",
     "RecordedNoise",
-    "RecordedRamp",
-    "RecordedStep",
     "RecordedWriter",
     "RunRecord",
+    "RampEvent",
     "RunRecordError",
     "SCHEMA_VERSION",
+    "StepEvent",
+    "Value",
     "package_version",
     "read_run_record",
     "replace_atomically",

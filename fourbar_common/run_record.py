@@ -28,21 +28,19 @@ import math
 import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Iterable, Mapping, NoReturn, Union
+from typing import Any, Iterable, Mapping, NoReturn
 
+from .events import Event, RampEvent, StepEvent, Value
 from .files import write_json_atomic
 
 __all__ = [
     "PARAMETER_SOURCES",
     "ParameterStart",
     "READABLE_SCHEMAS",
-    "RecordedEvent",
     "RecordedExchange",
     "RecordedExperiment",
     "RecordedFmu",
     "RecordedNoise",
-    "RecordedRamp",
-    "RecordedStep",
     "RecordedWriter",
     "RUN_STATUSES",
     "RunRecord",
@@ -64,7 +62,6 @@ _WRITTEN_SOURCES = ("case", "set", "fmu")
 _PARAMETER_TYPES = ("Real", "Integer", "Enumeration", "Boolean", "String")
 _VARIABILITIES = ("fixed", "tunable")
 
-Value = Union[float, int, bool, str]
 
 
 class RunRecordError(ValueError):
@@ -126,42 +123,6 @@ class ParameterStart:
                 "variability": self.variability, "unit": self.unit}
 
 
-@dataclass(frozen=True)
-class RecordedStep:
-    """A step event: ``variable`` set to ``value`` at ``time`` (s)."""
-
-    time: float
-    variable: str
-    value: Value
-
-    @property
-    def first_time(self) -> float:
-        return self.time
-
-    def to_json(self) -> dict:
-        return {"type": "step", "time": self.time, "variable": self.variable, "value": self.value}
-
-
-@dataclass(frozen=True)
-class RecordedRamp:
-    """A ramp event: ``variable`` moved linearly from ``from_`` to ``to`` over [``start``, ``end``] (s)."""
-
-    variable: str
-    from_: float
-    to: float
-    start: float
-    end: float
-
-    @property
-    def first_time(self) -> float:
-        return self.start
-
-    def to_json(self) -> dict:
-        return {"type": "ramp", "variable": self.variable, "from": self.from_, "to": self.to,
-                "start": self.start, "end": self.end}
-
-
-RecordedEvent = Union[RecordedStep, RecordedRamp]
 
 
 @dataclass(frozen=True)
@@ -218,7 +179,7 @@ class RunRecord:
     fmu: RecordedFmu | None
     experiment: RecordedExperiment | None
     parameters: tuple[ParameterStart, ...] = ()
-    events: tuple[RecordedEvent, ...] = ()
+    events: tuple[Event, ...] = ()
     outputs: tuple[str, ...] = ()
     units: Mapping[str, str] = field(default_factory=dict)
     case_file: str | None = None
@@ -290,7 +251,7 @@ class RunRecord:
             "fmu": self.fmu.to_json() if self.fmu is not None else None,
             "experiment": self.experiment.to_json() if self.experiment is not None else None,
             "parameters": {p.name: p.to_json() for p in self.parameters},
-            "events": [e.to_json() for e in self.events],
+            "events": [e.as_dict() for e in self.events],
             "fault_time": self.fault_time,
             "outputs": list(self.outputs),
             "units": dict(self.units),
@@ -534,9 +495,9 @@ class _Parser:
                                           source="unknown", type=vtype))
         return tuple(entries)
 
-    def events(self, data: dict) -> tuple[RecordedEvent, ...]:
+    def events(self, data: dict) -> tuple[Event, ...]:
         items = self.get(data, "events", "", lambda v: isinstance(v, list), "an array", default=[])
-        events: list[RecordedEvent] = []
+        events: list[Event] = []
         lenient, self.lenient = self.lenient, False      # an event present is checked in full
         try:
             for i, item in enumerate(items):
@@ -547,11 +508,11 @@ class _Parser:
                 if kind == "step":
                     value = self.get(item, "value", f"{where}.", lambda v: self.is_number(v) or isinstance(v, (bool, str)),
                                      "a number, boolean or string")
-                    events.append(RecordedStep(time=self.number(item, "time", f"{where}."),
+                    events.append(StepEvent(time=self.number(item, "time", f"{where}."),
                                                variable=self.text(item, "variable", f"{where}."), value=value))
                 elif kind == "ramp":
                     n = {key: self.number(item, key, f"{where}.") for key in ("from", "to", "start", "end")}
-                    events.append(RecordedRamp(variable=self.text(item, "variable", f"{where}."), from_=n["from"],
+                    events.append(RampEvent(variable=self.text(item, "variable", f"{where}."), from_=n["from"],
                                                to=n["to"], start=n["start"], end=n["end"]))
                 else:
                     self.fail(f"{where}.type", kind, '"step" or "ramp"')

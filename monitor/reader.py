@@ -37,7 +37,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fourbar_common import RecordedEvent, RunRecord, RunRecordError, read_run_record
+from fourbar_common import Event, RunRecord, RunRecordError, read_run_record
 
 from .errors import ExchangeFormatError, ExchangeMissingError
 
@@ -520,7 +520,7 @@ class RunInfo:
         return self.record.fault_time if self.record is not None else None
 
     @property
-    def events(self) -> tuple[RecordedEvent, ...]:
+    def events(self) -> tuple[Event, ...]:
         return self.record.events if self.record is not None else ()
 
     @property

@@ -16,9 +16,9 @@ import os
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Mapping, Union
+from typing import Any, Mapping
 
-from fourbar_common import ParameterStart
+from fourbar_common import Event, ParameterStart, RampEvent, StepEvent, Value
 
 from .validation import grid_steps
 
@@ -39,8 +39,6 @@ __all__ = [
 
 #: Outputs written when a case has no ``[outputs]`` table (the paper's order).
 DEFAULT_OUTPUTS = ("x2", "y2", "x3", "y3", "x4", "y4")
-
-Value = Union[float, int, bool, str]
 
 
 def _stamp(path: Path) -> tuple[int, int]:
@@ -138,50 +136,6 @@ class Experiment:
         return {"start": self.start, "stop": self.stop, "step": self.step, "tolerance": self.tolerance}
 
 
-@dataclass(frozen=True)
-class StepEvent:
-    """Set ``variable`` to ``value`` at ``time`` (s): applied after the row at ``time`` is read."""
-
-    time: float
-    variable: str
-    value: Value
-
-    @property
-    def first_time(self) -> float:
-        return self.time
-
-    def as_dict(self) -> dict:
-        return {"type": "step", "time": self.time, "variable": self.variable, "value": self.value}
-
-
-@dataclass(frozen=True)
-class RampEvent:
-    """Move Real ``variable`` linearly from ``from_`` to ``to`` over [``start``, ``end``] (s).
-
-    The value ``from_*(1-f) + to*f``, ``f = (t - start)/(end - start)``, is set at every
-    communication point of the ramp, ends included.
-    """
-
-    variable: str
-    from_: float
-    to: float
-    start: float
-    end: float
-
-    @property
-    def first_time(self) -> float:
-        return self.start
-
-    def value_at(self, fraction: float) -> float:
-        """Ramp value at ``fraction`` in [0, 1]; exactly ``from_`` at 0 and ``to`` at 1."""
-        return self.from_ * (1.0 - fraction) + self.to * fraction
-
-    def as_dict(self) -> dict:
-        return {"type": "ramp", "variable": self.variable, "from": self.from_, "to": self.to,
-                "start": self.start, "end": self.end}
-
-
-Event = Union[StepEvent, RampEvent]
 
 
 @dataclass(frozen=True)

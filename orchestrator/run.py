@@ -44,7 +44,7 @@ from pathlib import Path
 from typing import Mapping
 
 from fourbar_common import (SCHEMA_VERSION, ParameterStart, RecordedExchange, RecordedExperiment, RecordedFmu,
-                            RecordedNoise, RecordedRamp, RecordedStep, RecordedWriter, RunRecord, write_run_record)
+                            RecordedNoise, RecordedWriter, RunRecord, write_run_record)
 
 from .case import Case, RampEvent, StepEvent, Value
 from .config import apply_overrides, load_case
@@ -198,12 +198,6 @@ def _parameter_starts(case: Case) -> tuple[ParameterStart, ...]:
     return tuple(starts)
 
 
-def _recorded_event(event) -> RecordedStep | RecordedRamp:
-    if isinstance(event, StepEvent):
-        return RecordedStep(time=event.time, variable=event.variable, value=event.value)
-    return RecordedRamp(variable=event.variable, from_=event.from_, to=event.to, start=event.start, end=event.end)
-
-
 class _Run:
     def __init__(self, case: Case, out_dir: Path, progress: bool, wall0: float):
         self.case = case
@@ -245,7 +239,7 @@ class _Run:
             fmu=RecordedFmu(path=str(case.fmu), guid=md.guid, model_name=md.modelName),
             experiment=RecordedExperiment(start=exp.start, stop=exp.stop, step=exp.step, tolerance=exp.tolerance),
             parameters=_parameter_starts(case),
-            events=tuple(_recorded_event(e) for e in case.events),
+            events=tuple(case.events),
             fault_time=case.fault_time,
             outputs=tuple(case.outputs),
             units=described.units(case.outputs),
