@@ -4,7 +4,8 @@
 Usage: python benchmarks/run_all.py [--write docs/benchmarks.md] [--only NAME ...]
 
 Each section shows the command that produced it; run that command alone to reproduce one
-table.  Timings depend on load: run on an otherwise idle machine.
+table.  Timings depend on load: run on an otherwise idle machine.  With ``--only`` and
+``--write`` the named sections are replaced in the existing file and the others kept.
 """
 from __future__ import annotations
 
@@ -49,6 +50,17 @@ def machine() -> str:
             f"CPython {platform.python_version()}")
 
 
+def sections_of(text: str) -> dict[str, str]:
+    """The sections of a report, by the titles in ``SECTIONS`` (title -> text up to the next
+    such title; a script's own ``##`` headings stay inside its section)."""
+    found = sorted((text.find(f"\n## {title}\n"), title) for _, title, _ in SECTIONS
+                   if f"\n## {title}\n" in text)
+    out: dict[str, str] = {}
+    for (start, title), (end, _) in zip(found, found[1:] + [(len(text), "")]):
+        out[title] = text[start + len(f"\n## {title}\n"):end].strip("\n")
+    return out
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--write", metavar="PATH", help="also write the report to PATH")
@@ -63,8 +75,13 @@ def main(argv=None) -> int:
         "",
     ]
     failed = False
+    kept = {}
+    if args.only and args.write and Path(args.write).exists():
+        kept = sections_of(Path(args.write).read_text(encoding="utf-8"))
     for name, title, command in SECTIONS:
         if args.only and name not in args.only:
+            if title in kept:
+                parts += [f"## {title}", "", kept[title], ""]
             continue
         print(f"== {title}: python {' '.join(command)}", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
