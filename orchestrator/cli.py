@@ -112,6 +112,7 @@ def _main(argv: list[str] | None) -> int:
 
 
 def _run(case: str, *, out, stop, realtime, overrides, quiet: bool, fmu=None, max_rows=None) -> int:
+    from fourbar_common.formatting import format_time
     from fourbar_common.signals import exit_code
 
     from .validation import ConfigError
@@ -128,13 +129,13 @@ def _run(case: str, *, out, stop, realtime, overrides, quiet: bool, fmu=None, ma
         r = exc.result
         if r.started:
             verb = "terminated by SIGTERM" if exc.signum == signal.SIGTERM else "interrupted"
-            print(f"fourbar-run: {r.case.name}: {verb} after {r.rows_written} rows (last t = {r.last_time!r} s); "
+            print(f"fourbar-run: {r.case.name}: {verb} after {r.rows_written} rows (last t = {format_time(r.last_time)} s); "
                   f"kept in {r.exchange_path}; status in {r.run_json_path}", file=sys.stderr)
         else:
             print(f"fourbar-run: {r.case.name}: {r.error}; nothing was written", file=sys.stderr)
         return exit_code(exc.signum)
     if not result.ok:
-        where = (f"after {result.rows_written} rows (last t = {result.last_time!r} s)" if result.rows_written
+        where = (f"after {result.rows_written} rows (last t = {format_time(result.last_time)} s)" if result.rows_written
                  else "before the first row")
         print(f"fourbar-run: error: {result.case.name}: run failed {where}: {result.error}", file=sys.stderr)
         if result.rows_written:
@@ -150,8 +151,8 @@ def _run(case: str, *, out, stop, realtime, overrides, quiet: bool, fmu=None, ma
         if result.replaced:
             print(f"{result.case.name}: removed the previous run's "
                   f"{' and '.join(name + '/' for name in result.replaced)} from {result.out_dir}")
-        print(f"{result.case.name}: finished, {result.rows_written} rows, t = {exp.start:g} .. "
-              f"{result.last_time:g} s, {len(result.case.events)} event(s), {result.wall_time_s:.2f} s wall "
+        print(f"{result.case.name}: finished, {result.rows_written} rows, t = {format_time(exp.start)} .. "
+              f"{format_time(result.last_time)} s, {len(result.case.events)} event(s), {result.wall_time_s:.2f} s wall "
               f"-> {result.exchange_path}")
     return 0
 

@@ -13,6 +13,8 @@ import shutil
 import threading
 from typing import Any, Callable, Iterable, Sequence
 
+from fourbar_common.formatting import format_time
+
 from .case import FmuDescription
 from .pythonfmu_workarounds import clean_message, forget_other_fmu_modules, install_exit_guard, release_library
 
@@ -199,7 +201,7 @@ class FmuInstance:
         try:
             self._slave.doStep(t, h)
         except self._call_error as exc:
-            raise self._failure(f"fmi2DoStep(t = {t!r} s, h = {h:.12g} s)", exc.status, mark) from None
+            raise self._failure(f"fmi2DoStep(t = {format_time(t)} s, h = {format_time(h)} s)", exc.status, mark) from None
 
     def step_through(self, times: Sequence[float], outputs: Sequence[str], out,
                      changes: tuple[str, Sequence[float]] | None = None) -> None:
@@ -234,11 +236,11 @@ class FmuInstance:
                 set_value[0] = values[i]
                 status = set_real(component, set_vr, 1, set_value)
                 if status > 1:
-                    raise self._failure(f"fmi2SetReal({changes[0]} = {values[i]!r}) at t = {t!r} s", status, mark)
+                    raise self._failure(f"fmi2SetReal({changes[0]} = {values[i]!r}) at t = {format_time(t)} s", status, mark)
             h = times[i + 1] - t
             status = do_step(component, t, h, 1)
             if status > 1:
-                raise self._failure(f"fmi2DoStep(t = {t!r} s, h = {h:.12g} s)", status, mark)
+                raise self._failure(f"fmi2DoStep(t = {format_time(t)} s, h = {format_time(h)} s)", status, mark)
             get_real(component, vrs, n, buffer)
             out[i] = buffer
 

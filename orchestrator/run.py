@@ -49,6 +49,7 @@ from fourbar_common import (SCHEMA_VERSION, ParameterStart, RecordedExchange, Re
 from .case import Case, RampEvent, StepEvent, Value
 from .config import apply_overrides, load_case
 from .exchange import ExchangeWriter, format_row
+from fourbar_common.formatting import format_time
 from fourbar_common.signals import signal_of, stop_reason
 
 from .pacing import InterruptFlag, RealtimePacer
@@ -351,7 +352,7 @@ class _Run:
         """'interrupted by Ctrl-C at t = 12.3 s', 'terminated by SIGTERM before the run started', ..."""
         if not self.started:
             return f"{stop_reason(signum)} before the run started"
-        where = f" at t = {self.last_time!r} s" if self.last_time is not None else ""
+        where = f" at t = {format_time(self.last_time)} s" if self.last_time is not None else ""
         return f"{stop_reason(signum)}{where}"
 
     def _initialize(self, fmu) -> None:

@@ -32,6 +32,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, Mapping
 
+from fourbar_common.formatting import format_time
+
 from .plan import Scenario
 
 __all__ = ["RESULT_FIELDS", "early_score", "failed_row", "run_scenario", "scenario_case", "score"]
@@ -234,7 +236,8 @@ def run_scenario(scenario: Scenario, base_case, run_dir: str, monitor_options: M
             return finish(status="failed", error=f"case rejected: {' '.join(str(exc).split())}")
         row.update(rows_written=result.rows_written, run_seconds=result.wall_time_s)
         if not result.ok:
-            return finish(status="failed", error=f"run {result.status} at t = {result.last_time!r} s: {result.error}")
+            where = f"at t = {format_time(result.last_time)} s" if result.last_time is not None else "before the first row"
+            return finish(status="failed", error=f"run {result.status} {where}: {result.error}")
         options = dict(monitor_options)
         options.update(model=scenario.model, threshold=scenario.threshold_value, signal=scenario.signal)
         every = float(options.get("every", 0.1))

@@ -53,13 +53,13 @@ def test_failing_fmu_keeps_rows_and_reports_its_message(fourbar_fmu, tmp_path, c
     err = capsys.readouterr().err
     assert code == 1
     assert "Traceback" not in err
-    assert "run failed after 101 rows (last t = 1.0 s)" in err
+    assert "run failed after 101 rows (last t = 1 s)" in err
     # The FMU's reason, captured through the FMI logger, reaches the user and run.json.
     fmu_message = "cannot apply L2 1 -> 10 at t = 1 s: the loop cannot be closed"
     assert fmu_message in err
     record = json.loads((out / "run.json").read_text())
     assert record["status"] == "failed"
-    assert record["error"].startswith("fmi2DoStep(t = 1.0 s, h = 0.01 s) returned discard: ")
+    assert record["error"].startswith("fmi2DoStep(t = 1 s, h = 0.01 s) returned discard: ")
     assert fmu_message in record["error"]
     assert record["rows_written"] == 101 and record["last_time"] == 1.0
     assert record["finished_at"] is not None

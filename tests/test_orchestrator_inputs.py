@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import stat
 import subprocess
@@ -156,6 +157,12 @@ def test_sigterm_keeps_rows_and_says_so(native_fmu, tmp_path):
     rows = data.count(b"\n") - 1
     assert record["rows_written"] == rows and 101 <= rows < 10_001
     assert record["last_time"] == pytest.approx((rows - 1) * 0.01, abs=1e-9)   # grid times: k*0.01
+    # The message writes the last time as a user reads it (at most the step's 2 decimals),
+    # not its repr (k*0.01 is often 1.8900000000000001 and the like).
+    shown = re.search(r"\(last t = (\S+) s\)", stderr)
+    assert shown is not None, stderr
+    assert float(shown.group(1)) == pytest.approx(record["last_time"], abs=1e-12)   # 1e-12: round-off only
+    assert len(shown.group(1).partition(".")[2]) <= 2, stderr
 
 
 def test_sigterm_while_the_fmu_loads_writes_nothing(native_fmu, tmp_path):
@@ -211,16 +218,22 @@ def test_refused_start_values_write_nothing_and_name_the_value(fmu_kind, native_
 
 
 def test_a_failure_after_the_start_keeps_rows_and_says_so(native_fmu, tmp_path):
-    extra = '\n[[events]]\ntype = "step"\ntime = 1.0\nvariable = "L2"\nvalue = 10.0\n'
+    """An L2 step the loop cannot close, at t = 1.89 s: grid point 189 = 189*0.01, which is
+    1.8900000000000001 in binary; the messages write it as 1.89 (they printed its repr)."""
+    extra = '\n[[events]]\ntype = "step"\ntime = 1.89\nvariable = "L2"\nvalue = 10.0\n'
     path = case_file("case1_normal", native_fmu, tmp_path, extra=extra)
     out = tmp_path / "out"
     proc = run(path, "--out", out, "--stop", 3)
     assert proc.returncode == 1, proc.stderr
-    assert "run failed after 101 rows (last t = 1.0 s)" in proc.stderr and "rows kept in" in proc.stderr
+    assert "run failed after 190 rows (last t = 1.89 s)" in proc.stderr and "rows kept in" in proc.stderr
+    assert "fmi2DoStep(t = 1.89 s, h = 0.01 s) returned error" in proc.stderr
+    assert "1.8900000000000001" not in proc.stderr
     no_traceback(proc)
     record = json.loads((out / "run.json").read_text())
-    assert record["status"] == "failed" and record["rows_written"] == 101
-    assert (out / "exchange.csv").read_text().count("\n") == 1 + 101
+    assert record["status"] == "failed" and record["rows_written"] == 190
+    assert record["error"].startswith("fmi2DoStep(t = 1.89 s,")
+    assert record["last_time"] == 189 * 0.01         # the file keeps the exact grid time
+    assert (out / "exchange.csv").read_text().count("\n") == 1 + 190
 
 
 # ---------------------------------------------------------------------- files a run writes
