@@ -83,6 +83,9 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+_NO_DASHBOARD_HTTP = "127.0.0.1:0"    # the scheduler's HTTP API without a dashboard: any free loopback port
+
+
 @contextmanager
 def open_client(scheduler: str | None = None, workers: int | None = None, *,
                 timeout: float = 20.0, dashboard: str | None = None) -> Iterator[Any]:
@@ -103,10 +106,16 @@ def open_client(scheduler: str | None = None, workers: int | None = None, *,
             client.close()
         return
     n = workers or default_workers()
+    # dashboard_address=None turns the dashboard off, but the scheduler still serves its small
+    # HTTP API (health, metrics) and binds it to port 8787 by default: when that port is taken
+    # (another sweep, any dashboard), distributed warned "Port 8787 is already in use" to a
+    # user who asked for no dashboard.  Without a dashboard that API gets a free port on the
+    # loopback interface instead, so nothing is printed and nothing is exposed.
+    quiet_http = {} if dashboard is not None else {"dashboard_address": _NO_DASHBOARD_HTTP}
     try:
         with _children_ignore_sigint():
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard,
-                                   silence_logs=logging.CRITICAL)
+                                   scheduler_kwargs=quiet_http, silence_logs=logging.CRITICAL)
     except (OSError, TimeoutError) as exc:
         raise ClusterError(f"cannot start a local Dask cluster of {n} worker processes: {exc}") from None
     try:

@@ -211,3 +211,64 @@ def test_series_that_coincide_stay_visible(first_run):
         png = Path(first_run.files[key])
         for color in (blue, orange):
             assert _pixels_of(png, color, box) >= 300, (png.name, color)
+
+
+def _occupy(port: int):
+    """A socket listening on 127.0.0.1:``port``, or None when something else already holds the
+    port (then it is taken either way, which is what the test needs)."""
+    import socket
+
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    try:
+        sock.bind(("127.0.0.1", port))
+        sock.listen(1)
+    except OSError:
+        sock.close()
+        return None
+    return sock
+
+
+def _http_status(url: str) -> int:
+    import urllib.error
+    import urllib.request
+
+    try:
+        with urllib.request.urlopen(url, timeout=10) as response:
+            return response.status
+    except urllib.error.HTTPError as exc:
+        return exc.code
+
+
+def test_a_local_cluster_without_dashboard_says_nothing_about_port_8787():
+    """fourbar-sweep without --dashboard, while port 8787 is taken (another sweep, a
+    dashboard): distributed's scheduler still bound its HTTP API to 8787 by default and
+    warned "Port 8787 is already in use ... Hosting the HTTP server on port N instead".
+    Now that API takes any free loopback port: no warning, no dashboard, nothing on 8787."""
+    import warnings
+
+    from sweep.runner import open_client
+
+    holder = _occupy(8787)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with open_client(workers=1) as client:
+                http = client.cluster.scheduler.http_server
+                assert http.port != 8787 and http.address == "127.0.0.1", (http.address, http.port)
+                base = f"http://127.0.0.1:{http.port}"
+                assert _http_status(f"{base}/health") == 200          # the scheduler's API answers ...
+                assert _http_status(f"{base}/status") == 404          # ... but serves no dashboard
+    finally:
+        if holder is not None:
+            holder.close()
+    said = [str(w.message) for w in caught if "port" in str(w.message).lower() or "dashboard" in str(w.message).lower()]
+    assert said == [], said
+
+
+def test_a_local_cluster_with_dashboard_serves_it_where_asked():
+    """--dashboard ADDRESS keeps serving the Bokeh dashboard there (port 0: any free one)."""
+    from sweep.runner import open_client
+
+    with open_client(workers=1, dashboard="127.0.0.1:0") as client:
+        assert client.dashboard_link.startswith("http://127.0.0.1:")
+        assert _http_status(client.dashboard_link) == 200          # .../status: the dashboard page
