@@ -11,9 +11,12 @@ output directory, so nothing is skipped.
 ``cold``  ``run_sweep(workers=n)`` from nothing: cluster start, imports in every worker, the
           scenarios, plots -- what a short sweep costs end to end.
 
-Prints a markdown table (for docs/benchmarks.md).
+Prints a markdown table (for docs/benchmarks.md).  ``--quick`` is the smoke setting
+(tests/test_benchmarks_smoke.py): 2 scenarios, stop 12 s (the step at 10 s included), 1
+worker, 1 warm measurement; its figures are not the benchmark's.
+
 Usage: python benchmarks/sweep_scaling.py [--fmu build/FourBar.fmu] [--scenarios 24] [--stop 20]
-       [--model harmonic] [--workers 1 2] [--repeat 3]
+       [--model harmonic] [--workers 1 2] [--repeat 3] [--quick]
 """
 from __future__ import annotations
 
@@ -22,9 +25,13 @@ import os
 import platform
 import tempfile
 import time
+import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+FULL = {"scenarios": 24, "stop": 20.0, "workers": [1, 2], "repeat": 3}
+#: ``--quick``: two scenarios (the task medians take more than one), one cluster, one warm run
+QUICK = {"scenarios": 2, "stop": 12.0, "workers": [1], "repeat": 1}
 
 
 def write_sweep(directory: Path, fmu: Path, n: int, stop: float, model: str, name: str) -> Path:
@@ -50,16 +57,49 @@ def cpu_name() -> str:
     return platform.processor() or "unknown"
 
 
-def main() -> None:
+class ScenarioFailed(RuntimeError):
+    """A scenario of the benchmark's sweep did not run: the figures would be meaningless."""
+
+
+def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--fmu", type=Path, default=REPO / "build" / "FourBar.fmu")
-    parser.add_argument("--scenarios", type=int, default=24)
-    parser.add_argument("--stop", type=float, default=20.0)
+    parser.add_argument("--scenarios", type=int, help=f"default {FULL['scenarios']}")
+    parser.add_argument("--stop", type=float, help=f"s, default {FULL['stop']:g}")
     parser.add_argument("--model", default="harmonic", choices=("harmonic", "prophet"))
-    parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
-    parser.add_argument("--repeat", type=int, default=3, help="warm measurements per worker count, interleaved")
-    args = parser.parse_args()
+    parser.add_argument("--workers", type=int, nargs="+", help=f"default {' '.join(map(str, FULL['workers']))}")
+    parser.add_argument("--repeat", type=int,
+                        help=f"warm measurements per worker count, interleaved (default {FULL['repeat']})")
+    parser.add_argument("--quick", action="store_true",
+                        help=f"smoke setting, not the benchmark: {QUICK['scenarios']} scenarios, stop "
+                             f"{QUICK['stop']:g} s, workers {' '.join(map(str, QUICK['workers']))}, repeat "
+                             f"{QUICK['repeat']} (options given explicitly still apply)")
+    args = parser.parse_args(argv)
+    for key, value in (QUICK if args.quick else FULL).items():
+        if getattr(args, key) is None:
+            setattr(args, key, value)
+    if args.scenarios < 1 or args.repeat < 1 or min(args.workers) < 1:
+        parser.error(f"--scenarios, --repeat and --workers must be at least 1, not {args.scenarios}, "
+                     f"{args.repeat} and {' '.join(map(str, args.workers))}")
+    if not args.stop > 10.0:
+        parser.error(f"--stop must be after the step at 10 s, not {args.stop:g}")
+    if not args.fmu.is_file():
+        parser.error(f"--fmu {args.fmu}: no such file (build it first: python build_fmu.py)")
+    try:
+        run(args)
+    except ScenarioFailed as exc:
+        print(f"sweep_scaling: {exc}", file=sys.stderr)
+        return 1
+    return 0
 
+
+def check(result, n: int, what: str) -> None:
+    if result.ran != n or result.failed:
+        raise ScenarioFailed(f"{what}: {result.ran} of {n} scenarios ran, {result.failed} failed:\n"
+                             f"{result.table[['status', 'error']]}")
+
+
+def run(args) -> None:
     import statistics
     from contextlib import ExitStack
 
@@ -90,7 +130,7 @@ def main() -> None:
                 t0 = time.perf_counter()
                 result = run_sweep(bench, tmp / f"warm-{n}-{r}", client=clients[n])
                 warm[n].append(time.perf_counter() - t0)
-                assert result.ran == args.scenarios and result.failed == 0, result.table[["status", "error"]]
+                check(result, args.scenarios, f"warm run {r + 1} on {n} worker(s)")
                 task_wall[n].extend(result.table["wall_seconds"])
                 task_cpu[n].extend(result.table["cpu_seconds"])
         stack.close()
@@ -99,7 +139,7 @@ def main() -> None:
             t0 = time.perf_counter()
             result = run_sweep(bench, tmp / f"cold-{n}", workers=n)
             cold[n] = time.perf_counter() - t0
-            assert result.ran == args.scenarios and result.failed == 0
+            check(result, args.scenarios, f"cold run on {n} worker(s)")
 
     rate = {n: [60 * args.scenarios / w for w in warm[n]] for n in args.workers}
     base = args.workers[0]
@@ -125,4 +165,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

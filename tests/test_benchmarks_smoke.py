@@ -1,36 +1,87 @@
 """Smoke tests of the scripts ``make benchmarks`` runs, each on its smallest setting: it runs
-to the end (exit 0) and prints its table.  The figures themselves are the benchmarks' job.
+to the end (exit 0, no traceback), prints its tables with the expected rows, and leaves no
+process behind.  The figures themselves are the benchmarks' job.
 
 ``make benchmarks`` runs ``benchmarks/run_all.py`` (fmu_speed, native_fmu --sweep,
 fmu_accuracy, orchestrator_overhead, monitor_replay, sweep_scaling) and
-``benchmarks/doc_figures.py --write`` (tested by tests/test_doc_figures.py).  Not smoke-tested
-here, because no small setting of theirs is cheap: ``native_fmu.py`` (its tolerance study
-alone takes most of a minute), ``sweep_scaling.py`` (starts Dask clusters cold and warm:
-most of a minute even for 2 scenarios on 1 worker) and ``run_all.py`` itself (it runs all
-of them at full size).
+``benchmarks/doc_figures.py --write`` (tested by tests/test_doc_figures.py).  Every one of
+those scripts is smoke-tested here (``native_fmu.py`` and ``sweep_scaling.py`` with their
+``--quick`` setting; native_fmu's ``--sweep`` part, which runs ``fourbar-sweep`` on a toml of
+the repository, is not); ``run_all.py`` itself is not, because it runs all of them at full size.
 """
 from __future__ import annotations
 
+import os
+import re
+import signal
 import subprocess
 import sys
+import tempfile
+import time
 
+import psutil                  # a dependency of dask.distributed
 import pytest
 
 from support import REPO
 
 
+def _session(sid: int) -> list[psutil.Process]:
+    """The processes still alive in session ``sid`` (a benchmark's own, see ``_bench``)."""
+    left = []
+    for proc in psutil.process_iter():
+        try:
+            if os.getsid(proc.pid) == sid and proc.status() != psutil.STATUS_ZOMBIE:
+                left.append(proc)
+        except (OSError, psutil.Error):          # gone meanwhile, or not ours to ask
+            pass
+    return left
+
+
 def _bench(script: str, *args: str, timeout: float = 600) -> str:
-    proc = subprocess.run([sys.executable, str(REPO / "benchmarks" / script), *args], cwd=REPO, capture_output=True,
-                          text=True, timeout=timeout)
-    assert proc.returncode == 0, f"{script} exit {proc.returncode}:\n{proc.stdout[-2000:]}\n{proc.stderr[-4000:]}"
-    assert "Traceback" not in proc.stderr, proc.stderr
-    return proc.stdout
+    """Run ``benchmarks/<script>`` in a session of its own; check exit 0, no traceback, and that
+    nothing it started (Dask workers, a compiled driver) outlives it."""
+    # files, not pipes: a process left behind holding a pipe would keep the test waiting
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        proc = subprocess.Popen([sys.executable, str(REPO / "benchmarks" / script), *args], cwd=REPO, text=True,
+                                stdout=out, stderr=err, start_new_session=True)
+        try:
+            proc.wait(timeout=timeout)
+        finally:
+            if proc.poll() is None:              # timed out (or the test was interrupted)
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+        out.seek(0)
+        err.seek(0)
+        stdout, stderr = out.read(), err.read()
+    # multiprocessing's resource tracker leaves when its pipe closes, shortly after the
+    # script: 10 s of grace is ample on a loaded machine
+    deadline = time.monotonic() + 10.0
+    while (left := _session(proc.pid)) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    names = []
+    for p in left:                               # do not leave them to the next test either
+        try:
+            names.append(" ".join(p.cmdline()[:4]))
+            p.kill()
+        except psutil.Error:
+            pass
+    assert not left, f"{script} left processes behind: {names}"
+    assert proc.returncode == 0, f"{script} exit {proc.returncode}:\n{stdout[-2000:]}\n{stderr[-4000:]}"
+    assert "Traceback" not in stderr, stderr
+    return stdout
 
 
 def _rows(text: str, first_cell: str) -> list[list[str]]:
     """The markdown table rows whose first cell is ``first_cell``, split into cells."""
     return [[c.strip() for c in line.strip("|").split("|")] for line in text.splitlines()
             if line.startswith("|") and line.strip("|").split("|")[0].strip() == first_cell]
+
+
+def _section(text: str, heading: str) -> str:
+    """The part of ``text`` under the markdown heading ``### heading``, up to the next one."""
+    match = re.search(rf"^### {re.escape(heading)}\n(.*?)(?=^### |\Z)", text, re.M | re.S)
+    assert match, f"no section '### {heading}' in:\n{text}"
+    return match.group(1)
 
 
 @pytest.mark.slow
@@ -67,3 +118,60 @@ def test_fmu_accuracy_benchmark(native_fmu):
 def test_fmu_speed_benchmark(fourbar_fmu):
     out = _bench("fmu_speed.py", "--repeat", "1", "--fmu", str(fourbar_fmu))
     assert len(_rows(out, "FourBar Case 1")) == 2 and len(_rows(out, "FourBar Case 2")) == 2, out
+
+
+@pytest.mark.slow
+def test_native_fmu_benchmark(native_fmu, fourbar_fmu):
+    """``--quick``: all four tables (FMPy speed, C model in-process, accuracy per wall second,
+    agreement of the two FMUs), one round, 20 s runs.  Measured on 2 cores busy with another
+    benchmark (load average 4-5): 14-17 s wall, 8-10 s of CPU, so well under a minute idle."""
+    out = _bench("native_fmu.py", "--quick", "--native", str(native_fmu), "--fmu", str(fourbar_fmu))
+    fmpy = _section(out, "Through FMPy (simulate_fmu)")
+    assert "| run (20 s, step 0.01 s," in fmpy, fmpy
+    for case in ("Case 1", "Case 2"):
+        (row,) = _rows(fmpy, case)
+        # native, pythonfmu and floor seconds, then the two ratios
+        assert all(float(c) > 0 for c in row[1:4]) and all(float(c.rstrip("x")) > 0 for c in row[4:6]), row
+
+    c_model = _section(out, "The C model in-process")
+    rows = _rows(c_model, "Case 1") + _rows(c_model, "Case 2")
+    assert sorted(r[1] for r in rows) == ["1e-9, 1e-6 (Table 1)"] * 2 + ["2e-10, 2e-10"] * 2, c_model
+    for row in rows:
+        # total ms, RHS evaluations, µs per evaluation; Case 2's step at 10 s restarts the integrator once
+        assert float(row[2]) > 0 and int(row[3].replace(",", "")) > 0 and float(row[5]) > 0, row
+        assert row[4] == ("1" if row[0] == "Case 1" else "2"), row
+
+    accuracy = _section(out, "Accuracy per wall second")
+    for fmu in ("native", "pythonfmu"):
+        (row,) = _rows(accuracy, fmu)
+        # found within the quick search (1e-8, 1e-9), within the 1e-6 m it searched for, timed
+        assert row[1] in ("1e-08", "1e-09") and float(row[2]) <= 1e-6 and float(row[3]) > 0, row
+        assert row[4] == "not comparable (20 s run)", row      # Exudyn's 38 s is for 100 s
+    agreement = _rows(accuracy, "Case 1") + _rows(accuracy, "Case 2")
+    assert sorted(r[1] for r in agreement) == ["1e-12"] * 2 + ["Table 1 (1e-9, 1e-6)"] * 2, accuracy
+    for row in agreement:
+        if row[1] == "1e-12":
+            # at rtol = atol = 1e-12 the two FMUs integrate the same equations with the same
+            # method and agree to round-off (~5e-13 m measured); 1e-6 m is the issue-2 accuracy
+            # target, loose on purpose: the smoke test checks the script, not the FMUs
+            assert all(float(c) < 1e-6 for c in row[2:5]), row
+        else:
+            # at Table 1's atol = 1e-6 they differ by ~1e-3 m (the script's note): only a
+            # finite figure below the mechanism's own size (links of 1-4 m) is checked
+            assert all(0 <= float(c) < 1.0 for c in row[2:5]), row
+
+
+@pytest.mark.slow
+def test_sweep_scaling_benchmark(native_fmu):
+    """``--quick``: 2 scenarios of 12 s on 1 worker, one warm cluster and one cold
+    ``run_sweep``; the clusters are closed (``_bench`` checks no process is left).  Measured on
+    2 cores busy with another benchmark (load average 4-5): 15-18 s wall, ~10 s of CPU."""
+    out = _bench("sweep_scaling.py", "--quick", "--fmu", str(native_fmu))
+    assert "### Sweep throughput (2 scenarios: L2 step, stop 12 s, harmonic model" in out, out
+    (row,) = _rows(out, "1")
+    assert _rows(out, "2") == [], out                # one worker count only
+    warm = re.fullmatch(r"([\d.]+) \(([\d.]+)-([\d.]+)\)", row[1])
+    assert warm and float(warm[1]) > 0, row          # scenarios/min, median (min-max) of one run
+    # speed-ups against the only (base) worker count are 1 by construction; cold rate, task
+    # wall and CPU seconds are positive
+    assert row[2] == row[4] == "1.00" and all(float(c) > 0 for c in (row[3], row[5], row[6])), row
