@@ -45,6 +45,11 @@ __all__ = ["Diagnosis", "DiagnoseOptions", "diagnose", "diagnose_inputs"]
 NOISE_FLOOR = 1e-6
 
 
+#: Relative size (of the fitted value) below which a standard error is round-off, printed as
+#: "exact to round-off": about 4500 units in the last place of a double (2.2e-16).  Noise-free
+#: data replayed by the FMU that made them can be fitted exactly (residual 0, standard error 0).
+ROUND_OFF = 1e-12
+
 #: Share of the change's effect (RMS of data minus healthy model after the alarm) below which
 #: the first change-time estimate ignores a residual (see diagnose_inputs).
 ONSET_SHARE = 0.01
@@ -141,20 +146,39 @@ def _runner_up(ranking, best: Fit | None) -> Fit | None:
 
 
 def _fmt(value: float, stderr: float | None = None) -> str:
+    """A fitted value with as many decimals as its standard error supports (3 to 6)."""
     digits = 3
-    if stderr is not None and math.isfinite(stderr) and stderr > 0:
-        digits = min(6, max(3, 1 - int(math.floor(math.log10(stderr)))))
+    if stderr is not None and math.isfinite(stderr):
+        digits = 6 if stderr <= 0 else min(6, max(3, 1 - int(math.floor(math.log10(stderr)))))
     return f"{value:.{digits}f}"
+
+
+def _round_off(stderr: float, scale: float) -> bool:
+    """True when ``stderr`` is at or below :data:`ROUND_OFF` of ``scale`` (exactly zero included)."""
+    return stderr <= ROUND_OFF * abs(scale)
+
+
+def _uncertainty(stderr: float, scale: float, unit: str) -> str:
+    """``± 3.8e-06 m``; ``exact to round-off: ± < 3.3e-12 m`` at or below :data:`ROUND_OFF` of
+    ``scale``; never ``± 0 m`` (two significant digits show any non-zero error)."""
+    if not math.isfinite(stderr):
+        return "uncertainty unknown"
+    if _round_off(stderr, scale):
+        floor = ROUND_OFF * abs(scale)
+        return f"exact to round-off: ± < {floor:.2g}{unit}" if floor > 0 else "exact to round-off"
+    return f"± {stderr:.2g}{unit}"
 
 
 def _describe(fit: Fit, unit: str) -> str:
     u = f" {unit}" if unit else ""
     if fit.kind == "ramp":
         still = ", still changing when the fitted data end" if fit.open_end else ""
+        # the rate's floor is relative to the value it changes (a rate may be near zero)
         return (f"{fit.parameter} ramped {_fmt(fit.before)} → {_fmt(fit.value)}{u} over t = {fit.change_time:.2f}.."
-                f"{fit.end_time:.2f} s (a ramp, {fit.rate:+.3g} ± {fit.stderr:.2g}{u}/s{still})")
+                f"{fit.end_time:.2f} s (a ramp, {fit.rate:+.3g}{u}/s, "
+                f"{_uncertainty(fit.stderr, max(abs(fit.value), abs(fit.before)), f'{u}/s')}{still})")
     return (f"{fit.parameter} changed {_fmt(fit.before, fit.stderr)} → {_fmt(fit.value, fit.stderr)}{u}"
-            f" (± {fit.stderr:.2g}{u}) at t = {fit.change_time:.2f} s")
+            f" ({_uncertainty(fit.stderr, max(abs(fit.value), abs(fit.before)), u)}) at t = {fit.change_time:.2f} s")
 
 
 def _message(verdict: str, best: Fit, runner: Fit | None, units: dict[str, str], healthy: float,

@@ -105,6 +105,27 @@ def test_a_large_step_is_timed_to_its_grid_point(tmp_path, native_fmu, variable,
     assert d["best"]["parameter"] == variable and d["best"]["kind"] == "step"
     assert d["best"]["value"] == pytest.approx(value, rel=1e-3)
     assert d["best"]["change_time"] == pytest.approx(11.0, abs=0.005)       # the grid point itself
+    _check_printed_uncertainty(proc.stdout, d["best"], "kg" if variable.startswith("m") else "m")
+
+
+def _check_printed_uncertainty(stdout: str, best: dict, unit: str) -> None:
+    """The verdict line states the value's standard error as it is: ``± 1.6e-10 kg`` (two
+    significant digits of a non-zero error), or ``exact to round-off: ± < B`` when it is at
+    most 1e-12 of the value (B).  Noise-free, L1 +10 % is fitted exactly (standard error 0),
+    which was printed ``± 0 m``."""
+    import re
+
+    first = stdout.splitlines()[0]
+    assert "± 0 " not in first, first
+    shown = re.search(rf"\((?:± (\S+)|exact to round-off: ± < (\S+)) {unit}\)", first)
+    assert shown is not None, first
+    stderr, scale = best["stderr"], max(abs(best["value"]), abs(best["before"]))
+    if shown.group(1) is not None:
+        assert float(shown.group(1)) == pytest.approx(stderr, rel=0.05)     # 2 significant digits
+        assert stderr > 1e-12 * scale
+    else:
+        bound = float(shown.group(2))
+        assert stderr <= bound <= 1.05e-12 * scale                          # the floor, to its 2 digits
 
 
 @pytest.mark.slow
@@ -237,3 +258,22 @@ def test_snapshots_and_resimulation_branch_alike(native_fmu):
     # and a branch differs from the healthy run only after its start (row 250 is the last healthy one)
     healthy, l2, _ = out["snapshot"]
     assert np.abs(l2[0] - healthy[101]).max() > 1e-3
+
+
+def test_an_uncertainty_is_never_printed_as_zero():
+    """The verdict's ± for a step and a ramp: a small non-zero error keeps two significant
+    digits, one at most 1e-12 of the value is "exact to round-off", none reads "± 0"."""
+    from diagnose.diagnosis import _describe
+    from diagnose.fit import Fit
+
+    def fit(kind: str, stderr: float, end: float = 10.0) -> Fit:
+        return Fit(parameter="L1", kind=kind, before=3.0, value=3.3, stderr=stderr, change_time=10.0,
+                   end_time=end, chi2=0.0, rows=800, rms=0.0, evaluations=1)
+
+    assert "(± 3.2e-09 m)" in _describe(fit("step", 3.2e-9), "m")
+    for exact in (0.0, 3.2e-12):        # 3.2e-12 < 1e-12 * 3.3 m
+        assert "(exact to round-off: ± < 3.3e-12 m)" in _describe(fit("step", exact), "m")
+    assert "± 0 " not in _describe(fit("ramp", 0.0, end=12.0), "m")
+    assert "+0.15 m/s, exact to round-off: ± < 3.3e-12 m/s" in _describe(fit("ramp", 0.0, end=12.0), "m")
+    assert "+0.15 m/s, ± 4e-05 m/s" in _describe(fit("ramp", 4e-5, end=12.0), "m")
+    assert "(uncertainty unknown)" in _describe(fit("step", float("inf")), "m")
