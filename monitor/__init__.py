@@ -15,15 +15,18 @@ Public API::
     score_alarms(alarm_times, fault_time) -> FaultScore       # false alarms, latency
 
 Modules: ``options`` (every setting), ``reader`` (exchange file, run.json), ``spectrum``
-(period), ``forecasters``, ``detector`` (threshold rule, the alarm decision), ``stream``
-(the streaming monitor), ``summary`` (typed results, fault scoring), ``session``
+(period), ``forecasters``, ``detector`` (the detectors' interface), ``detectors`` (their
+registry), ``mae`` and ``threshold`` (the paper's rule), ``cusum_detector``, ``sequential``,
+``tracking`` and ``cusum`` (the default sequential detector), ``stream`` (the streaming monitor), ``summary`` (typed results, fault scoring), ``session``
 (replay/follow), ``outputs`` (files and plots), ``cli``.
 
 Command: ``fourbar-monitor`` (:mod:`monitor.cli`).  Method and options: docs/monitor.md.
 """
 from __future__ import annotations
 
-from .detector import ALARM_MESSAGE, Detector, Event, State, ThresholdRule, auto_threshold, fixed_threshold
+from .detector import ALARM_MESSAGE, Detector, Event, State
+from .detectors import register
+from .threshold import ThresholdRule, auto_threshold, fixed_threshold
 from .options import FollowOptions, MonitorOptions
 from .session import follow, replay
 from .stream import Monitor
@@ -62,6 +65,7 @@ __all__ = [
     "follow",
     "read_exchange",
     "read_run_info",
+    "register",
     "replay",
     "score_alarms",
 ]

@@ -122,6 +122,7 @@ class _Printer:
         self.next_status = -math.inf
         self.n_warnings = 0
         self.last_time: float | None = None     # of the latest evaluation
+        self.detector: Any = None               # the detector's class (set once the options are checked)
 
     def _line(self, text: str) -> None:
         print(text, file=self.out, flush=True)
@@ -129,27 +130,13 @@ class _Printer:
     def event(self, e: Any) -> None:
         from .detector import ALARM_MESSAGE
 
-        name = self.args.statistic_name
+        name = self.detector.label
         if e.kind == "trained":
             if self.args.quiet:
                 return
-            d = e.data
-            if d.get("detector") == "cusum":
-                sig = ", ".join(f"{k} {v:.3g}" for k, v in d["noise_sigma"].items())
-                thr = (f"CUSUM k {d['cusum_k']:.3g}, h {d['cusum_h']:.4g} (≥ {d['arl0_hours']:.3g} h between false "
-                       f"alarms); noise scale {sig}")
-            else:
-                thr = f"threshold {d['threshold_base']:.4g}"
-                if d.get("threshold_slope_per_s"):
-                    thr += f" + {d['threshold_slope_per_s']:.2g}/s·|t − t_c|"
-            self._line(f"t={e.time:8.2f} s  TRAINED  period {d['period_s']:.6g} s (FFT {d['period_fft_s']:.4g} s); "
-                       f"{d['model']} order {d['order']} fitted in {d['fit_seconds']:.2f} s; {thr}")
+            self._line(f"t={e.time:8.2f} s  TRAINED  {self.detector.describe(e)}")
         elif e.kind == "alarm":
-            d = e.data
-            if d.get("reason") == "cusum":
-                why = f" on {d['signal']} ({d['side']}), change began ≈ {d['onset']:.2f} s; episode {d['episode']}"
-            else:
-                why = " (refit limit reached)" if d.get("reason") == "refit_limit" else ""
+            why = self.detector.describe(e)
             self._line(f"t={e.time:8.2f} s  ALARM    {name} {e.statistic:.5g} > threshold {e.threshold:.5g}{why}\n"
                        f"           {ALARM_MESSAGE}")
         elif not self.args.quiet:
@@ -161,7 +148,7 @@ class _Printer:
         if self.args.quiet:
             return
         if self.args.verbose or t >= self.next_status - 1e-9:
-            self._line(f"t={t:8.2f} s  {state.value:8s} {self.args.statistic_name} {statistic:.5g}  "
+            self._line(f"t={t:8.2f} s  {state.value:8s} {self.detector.label} {statistic:.5g}  "
                        f"threshold {threshold:.5g}")
             step = self.args.status_every
             self.next_status = (math.floor(t / step + 1e-9) + 1) * step
@@ -183,7 +170,7 @@ def _verdict(result: Any, out_dir: Path, stopped: str = "interrupted") -> str:
     s = result.summary
     first = s.first_alarm
     if first is not None:
-        name = "CUSUM" if s.options.detector == "cusum" else "MAE"
+        name = s.options.detector_class.label
         head = f"ALARM at t = {first.time:g} s ({name} {first.statistic:.4g} > {first.threshold:.4g})"
         if s.fault_time is not None:
             lat = s.detection_latency
@@ -232,7 +219,6 @@ def _main(argv: Sequence[str] | None, stop: Any) -> int:
     except SystemExit as exc:            # --help, --version (0) or a usage error (2)
         return int(exc.code or 0)
     out, err = sys.stdout, sys.stderr
-    args.statistic_name = "CUSUM" if args.detector == "cusum" else "MAE"
     if args.status_every is None:
         args.status_every = 1.0 if args.follow else 10.0
     printer = _Printer(args, out, err)
@@ -246,17 +232,13 @@ def _main(argv: Sequence[str] | None, stop: Any) -> int:
         from .outputs import checked_default_out_dir, checked_out_dir
         from .session import follow, replay
 
-        merged(MonitorOptions(), settings)      # inconsistent options are refused before anything is read
+        options = merged(MonitorOptions(), settings)   # inconsistent options are refused before anything is read
+        printer.detector = options.detector_class
         out_dir = checked_out_dir(args.out) if args.out is not None else checked_default_out_dir(exchange)
 
         if not args.quiet:
             mode = "following" if args.follow else "replaying"
-            if args.detector == "cusum":
-                how = (f"detector cusum, {args.false_alarm_rate:g} false alarms/h, design shift "
-                       f"{args.design_shift:g} sigma")
-            else:
-                how = (f"detector mae, threshold {args.threshold}, window {args.window:g} s every {args.every:g} s, "
-                       f"persistence {args.persistence}")
+            how = options.detector_class.settings_text(options)
             print(f"fourbar-monitor: {mode} {exchange} (signal {args.signal}, model {args.model}, {how})",
                   file=out, flush=True)
         common = dict(out_dir=out_dir, plots=not args.no_plots, on_event=printer.event,

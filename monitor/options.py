@@ -20,15 +20,14 @@ import math
 from dataclasses import MISSING, asdict, dataclass, field, fields, replace
 from typing import Any, Callable, Mapping
 
+from .detectors import detector_class, detector_names
 from .errors import OptionError
 from .forecasters import MODELS
 
-__all__ = ["DETECTORS", "FollowOptions", "MonitorOptions", "REFIT_POLICIES", "Rule", "add_arguments", "check_every",
+__all__ = ["DETECTOR", "FollowOptions", "MonitorOptions", "REFIT_POLICIES", "Rule", "add_arguments", "check_every",
            "detector_options", "merged", "split_signals"]
 
 REFIT_POLICIES = ("none", "paper")
-#: ``cusum``: the sequential detector (default); ``mae``: the paper's windowed-MAE rule.
-DETECTORS = ("cusum", "mae")
 
 
 def _is_number(value: Any) -> bool:
@@ -47,7 +46,7 @@ class Rule:
     accepts: Callable[[Any], bool]
     expected: str
     parse: Callable[[str], Any] = float
-    choices: tuple[str, ...] | None = None
+    choices: tuple[str, ...] | Callable[[], tuple[str, ...]] | None = None    # a callable: asked when used
     metavar: str | None = None
 
     def problem(self, name: str, value: Any) -> str | None:
@@ -77,6 +76,19 @@ def at_least(low: int) -> Rule:
 
 def choice(values: tuple[str, ...]) -> Rule:
     return Rule(lambda v: v in values, f"one of {', '.join(values)}", parse=str, choices=values)
+
+
+class _RegisteredDetectors:
+    """The message phrase of the detector option, naming the detectors registered when it is shown."""
+
+    def __str__(self) -> str:
+        return f"one of {', '.join(detector_names())}"
+
+
+#: ``cusum``: the sequential detector (default); ``mae``: the paper's windowed-MAE rule; any other
+#: registered detector (:mod:`monitor.detectors`).
+DETECTOR = Rule(lambda v: isinstance(v, str) and v in detector_names(), _RegisteredDetectors(),  # type: ignore
+                parse=str, choices=detector_names)
 
 
 def _parse_threshold(text: str) -> float | str:
@@ -113,7 +125,7 @@ def option(default: Any, rule: Rule, help: str = "", *, flag: str | None = None,
            detector: str | None = None) -> Any:
     """A dataclass field with its rule; ``flag`` exposes it on the command line; ``detector``
     names the one detector that uses it (None: every detector does)."""
-    assert detector is None or detector in DETECTORS, detector
+    assert detector is None or detector in detector_names(), detector
     return field(default=default, metadata={"rule": rule, "help": help, "flag": flag, "group": group,
                                             "detector": detector})
 
@@ -153,7 +165,7 @@ class MonitorOptions(_Checked):
     model: str = option("prophet", choice(MODELS), "prophet (the paper's) or harmonic (least-squares Fourier "
                         "series, fast)", flag="--model", group="model")
     order: int = option(30, at_least(1), "Fourier order of the model", flag="--order", group="model")
-    detector: str = option("cusum", choice(DETECTORS), "cusum: sequential detector on the phase-locked forecast "
+    detector: str = option("cusum", DETECTOR, "cusum: sequential detector on the phase-locked forecast "
                            "residuals, designed by --false-alarm-rate; mae: the paper's windowed MAE against a "
                            "threshold", flag="--detector", group="detection")
     false_alarm_rate: float = option(0.01, RATE, "cusum: false alarms per hour of data the detector is designed for",
@@ -205,12 +217,15 @@ class MonitorOptions(_Checked):
     def signals(self) -> tuple[str, ...]:
         return split_signals(self.signal)
 
+    @property
+    def detector_class(self) -> Any:
+        """The :class:`~monitor.detector.Detector` subclass the ``detector`` option names (the
+        option's one decoding, :func:`monitor.detectors.detector_class`)."""
+        return detector_class(self.detector)
+
     def validated(self) -> "MonitorOptions":
         checked = super().validated()
-        problems = []
-        if checked.detector == "mae" and len(checked.signals) > 1:
-            problems.append(f"signal: the paper's MAE rule watches one column, got {checked.signal!r}; use "
-                            "detector cusum to monitor several jointly")
+        problems = list(checked.detector_class.option_problems(checked))
         for f in fields(checked):
             owner = f.metadata["detector"]
             value = getattr(checked, f.name)
@@ -288,7 +303,7 @@ def add_arguments(groups: Mapping[str, Any], cls: type) -> None:
             kwargs.update(nargs=len(default), metavar=tuple(rule.metavar.split()),
                           type=Rule(_is_number, "a finite time in seconds").argparse_type())
         elif rule.choices:
-            kwargs.update(choices=rule.choices)
+            kwargs.update(choices=rule.choices() if callable(rule.choices) else rule.choices)
         else:
             kwargs.update(type=rule.argparse_type(), metavar=rule.metavar)
         groups[f.metadata["group"]].add_argument(flag, **kwargs)

@@ -222,6 +222,7 @@ def _plot_history(fig: Any, result: "MonitorResult") -> None:
     s = result.summary
     first = s.first_alarm_time
     fault = s.fault_time
+    forecast_name = result.options.detector_class.plot_text(result.options, fit).forecast
     if first is not None:
         lo = fit.start
         hi = max(first, fault or first) + 4.0
@@ -237,9 +238,8 @@ def _plot_history(fig: Any, result: "MonitorResult") -> None:
         m = (t >= a) & (t <= b)
         ax.plot(t[m], x[m], color="tab:blue", lw=0.9, zorder=3, label=f"{sig} (exchange file)")
         ax.plot(t[m], fitted[m], color="tab:green", lw=1.2, ls="--", zorder=4, label="model on training data")
-        locked = " phase-locked" if result.options.detector == "cusum" else ""
         ax.plot(t[m], f[m], color="tab:orange", lw=1.2, ls="--", zorder=4,
-                label=f"{locked.strip()} forecast ({fit.forecaster.kind})".strip())
+                label=f"{forecast_name} ({fit.forecaster.kind})")
         for i, ft in enumerate(result.fits):
             ax.axvspan(ft.start, ft.end, color="tab:green", alpha=0.12,
                        label=f"training {ft.start:g}–{ft.end:g} s" if i == 0 else None)
@@ -260,7 +260,8 @@ def _plot_statistic(fig: Any, result: "MonitorResult") -> None:
     ev = result.evaluations
     s = result.summary
     o = result.options
-    cusum = o.detector == "cusum"
+    cls = o.detector_class
+    look = cls.plot_text(o, s.fit)
     axes = fig.subplots(2, 1, height_ratios=[1.4, 1])
     first = s.first_alarm_time
     t = ev["time"].to_numpy()
@@ -270,23 +271,17 @@ def _plot_statistic(fig: Any, result: "MonitorResult") -> None:
         zoom = (first - 3.0, first + 2.0)
     else:
         zoom = (t[0] - 0.5, t[0] + 10.0) if t.size else (0.0, 1.0)
-    if cusum:
-        what = f"CUSUM of {o.signal} (largest of the {o.every:g} s interval)"
-        limit = f"limit h ({o.false_alarm_rate:g} false alarms/h)"
-        ylabel = "CUSUM (noise σ)"
-    else:
-        what = f"MAE over the newest {o.window:g} s (every {o.every:g} s)"
-        limit = f"threshold ({s.fit.rule.mode})"
-        ylabel = _label(result, f"MAE of {o.signal}")
+    what, limit = look.what, look.limit
+    ylabel = _label(result, look.ylabel) if look.ylabel_in_signal_units else look.ylabel
     for ax, span, title in ((axes[0], None, "whole run"), (axes[1], zoom, "zoom")):
         m = np.ones(t.size, bool) if span is None else (t >= span[0]) & (t <= span[1])
-        floor = 1e-3 if cusum else 1e-12
+        floor = look.floor
         ax.semilogy(t[m], np.maximum(stat[m], floor), color="tab:blue", lw=1.0, marker="." if span else None,
                     ms=3, label=what)
         ax.semilogy(t[m], thr[m], color="red", ls="--", lw=1.2, label=limit)
         above = m & (stat > thr)
         ax.semilogy(t[above], stat[above], "o", ms=2.5, color="red", label="above the limit")
-        if cusum:
+        if look.shade_alarm:
             alarm = m & (ev["state"].to_numpy() == "ALARM")
             if alarm.any():
                 ax.fill_between(t[m], 0, 1, where=alarm[m], transform=ax.get_xaxis_transform(), color="red",
@@ -299,8 +294,7 @@ def _plot_statistic(fig: Any, result: "MonitorResult") -> None:
         ax.grid(alpha=0.3, which="both")
         ax.set_title(f"detector statistic against its limit — {title}", fontsize=10)
     if first is not None:
-        name = "CUSUM" if cusum else "MAE"
-        txt = (f"t = {first:g} s    {name}: {s.first_alarm.statistic:.4g} > limit {s.first_alarm.threshold:.4g}\n"
+        txt = (f"t = {first:g} s    {cls.label}: {s.first_alarm.statistic:.4g} > limit {s.first_alarm.threshold:.4g}\n"
                f"{ALARM_MESSAGE}")
         if s.detection_latency is not None:
             txt += f"\ndetection delay {s.detection_latency:.3g} s after the fault; {s.alarms} alarm episode(s)"

@@ -1,4 +1,4 @@
-"""The sequential detector's numerics: noise scale, CUSUM design, and the residual engine.
+"""The sequential detector's numerics: noise scale, CUSUM design, the residual engine and the latch.
 
 For every monitored signal ``s`` the engine forms the phase-locked residual and its
 standardised value::
@@ -38,10 +38,12 @@ from typing import Any, Callable
 import numpy as np
 
 from .cusum import arl_siegmund, cusum_path, cusum_threshold
-from .detector import Crossing, SequentialDetector, State
+from .detector import Event, State, alarm_event
+from .errors import OptionError
 from .tracking import PeriodicTemplate, PhaseTracker, ShapeCorrection
 
-__all__ = ["CusumDesign", "NoiseScale", "ResidualCusum", "design_cusum", "noise_scale"]
+__all__ = ["Crossing", "CusumDesign", "NoiseScale", "ResidualCusum", "SequentialDetector", "design_cusum",
+           "noise_scale"]
 
 #: z of the upper confidence limit put on the noise scale.
 SCALE_CONFIDENCE = 2.0
@@ -131,6 +133,78 @@ def design_cusum(false_alarm_rate: float, sample_step: float, signals: int, shif
                        cusum_threshold(arl_each, k))
 
 
+@dataclass(frozen=True)
+class Crossing:
+    """A CUSUM statistic passed its limit: at ``time``, on ``signal``, side ``+`` or ``-``.
+
+    ``onset`` is the CUSUM's estimate of when the change began: the last time that
+    statistic was zero.
+    """
+
+    time: float
+    signal: str
+    side: str
+    statistic: float
+    threshold: float
+    onset: float
+
+
+class SequentialDetector:
+    """Latched alarms for the sequential (CUSUM) detector: one alarm episode per fault.
+
+    ``STABLE`` → ``ALARM`` at the first :class:`Crossing` (event ``alarm``; the statistics
+    restart from zero).  The alarm latches: further crossings extend the episode.  It
+    clears (event ``clear``, → ``STABLE``) at the first evaluation ``clear_after`` s after
+    the episode's last crossing, i.e. after that long a stretch in which the restarted
+    statistics stayed below their limit: a growing fault or a deviation seen once per cycle
+    keeps re-crossing and never flaps.  ``events`` receives each event.
+    """
+
+    def __init__(self, *, clear_after: float, emit: Callable[[list[Event]], None]):
+        if not (clear_after > 0):
+            raise OptionError(f"clear_after: expected a positive number of seconds, got {clear_after!r}")
+        self.clear_after = float(clear_after)
+        self._emit = emit
+        self.state = State.TRAINING
+        self.alarms = 0
+        self.first_alarm: Event | None = None
+        self.crossings = 0
+        self._last_crossing: float | None = None
+        self._quiet_since = -np.inf
+
+    def trained(self, time: float, threshold: float, info: dict[str, Any]) -> None:
+        self.state = State.STABLE
+        self._quiet_since = float(time)
+        self._emit([Event(time, "trained", State.TRAINING, None, threshold, "model fitted", dict(info)),
+                    Event(time, "stable", State.STABLE, None, threshold, "state 1: monitoring with the fitted model")])
+
+    def crossing(self, c: Crossing) -> None:
+        self.crossings += 1
+        self._last_crossing = c.time
+        if self.state is State.ALARM:
+            return
+        self.state = State.ALARM
+        self.alarms += 1
+        ev = alarm_event(c.time, c.statistic, c.threshold, reason="cusum", signal=c.signal, side=c.side,
+                         onset=c.onset, episode=self.alarms)
+        if self.first_alarm is None:
+            self.first_alarm = ev
+        self._emit([ev])
+
+    def tick(self, time: float) -> None:
+        """An evaluation time passed: clear a latched alarm after ``clear_after`` s without a crossing."""
+        if self.state is State.ALARM and self._last_crossing is not None \
+                and time - self._last_crossing >= self.clear_after - 1e-9:
+            self.state = State.STABLE
+            self._quiet_since = float(time)
+            self._emit([Event(time, "clear", State.STABLE, None, None,
+                              f"no CUSUM crossing for {self.clear_after:g} s: alarm episode {self.alarms} ended")])
+
+    def quiet_since(self, time: float) -> bool:
+        """True when there has been no alarm from ``time`` until now (data there are healthy)."""
+        return self.state is State.STABLE and time >= self._quiet_since - 1e-9
+
+
 @dataclass
 class _Pending:
     """Residual rows kept for the tracker until their block is ``guard`` s old."""
@@ -143,7 +217,7 @@ class _Pending:
 
 
 class ResidualCusum:
-    """Phase-locked residuals → CUSUM per signal → :class:`~monitor.detector.SequentialDetector`.
+    """Phase-locked residuals → CUSUM per signal → :class:`SequentialDetector`.
 
     ``feed(t, X)`` takes samples after ``origin`` (``X``: one column per signal) in any
     batch sizes; tracker updates happen at fixed data times (``origin + j·block + guard``)

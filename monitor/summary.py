@@ -14,11 +14,11 @@ from typing import Any
 
 import numpy as np
 
-from .detector import ALARM_MESSAGE, Event, State, ThresholdRule
+from .detector import ALARM_MESSAGE, Event, Fit, State
 from .options import MonitorOptions
 from .reader import ReaderStats, RunInfo
 from .spectrum import PeriodEstimate
-from .stream import Fit
+from .threshold import ThresholdRule
 
 __all__ = ["FaultScore", "MonitorResult", "SCHEMA", "Summary", "Timing", "before_fault", "score_alarms"]
 

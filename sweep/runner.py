@@ -265,8 +265,8 @@ def _persistence(sweep: Sweep) -> int:
     from .scenario import detector_persistence
 
     opts = sweep.monitor.options
-    return detector_persistence(opts.get("detector", MonitorOptions.detector),
-                                opts.get("persistence", MonitorOptions.persistence))
+    return detector_persistence(MonitorOptions(detector=opts.get("detector", MonitorOptions.detector),
+                                               persistence=opts.get("persistence", MonitorOptions.persistence)))
 
 
 def _limit_ok(row: dict, sweep: Sweep, out: Path) -> bool:

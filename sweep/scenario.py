@@ -124,9 +124,10 @@ def score(times, mae, threshold, alarm_times, fault_time: float | None, persiste
     }
 
 
-def detector_persistence(detector: str, persistence: int) -> int:
-    """Consecutive evaluations above the limit that make an alarm: 1 for the CUSUM (any crossing)."""
-    return 1 if detector == "cusum" else int(persistence)
+def detector_persistence(options: Any) -> int:
+    """Consecutive evaluations above the limit that make an alarm under ``options`` (a
+    :class:`monitor.MonitorOptions`): the detector's own rule, e.g. 1 for the CUSUM (any crossing)."""
+    return int(options.detector_class.alarm_persistence(options))
 
 
 #: The false-alarm levels (mean hours between false alarms) of the delay-vs-ARL0 curve.
@@ -245,6 +246,7 @@ def run_scenario(scenario: Scenario, base_case, run_dir: str, monitor_options: M
         m0 = time.perf_counter()
         try:
             from monitor import replay
+            from monitor.sequential import CusumDesign
 
             monitored = replay(result.exchange_path, out_dir=out / "monitor", plots=monitor_plots, **options)
         except MonitorError as exc:
@@ -254,9 +256,9 @@ def run_scenario(scenario: Scenario, base_case, run_dir: str, monitor_options: M
         ev = monitored.evaluations
         alarm_times = [e["time"] for e in monitored.events if e.get("event") == "alarm"]
         figures = score(ev["time"].to_numpy(), ev["statistic"].to_numpy(), ev["threshold"].to_numpy(), alarm_times,
-                        scenario.fault_time, detector_persistence(monitored.options.detector, monitored.options.persistence), latency_limit)
+                        scenario.fault_time, detector_persistence(monitored.options), latency_limit)
         fit = monitored.summary.fit
-        if fit is not None and monitored.options.detector == "cusum":
+        if fit is not None and isinstance(fit.rule, CusumDesign):     # the delay curve needs a CUSUM design
             figures.update(delays_at_arl0(ev["time"].to_numpy(), ev["statistic"].to_numpy(), fit.rule,
                                           scenario.fault_time))
         period = monitored.period

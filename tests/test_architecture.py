@@ -77,7 +77,7 @@ def test_modules_import_each_other_without_a_circle(package):
 
 
 def test_one_place_decides_an_alarm():
-    """Only monitor.detector (Detector, SequentialDetector) creates alarm events."""
+    """Only monitor.detector (alarm_event, which every detector calls) creates alarm events."""
     makers = []
     for path in sorted((REPO / "monitor").glob("*.py")):
         for node in ast.walk(ast.parse(path.read_text())):

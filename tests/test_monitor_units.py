@@ -6,10 +6,11 @@ import logging
 import numpy as np
 import pytest
 
-from monitor import (Detector, Monitor, MonitorOptions, OptionError, State, TrainingError, auto_threshold,
+from monitor import (Monitor, MonitorOptions, OptionError, State, TrainingError, auto_threshold,
                      dominant_period, fit_forecaster, fixed_threshold, replay)
 from monitor.bounded import BoundedSeries
-from monitor.detector import evaluation_times, window_mae
+from monitor.mae import MaeRule
+from monitor.threshold import evaluation_times, window_mae
 from monitor.spectrum import fourier_design
 from test_monitor_support import orchestrated
 
@@ -126,7 +127,7 @@ def test_window_mae_uses_the_newest_window():
 
 
 def test_detector_persistence_and_clear():
-    det = Detector(persistence=2)
+    det = MaeRule(persistence=2)
     det.trained(9.0, fixed_threshold(1.0))
     assert det.state is State.STABLE
     seq = [(9.5, 0.5), (9.6, 1.5), (9.7, 0.5), (9.8, 1.5), (9.9, 2.0), (10.0, 0.5), (10.1, 3.0), (10.2, 0.1),
@@ -141,14 +142,14 @@ def test_detector_persistence_and_clear():
 
 
 def test_detector_paper_refit_policy():
-    det = Detector(refit="paper", max_refits=2)
+    det = MaeRule(refit="paper", max_refits=2)
     det.trained(9.0, fixed_threshold(1.0))
     assert det.state is State.TRAINING
     assert det.update(9.5, 2.0, 1.0)[1] is True                        # above before stable: refit
     det.trained(9.5, fixed_threshold(1.0))
     events, refit = det.update(10.0, 0.5, 1.0)
     assert not refit and events[0].kind == "stable" and det.state is State.STABLE
-    det = Detector(refit="paper", max_refits=1)
+    det = MaeRule(refit="paper", max_refits=1)
     det.trained(9.0, fixed_threshold(1.0))
     assert det.update(9.5, 2.0, 1.0)[1]
     det.trained(9.5, fixed_threshold(1.0))
