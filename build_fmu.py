@@ -21,7 +21,8 @@ examples:
   CC=clang python build_fmu.py             # choose the C compiler
 
 --out and --native-out name files: an existing FMU there is replaced, any other existing
-file only with --force, a directory never (exit 2, nothing written).
+file only with --force, a directory never, nor a file in a folder this user cannot write in
+(exit 2, nothing written).  The new FMU replaces the old one only once it is complete.
 exit status: 0 built (and valid), 1 a build failed or fmpy validate found problems, 2 usage error,
 130 interrupted (Ctrl-C), 143 terminated (SIGTERM); an interrupted build leaves no partial file.
 """
@@ -36,12 +37,6 @@ def _is_fmu(path: Path) -> bool:
         return False
 
 
-def _native_leftover(dest: str) -> Path:
-    """The temporary file the native build writes before renaming it to ``dest``: removed
-    here after a failure or an interrupt (the pythonfmu build removes its own)."""
-    return Path(dest).resolve().with_suffix(".fmu.tmp")
-
-
 def _destination_problem(option: str, value: str, force: bool) -> str | None:
     """Why ``value`` cannot be written as an FMU (a message naming ``option``), or None."""
     path = Path(value)
@@ -54,8 +49,36 @@ def _destination_problem(option: str, value: str, force: bool) -> str | None:
     parent = next((p for p in path.absolute().parents if p.exists()), None)
     if parent is not None and not parent.is_dir():
         return f"{option} {value}: {parent} is a file, not a directory"
+    if parent is not None:
+        reason = _cannot_write_in(parent)
+        if reason:
+            return f"{option} {value}: cannot write in {parent}: {reason}; choose a writable folder"
     return None
 
+
+def _cannot_write_in(folder: Path) -> str | None:
+    """Why no file can be created in ``folder`` (the OS's words), or None.  A real file is
+    created and removed: permission bits alone do not say it (root ignores them, a
+    read-only mount does not show in them)."""
+    import os
+    import secrets
+
+    probe = folder / f".build_fmu-probe-{secrets.token_hex(6)}"
+    try:
+        os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    probe.unlink(missing_ok=True)
+    return None
+
+
+def _write_failure(dest: str, exc: OSError) -> str:
+    """A file operation that failed during the build (disk full, the folder became read-only
+    or a directory...): the OS's words and file, and that ``dest`` is as it was (the builds
+    write a temporary file beside it, renamed over it only when complete, removed on failure)."""
+    named = exc.filename2 or exc.filename       # a failed rename names the destination second
+    where = f": {named}" if named else ""
+    return f"{exc.strerror or exc}{where}; {dest} is unchanged and no temporary file was left"
 
 
 def _report(label: str, path, guid: str, problems, validate: bool, extra: str = "") -> bool:
@@ -116,8 +139,11 @@ def _build(args) -> int:
         from fmu_src.build import build_fmu
         try:
             result = build_fmu(args.out, validate=args.validate)
-        except (RuntimeError, OSError) as exc:
+        except RuntimeError as exc:
             print(f"build_fmu.py: error: pythonfmu FMU: {exc}", file=sys.stderr)
+            return 1
+        except OSError as exc:
+            print(f"build_fmu.py: error: pythonfmu FMU: {_write_failure(args.out, exc)}", file=sys.stderr)
             return 1
         ok &= _report("pythonfmu FMU", result.path, result.guid, result.problems, args.validate)
     if args.only in (None, "native"):
@@ -130,11 +156,12 @@ def _build(args) -> int:
                 return 1
             print(f"native FMU not built: {exc}; then run `python build_fmu.py --only native`")
             return 0 if ok else 1
-        except (RuntimeError, OSError) as exc:
+        except RuntimeError as exc:
             print(f"build_fmu.py: error: native FMU: {exc}", file=sys.stderr)
             return 1
-        finally:
-            _native_leftover(args.native_out).unlink(missing_ok=True)
+        except OSError as exc:
+            print(f"build_fmu.py: error: native FMU: {_write_failure(args.native_out, exc)}", file=sys.stderr)
+            return 1
         ok &= _report("native FMU", native.path, native.guid, native.problems, args.validate,
                       f", binaries: {', '.join(native.platforms)}")
     return 0 if ok else 1

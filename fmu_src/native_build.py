@@ -26,6 +26,8 @@ from pathlib import Path
 from typing import Mapping
 from xml.etree import ElementTree as ET
 
+from fourbar_common import replace_atomically
+
 from .build import unit_definitions
 from .c_codegen import generate_c_sources
 from .codegen import write_if_changed
@@ -181,7 +183,8 @@ def build_native_fmu(dest: str | Path = "build/FourBarNative.fmu", validate: boo
 
     ``replace`` swaps source files by name (the benchmarks' floor FMU replaces ``model.c``).
     Raises :class:`CompilerNotFound` when no C compiler can be found, RuntimeError when
-    compiling fails.
+    compiling fails, OSError when ``dest`` cannot be written (``dest`` is then as it was,
+    and no temporary file is left).
     """
     compiler = compiler or find_compiler()
     if not compiler:
@@ -191,7 +194,6 @@ def build_native_fmu(dest: str | Path = "build/FourBarNative.fmu", validate: boo
                                    f"cc, gcc or clang")
         raise CompilerNotFound("no C compiler found (set CC, or install gcc or clang)")
     dest = Path(dest).resolve()
-    dest.parent.mkdir(parents=True, exist_ok=True)
     guid = _guid(replace)
     files = _sources(guid, replace)
     if not replace:
@@ -219,14 +221,19 @@ def build_native_fmu(dest: str | Path = "build/FourBarNative.fmu", validate: boo
             _compile(cross, src, c_files, dll, extra=("-static-libgcc",))
             binaries.append((f"binaries/win64/{MODEL_IDENTIFIER}.dll", dll))
             platforms.append("win64")
-        tmp_dest = dest.with_suffix(".fmu.tmp")
-        with zipfile.ZipFile(tmp_dest, "w", zipfile.ZIP_DEFLATED) as z:
-            z.writestr("modelDescription.xml", model_description(guid, c_files))
-            for arcname, path in binaries:
-                z.write(path, arcname)
-            for name in sorted(files):
-                z.writestr(f"sources/{name}", files[name])
-        tmp_dest.replace(dest)
+
+        def write(tmp_dest: Path) -> None:
+            with zipfile.ZipFile(tmp_dest, "w", zipfile.ZIP_DEFLATED) as z:
+                z.writestr("modelDescription.xml", model_description(guid, c_files))
+                for arcname, path in binaries:
+                    z.write(path, arcname)
+                for name in sorted(files):
+                    z.writestr(f"sources/{name}", files[name])
+
+        # A uniquely named temporary file beside dest, renamed over it when complete and
+        # removed on any failure or interrupt: dest is the old FMU or the new one, never a
+        # part of either, and nothing is left beside it.
+        replace_atomically(dest, write)
     problems: tuple[str, ...] = ()
     if validate:
         from fmpy.validation import validate_fmu

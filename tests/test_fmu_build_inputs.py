@@ -56,6 +56,66 @@ def test_out_on_a_file_that_is_not_an_fmu_needs_force(tmp_path):
     assert "--force" in build("--help").stdout
 
 
+def _unwritable(tmp_path: Path) -> Path:
+    """An existing folder this process cannot create files in: a 0o555 folder, or for root (who
+    ignores modes) a read-only system folder; skip when there is none."""
+    folder = tmp_path / "read-only"
+    folder.mkdir()
+    folder.chmod(0o555)
+    for candidate in [folder] + ([Path("/sys"), Path("/proc")] if os.geteuid() == 0 else []):
+        try:
+            (candidate / ".fourbar-probe").mkdir()
+        except OSError:
+            return candidate
+        (candidate / ".fourbar-probe").rmdir()
+    pytest.skip("no folder here refuses this process's writes")
+
+
+def test_out_in_a_folder_that_cannot_be_written_is_refused_before_building(tmp_path):
+    """--out / --native-out in (or under) a read-only folder: exit 2 at once, naming the folder
+    and the OS's reason; the build (seconds) is not started.  It used to build, then fail to
+    write the FMU: exit 1 with a bare "[Errno 13] Permission denied: '....fmu.tmp'"."""
+    locked = _unwritable(tmp_path)
+    for option, only, target in (("--out", "pythonfmu", locked / "F.fmu"),
+                                 ("--native-out", "native", locked / "sub" / "N.fmu")):
+        started = time.monotonic()
+        proc = build("--only", only, option, target, timeout=60)
+        assert proc.returncode == 2, proc.stdout + proc.stderr
+        assert f"build_fmu.py: error: {option} {target}: cannot write in {locked}: " in proc.stderr
+        assert "choose a writable folder" in proc.stderr and "Traceback" not in proc.stderr
+        assert proc.stdout == ""                                  # nothing was built
+        assert time.monotonic() - started < 30, "refused only after building"   # a build takes >= 3 s here
+    if locked.is_relative_to(tmp_path):
+        assert list(locked.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_a_native_build_that_cannot_write_its_fmu_leaves_nothing_and_the_old_fmu_intact(tmp_path, native_fmu):
+    """Failures after the checks, in the library itself (build_fmu.py used to clean up after
+    it): the destination became a directory while the FMU was built (the rename fails after
+    the whole temporary file is written), and a compile error with an FMU already at the
+    destination.  No temporary file is left (the old build left N.fmu.tmp, 60 kB) and the
+    existing FMU is byte for byte the old one."""
+    from fmu_src.native_build import build_native_fmu
+
+    raced = tmp_path / "raced"
+    (raced / "N.fmu" / "inside").mkdir(parents=True)
+    with pytest.raises(IsADirectoryError):
+        build_native_fmu(raced / "N.fmu", validate=False)
+    assert [p.name for p in raced.iterdir()] == ["N.fmu"]
+    assert [p.name for p in (raced / "N.fmu").iterdir()] == ["inside"]
+
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    old = kept / "N.fmu"
+    shutil.copy2(native_fmu, old)
+    before = old.read_bytes()
+    with pytest.raises(RuntimeError, match="compiling the native FMU failed"):
+        build_native_fmu(old, validate=False, replace={"model.c": b"#error a broken model.c\n"})
+    assert old.read_bytes() == before
+    assert [p.name for p in kept.iterdir()] == ["N.fmu"]
+
+
 def test_a_cc_that_does_not_exist_is_named(tmp_path):
     env = {**os.environ, "CC": "/nonexistent/cc"}
     proc = build("--only", "native", "--native-out", tmp_path / "N.fmu", env=env)
