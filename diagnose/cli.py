@@ -82,8 +82,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     from fourbar_common.signals import StopSignals, exit_code, signal_of, stop_reason
+    from fourbar_common.console import closed_stdout_tolerated
 
-    with StopSignals():        # Ctrl-C and SIGTERM end the command with one line, at any moment
+    # Ctrl-C and SIGTERM end the command with one line, at any moment
+    # (and a reader that stops early, `| head`, costs nothing but the console)
+    with StopSignals(), closed_stdout_tolerated():
         try:
             return _main(argv)
         except KeyboardInterrupt as exc:     # before the diagnosis began (the diagnosis reports its own)

@@ -200,8 +200,11 @@ def _verdict(result: Any, out_dir: Path, stopped: str = "interrupted") -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     from fourbar_common.signals import StopSignals, exit_code, signal_of, stop_reason
+    from fourbar_common.console import closed_stdout_tolerated
 
-    with StopSignals() as stop:     # Ctrl-C and SIGTERM end the monitor with one line, at any moment
+    # Ctrl-C and SIGTERM end the monitor with one line, at any moment
+    # (and a reader that stops early, `| head`, costs nothing but the console)
+    with StopSignals() as stop, closed_stdout_tolerated():
         try:
             return _main(argv, stop)
         except KeyboardInterrupt as exc:      # before the monitoring began

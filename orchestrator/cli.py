@@ -84,8 +84,11 @@ def _parse_overrides(items: list[str]) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     from fourbar_common.signals import StopSignals
+    from fourbar_common.console import closed_stdout_tolerated
 
-    with StopSignals():         # Ctrl-C and SIGTERM end fourbar-run with one line, at any moment
+    # Ctrl-C and SIGTERM end fourbar-run with one line, at any moment
+    # (and a reader that stops early, `| head`, costs nothing but the console)
+    with StopSignals(), closed_stdout_tolerated():
         return _main(argv)
 
 

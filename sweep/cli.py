@@ -80,8 +80,11 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     from fourbar_common.signals import StopSignals, exit_code, signal_of, stop_reason
+    from fourbar_common.console import closed_stdout_tolerated
 
-    with StopSignals() as stop:      # Ctrl-C and SIGTERM end the sweep in order, with one line
+    # Ctrl-C and SIGTERM end the sweep in order, with one line
+    # (and a reader that stops early, `| head`, costs nothing but the console)
+    with StopSignals() as stop, closed_stdout_tolerated():
         try:
             return _main(argv, stop)
         except KeyboardInterrupt as exc:     # before the sweep began (the sweep reports its own)

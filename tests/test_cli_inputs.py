@@ -350,3 +350,32 @@ def test_sigterm_stops_a_sweep_and_keeps_its_rows(tmp_path):
     kept = pd.read_parquet(out / "results.parquet")
     assert 1 <= len(kept) < 8 and (out / "summary.json").is_file()
     assert "Traceback" not in stderr, stderr
+
+
+# ------------------------------------------------------------------ a reader that stops early
+
+def _piped_into_head(argv: list[str], cwd: Path) -> tuple[int, str]:
+    """``argv | head -1``: the first line is read, then the reader goes away; (exit code, stderr)."""
+    proc = subprocess.Popen(argv, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    first = proc.stdout.readline()
+    proc.stdout.close()                      # as head does after its line
+    _, err = proc.communicate(timeout=300)
+    assert first, f"{argv[0]} printed nothing"
+    return proc.returncode, err
+
+
+@pytest.mark.slow
+def test_output_piped_into_head_neither_fails_nor_loses_the_files(native_run, tmp_path):
+    """`fourbar-monitor ... | head -1` exited 2 with 'error: : Broken pipe' and wrote no outputs;
+    `fourbar-diagnose ... | head -1` ended in a BrokenPipeError traceback."""
+    folder = tmp_path / "run"
+    shutil.copytree(native_run, folder)
+    shutil.rmtree(folder / "monitor")
+    code, err = _piped_into_head([FOURBAR_MONITOR, "exchange.csv", "--model", "harmonic"], folder)
+    _no_traceback(err)
+    # the verdict's code (1: Case 2's fault is alarmed), and every output written
+    assert code == 1 and "Broken pipe" not in err, (code, err)
+    assert {p.name for p in (folder / "monitor").iterdir()} >= {"summary.json", "evaluations.csv", "events.jsonl"}
+    code, err = _piped_into_head([FOURBAR_DIAGNOSE, "."], folder)
+    _no_traceback(err)
+    assert code == 0 and (folder / "diagnosis" / "diagnosis.json").is_file(), (code, err)
