@@ -45,7 +45,7 @@ sys.path.insert(0, str(REPO / "tests"))          # the independent formulation l
 CENTRES = ["x2", "y2", "x3", "y3", "x4", "y4"]
 
 
-#: Table 1's tolerances, set explicitly: the FMU's default atol is tighter.
+#: Table 1's tolerances, set explicitly: the FMU's defaults are tighter.
 TABLE1_TOLERANCES = {"rtol": 1e-9, "atol": 1e-6}
 #: The FMPy runs' length (s); Exudyn's 38 s (issue 10) is for this length.
 STOP = 100.0

@@ -26,7 +26,7 @@ from reference_theta2 import simulate as reference
 pytestmark = pytest.mark.slow    # whole 100 s runs; `make check` leaves them out
 
 TABLE1 = dict(L1=3.0, L2=1.0, L3=4.0, L4=2.5, m2=1.0, m3=1.0, m4=1.0, g=9.81)
-#: Table 1's tolerances, set explicitly (the FMU's default atol is tighter, see variables.py).
+#: Table 1's tolerances, set explicitly (the FMU's defaults are tighter, see variables.py).
 TABLE1_TOLERANCES = {"rtol": 1e-9, "atol": 1e-6}
 THETA2_0 = math.radians(30.0)
 TIGHT = {"rtol": 1e-12, "atol": 1e-12}

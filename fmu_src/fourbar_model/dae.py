@@ -134,7 +134,7 @@ class FourBarDAE:
         Time the integrator may not step beyond (the experiment's stop time), s.
     """
 
-    def __init__(self, eq, p, method: str = "DOP853", rtol: float = 1e-9,
+    def __init__(self, eq, p, method: str = "DOP853", rtol: float = 1e-10,
                  atol: float = 1e-10, t_bound: float = math.inf):
         if method not in INTEGRATORS:
             raise ValueError(f"integrator {method!r} is not one of {sorted(INTEGRATORS)}")

@@ -59,12 +59,13 @@ VARIABLES: tuple[Variable, ...] = (
     _fixed("theta2_start", math.radians(30.0), "rad", "Initial crank angle from +x, counter-clockwise [rad]",
            "deg"),
     _fixed("omega2_start", 0.0, "rad/s", "Initial crank angular velocity [rad/s]"),
-    _fixed("rtol", 1e-9, "1", "Relative tolerance of the Runge-Kutta error control [-]", minimum=POSITIVE),
-    # atol: Table 1 gives 1e-6 (its case files set it).  The default is tighter because at 1e-6
-    # the integrator's energy error moves the period of a rotating crank, or of a swing that
-    # nearly reaches the top, by up to ~1e-3 (relative) in jumps over minutes -- a healthy run
-    # then drifts like a faulty one (docs/monitor.md, "Simulation accuracy").  1e-10 costs ~10 %
-    # more time in the native FMU and ~1.6x in the pythonfmu one.
+    _fixed("rtol", 1e-10, "1", "Relative tolerance of the Runge-Kutta error control [-]", minimum=POSITIVE),
+    # rtol, atol: Table 1 gives 1e-9 and 1e-6 (its case files set them).  The defaults are
+    # tighter because at Table 1's values the integrator's energy error moves the period of a
+    # rotating crank, or of a swing that nearly reaches the top, by up to ~1e-3 (relative) in
+    # jumps over minutes, and at rtol 1e-9 one step near a fast passage still shifted a rotating
+    # crank's energy by 1e-5 (relative): a healthy run then drifts like a faulty one
+    # (docs/monitor.md, Limitations).  1e-10 costs ~15 % more time in the native FMU.
     _fixed("atol", 1e-10, "1", "Absolute tolerance of the Runge-Kutta error control [rad, rad/s]",
            minimum=POSITIVE),
     Variable("integrator", "String", "parameter", "fixed", "DOP853", None,
