@@ -6,7 +6,7 @@ may all import this package, which imports nothing of theirs and only the standa
 from __future__ import annotations
 
 from .events import Event, RampEvent, StepEvent, Value
-from .files import replace_atomically, write_json_atomic
+from .files import output_folder_problem, replace_atomically, write_json_atomic
 from .run_record import (PARAMETER_SOURCES, SCHEMA_VERSION, ParameterStart, RecordedExchange, RecordedExperiment,
                          RecordedFmu, RecordedNoise, RecordedWriter, RunRecord, RunRecordError, read_run_record,
                          write_run_record)
@@ -27,6 +27,7 @@ __all__ = [
     "SCHEMA_VERSION",
     "StepEvent",
     "Value",
+    "output_folder_problem",
     "package_version",
     "read_run_record",
     "replace_atomically",

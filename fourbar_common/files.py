@@ -7,7 +7,7 @@ import secrets
 from pathlib import Path
 from typing import Any, Callable
 
-__all__ = ["replace_atomically", "write_json_atomic"]
+__all__ = ["output_folder_problem", "replace_atomically", "write_json_atomic"]
 
 #: Mode asked for a new file, as ``open(path, "w")`` does; the process umask removes bits
 #: from it (usually 0o022, giving 0o644: readable by others, like exchange.csv and plots).
@@ -62,3 +62,23 @@ def write_json_atomic(path: str | os.PathLike[str], data: Any, *, default: Calla
 
     replace_atomically(path, write)
 
+
+def output_folder_problem(out: str | os.PathLike[str], receives: str) -> str | None:
+    """Why folder ``out`` cannot take a command's outputs, as the end of a message naming it
+    (``--out OUT: ...``), or None when it can: it is a file, a parent on its way is a file, or
+    the nearest existing folder cannot be written.  ``receives`` says what the folder is for.
+    Creates nothing."""
+    out = Path(out)
+    try:
+        if out.exists() and not out.is_dir():
+            return f"exists and is not a folder; --out names the folder that receives {receives}"
+        parent = out
+        while not parent.exists() and parent.parent != parent:
+            parent = parent.parent
+        if not parent.is_dir():
+            return f"{parent} is not a folder, so the output folder cannot be made there"
+        if not os.access(parent, os.W_OK | os.X_OK):
+            return f"{parent} is not writable; choose a writable folder with --out"
+    except OSError as exc:
+        return str(exc.strerror or exc)
+    return None

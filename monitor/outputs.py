@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from fourbar_common import write_json_atomic
+from fourbar_common import output_folder_problem, write_json_atomic
 
 from .detector import ALARM_MESSAGE, Event, State
 from .errors import OutputDirError
@@ -80,19 +80,9 @@ def checked_out_dir(out_dir: str | os.PathLike[str]) -> Path:
     file, cannot be created where it is, or cannot be written.  Nothing is created here: the
     folder is made once the input has been accepted."""
     out = Path(out_dir)
-    try:
-        if out.exists() and not out.is_dir():
-            raise OutputDirError(f"--out {out}: exists and is not a folder; --out names the folder that receives "
-                                 f"{', '.join(OUTPUT_FILES[:3])} and the plots")
-        parent = out
-        while not parent.exists() and parent.parent != parent:
-            parent = parent.parent
-        if not parent.is_dir():
-            raise OutputDirError(f"--out {out}: {parent} is not a folder, so the output folder cannot be made there")
-        if not os.access(parent, os.W_OK | os.X_OK):
-            raise OutputDirError(f"--out {out}: {parent} is not writable; choose a writable folder with --out")
-    except OSError as exc:
-        raise OutputDirError(f"--out {out}: {exc.strerror or exc}") from None
+    problem = output_folder_problem(out, f"{', '.join(OUTPUT_FILES[:3])} and the plots")
+    if problem is not None:
+        raise OutputDirError(f"--out {out}: {problem}")
     return out
 
 

@@ -23,7 +23,7 @@ import os
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
-from fourbar_common import replace_atomically
+from fourbar_common import output_folder_problem, replace_atomically
 
 from .scenario import RESULT_FIELDS
 
@@ -180,20 +180,9 @@ class ResultsStore:
     def check_dir(self) -> None:
         """Raise :class:`ResultsError` naming the path when the output directory cannot be
         used: it (or a parent) is a file, or it cannot be created or written.  Creates nothing."""
-        out = self.out_dir
-        try:
-            if out.exists() and not out.is_dir():
-                raise ResultsError(f"--out {out}: exists and is not a folder; --out names the folder that receives "
-                                   "results.csv, results.parquet, summary.json, plots/ and runs/")
-            parent = out
-            while not parent.exists() and parent.parent != parent:
-                parent = parent.parent
-            if not parent.is_dir():
-                raise ResultsError(f"--out {out}: {parent} is not a folder, so the output folder cannot be made there")
-            if not os.access(parent, os.W_OK | os.X_OK):
-                raise ResultsError(f"--out {out}: {parent} is not writable; choose a writable folder with --out")
-        except OSError as exc:
-            raise ResultsError(f"--out {out}: {exc.strerror or exc}") from None
+        problem = output_folder_problem(self.out_dir, "results.csv, results.parquet, summary.json, plots/ and runs/")
+        if problem is not None:
+            raise ResultsError(f"--out {self.out_dir}: {problem}")
 
     def lock(self) -> None:
         """Claim the directory (``.lock`` with this process id); ResultsError if another live
