@@ -109,23 +109,26 @@ def shipped_sweep(out: Path, name: str):
 
 @dataclass(frozen=True)
 class Spread:
-    """Median, smallest and largest of a set of latencies (None: some run missed)."""
+    """Median, smallest and largest of a set of latencies (None: some run missed; ``missed``
+    counts them)."""
 
     n: int
     median: float | None
     low: float | None
     high: float | None
+    missed: int = 0
 
     @classmethod
     def of(cls, values) -> "Spread":
         values = [float(v) for v in values]
-        if not values or any(math.isnan(v) for v in values):
-            return cls(len(values), None, None, None)
+        missed = sum(1 for v in values if math.isnan(v))
+        if not values or missed:
+            return cls(len(values), None, None, None, missed)
         return cls(len(values), statistics.median(values), min(values), max(values))
 
     def text(self) -> str:
         if self.median is None:
-            return f"missed in some of {self.n} runs"
+            return f"missed in all {self.n} runs" if self.missed == self.n else f"missed in {self.missed} of {self.n} runs"
         if self.n == 1:
             return f"{self.median:.2f} s"
         return f"{self.median:.2f} s (median; {self.low:.2f}–{self.high:.2f} s, n = {self.n})"
@@ -311,6 +314,7 @@ def drift(out: Path) -> list[str]:
                     noise={"std": 0.005, "seed": [1, 2, 3]}, monitor={"model": "harmonic"})
     rows = ["| ramp of L2 by +1 % over | first alarm after the ramp starts | L2 change at the alarm | "
             "episodes per run | false alarms |", "|---:|---:|---:|---:|---:|"]
+    missed = 0
     for duration in DRIFT_DURATIONS:
         d = t[(t["ramp_duration"] - duration).abs() < 1e-9]
         s = Spread.of(d["latency"])
@@ -319,12 +323,17 @@ def drift(out: Path) -> list[str]:
                        f"+{100 * max(change):.2f} %)") if change else "—"
         rows.append(f"| {duration:g} s | {s.text()} | {change_text} | {int(d['alarms'].max())} | "
                     f"{int(d['false_alarms'].sum())} |")
-    return ["## Slow drifts", "",
-            "The phase tracker follows a pure time shift that builds up over much longer than its 15 s time "
-            "constant, so a slow *period* change alone would be absorbed. A real parameter drift also changes the "
-            "waveform's shape, which the tracker cannot follow, and the CUSUM accumulates it: L2 drifting by "
-            "+1 % over up to 50 minutes (σ = 5 mm on x2, 3 seeds, harmonic model) is caught when it has "
-            "changed by a few tenths of a percent.", "", *rows, ""]
+        missed += s.missed
+    study = (f"L2 drifting by +1 % over 300 s to 50 minutes, then held there until {DRIFT_DURATIONS[-1] + 60.0:g} s "
+             "(σ = 5 mm on x2, 3 seeds, harmonic model).")
+    if missed:
+        verdict = (f"{missed} of {len(t)} runs never alarmed, even with L2 held at +1 % afterwards: a change this "
+                   "slow is absorbed. The phase tracker follows the period (15 s time constant) and the shape "
+                   "correction the waveform (60 s), both learnt from quiet data, so a drift slower than about a "
+                   "minute never leaves a residual for the CUSUM (docs/monitor.md, Limitations).")
+    else:
+        verdict = "Every run alarmed before the drift was complete; the table gives how far L2 had moved."
+    return ["## Slow drifts", "", study + " " + verdict, "", *rows, ""]
 
 
 def calibration(healthy: list[Path]) -> list[str]:
