@@ -53,6 +53,8 @@ MAX_LAG1 = 0.95
 PHASE_Z = 2.0
 #: s of data: how long a phase error seen on healthy data keeps widening the scale (decay time).
 PHASE_ERROR_MEMORY = 600.0
+#: Samples without a crossing after which the statistics go back from the scalar to the vectorised pass.
+SCALAR_RUN = 64
 
 
 @dataclass(frozen=True)
@@ -311,6 +313,10 @@ class ResidualCusum:
         return f
 
     def _cusum(self, t: np.ndarray, z: np.ndarray) -> None:
+        """Run the statistics over ``z`` (samples × signals), vectorised while they stay below
+        the limit; right after a crossing, sample by sample (:meth:`_cusum_scalar`): a fault
+        keeps the restarted statistics crossing at almost every sample, and restarting the
+        vectorised pass over the rest of the data at each crossing cost time quadratic in it."""
         k, h = self.design.k, self.design.h
         i = 0
         n = t.size
@@ -331,11 +337,63 @@ class ResidualCusum:
                 return
             at = i + stop
             side, sig = np.unravel_index(int(np.argmax(paths[:, stop, :])), (2, w.shape[2]))
-            self.detector.crossing(Crossing(float(t[at]), self.names[sig], "+" if side == 0 else "-",
-                                            float(paths[side, stop, sig]), h, float(self._zero_time[side, sig])))
-            self._s[:] = 0.0
-            self._zero_time[:] = float(t[at])
-            i = at + 1
+            self._cross(float(t[at]), int(side), int(sig), float(paths[side, stop, sig]))
+            i = self._cusum_scalar(t, z, at + 1)
+
+    def _cross(self, time: float, side: int, sig: int, statistic: float) -> None:
+        """A crossing at ``time``: tell the detector; every statistic restarts from zero."""
+        self.detector.crossing(Crossing(time, self.names[sig], "+" if side == 0 else "-", statistic,
+                                        self.design.h, float(self._zero_time[side, sig])))
+        self._s[:] = 0.0
+        self._zero_time[:] = time
+
+    def _cusum_scalar(self, t: np.ndarray, z: np.ndarray, i: int) -> int:
+        """The statistics sample by sample from index ``i`` until ``SCALAR_RUN`` samples pass
+        without a crossing (or the data end); returns the next index.  The same recursion,
+        zero times, evaluations and crossings as the vectorised pass, in scalar arithmetic."""
+        k, h, eps = self.design.k, self.design.h, self._eps
+        m = z.shape[1]
+        s = [[float(v) for v in row] for row in self._s]
+        zt = [[float(v) for v in row] for row in self._zero_time]
+        due = self.origin + self._next_eval * self.every
+        quiet = 0
+        n = t.size
+        base, tl, zl = i, [], []            # plain floats of a stretch of samples: indexing numpy costs more
+        while i < n and quiet < SCALAR_RUN:
+            if i - base >= len(tl):
+                base = i
+                tl, zl = t[i:i + 1024].tolist(), z[i:i + 1024].tolist()
+            tj, zj = tl[i - base], zl[i - base]
+            while tj > due + eps:                     # evaluations that passed before this sample
+                self._evaluated(due)
+                due = self.origin + self._next_eval * self.every
+            best, best_side, best_sig = -math.inf, 0, 0
+            for side, sign in ((0, 1.0), (1, -1.0)):
+                row_s, row_zt = s[side], zt[side]
+                for sig in range(m):
+                    v = row_s[sig] + sign * zj[sig] - k
+                    if v <= 0.0:
+                        v = 0.0
+                        row_zt[sig] = tj
+                    row_s[sig] = v
+                    if v > best:
+                        best, best_side, best_sig = v, side, sig
+            if best > self._eval_max:
+                self._eval_max = best
+            if tj >= due - eps:                       # a sample at the evaluation time closes it
+                self._evaluated(due)
+                due = self.origin + self._next_eval * self.every
+            if best > h:
+                self.detector.crossing(Crossing(tj, self.names[best_sig], "+" if best_side == 0 else "-", best, h,
+                                                zt[best_side][best_sig]))
+                s = [[0.0] * m, [0.0] * m]
+                zt = [[tj] * m, [tj] * m]
+                quiet = 0
+            else:
+                quiet += 1
+            i += 1
+        self._s, self._zero_time = np.array(s), np.array(zt)
+        return i
 
     def _track_zero(self, t: np.ndarray, paths: np.ndarray) -> None:
         """Remember, per statistic, the last time it was zero: the CUSUM's change-time estimate."""
@@ -345,7 +403,6 @@ class ResidualCusum:
         self._zero_time = np.where(any_zero, t[last], self._zero_time)
 
     def _record(self, t: np.ndarray, stat: np.ndarray) -> None:
-        h = self.design.h
         i = 0
         while i < t.size:
             due = self.origin + self._next_eval * self.every
@@ -353,12 +410,17 @@ class ResidualCusum:
             if j > i:
                 self._eval_max = max(self._eval_max, float(stat[i:j].max()))
             if j < t.size or (t.size and t[-1] >= due - self._eps):
-                self.max_ratio = max(self.max_ratio, self._eval_max / h)
-                self.detector.tick(due)
-                self.on_evaluation(due, self._eval_max, h, self.detector.state)
-                self._eval_max = 0.0
-                self._next_eval += 1
+                self._evaluated(due)
             i = j
+
+    def _evaluated(self, due: float) -> None:
+        """Evaluation time ``due`` has passed: report the largest statistic since the last one."""
+        h = self.design.h
+        self.max_ratio = max(self.max_ratio, self._eval_max / h)
+        self.detector.tick(due)
+        self.on_evaluation(due, self._eval_max, h, self.detector.state)
+        self._eval_max = 0.0
+        self._next_eval += 1
 
     def _learn_phase_error(self, t: np.ndarray, shift_used: np.ndarray) -> None:
         """Compare the shift the CUSUM used with the tracker's estimate now that the block is in.
