@@ -193,6 +193,16 @@ class SequentialDetector:
             self.first_alarm = ev
         self._emit([ev])
 
+    def extend(self, time: float) -> bool:
+        """A crossing at ``time`` while an alarm is latched: it only extends the episode (what
+        :meth:`crossing` does then, without building a :class:`Crossing`).  False, and nothing
+        done, when no alarm is latched: the caller reports the crossing in full."""
+        if self.state is not State.ALARM:
+            return False
+        self.crossings += 1
+        self._last_crossing = time
+        return True
+
     def tick(self, time: float) -> None:
         """An evaluation time passed: clear a latched alarm after ``clear_after`` s without a crossing."""
         if self.state is State.ALARM and self._last_crossing is not None \
@@ -368,24 +378,33 @@ class ResidualCusum:
                 self._evaluated(due)
                 due = self.origin + self._next_eval * self.every
             best, best_side, best_sig = -math.inf, 0, 0
-            for side, sign in ((0, 1.0), (1, -1.0)):
-                row_s, row_zt = s[side], zt[side]
-                for sig in range(m):
-                    v = row_s[sig] + sign * zj[sig] - k
-                    if v <= 0.0:
-                        v = 0.0
-                        row_zt[sig] = tj
-                    row_s[sig] = v
-                    if v > best:
-                        best, best_side, best_sig = v, side, sig
+            up, down, up_zt, down_zt = s[0], s[1], zt[0], zt[1]
+            for sig in range(m):
+                x = zj[sig]
+                v = up[sig] + x - k                   # the + side: w = z − k
+                if v <= 0.0:
+                    v = 0.0
+                    up_zt[sig] = tj
+                up[sig] = v
+                if v > best:
+                    best, best_side, best_sig = v, 0, sig
+            for sig in range(m):
+                v = down[sig] + -zj[sig] - k          # the − side: w = −z − k
+                if v <= 0.0:
+                    v = 0.0
+                    down_zt[sig] = tj
+                down[sig] = v
+                if v > best:
+                    best, best_side, best_sig = v, 1, sig
             if best > self._eval_max:
                 self._eval_max = best
             if tj >= due - eps:                       # a sample at the evaluation time closes it
                 self._evaluated(due)
                 due = self.origin + self._next_eval * self.every
             if best > h:
-                self.detector.crossing(Crossing(tj, self.names[best_sig], "+" if best_side == 0 else "-", best, h,
-                                                zt[best_side][best_sig]))
+                if not self.detector.extend(tj):      # a new alarm (not one latched already): the full crossing
+                    self.detector.crossing(Crossing(tj, self.names[best_sig], "+" if best_side == 0 else "-", best,
+                                                    h, zt[best_side][best_sig]))
                 s = [[0.0] * m, [0.0] * m]
                 zt = [[tj] * m, [tj] * m]
                 quiet = 0
