@@ -187,8 +187,6 @@ QUOTES = (
            "robust_length_noisy", "robust_mass_clean", "robust_mass_noisy", "robust_right_clean", "robust_right_noisy")),
     Quote("docs/monitor.md", r"at the defaults, (\S+) per healthy hour clean and (\S+)\s+with noise \((\S+) h in all",
           ("robust_fa_clean", "robust_fa_noisy", "robust_hours")),
-    Quote("README.md", r"The harmonic replay misses its 1000× target with the CUSUM\*\* \((\d+)× in docs/benchmarks",
-          ("monitor_harmonic",)),
     # docs/sweep.md: counts, timings and the headline table, copied
     Quote("docs/sweep.md", r"# (\d+) scenarios, each a 20 s run", ("scenarios.smoke",)),
     Quote("docs/sweep.md", r"the headline sweep: (\d+) scenarios \((\d+) s on 2 cores in docs/benchmarks\.md\)",
