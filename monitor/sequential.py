@@ -181,10 +181,10 @@ class SequentialDetector:
                     Event(time, "stable", State.STABLE, None, threshold, "state 1: monitoring with the fitted model")])
 
     def crossing(self, c: Crossing) -> None:
+        if self.extend(c.time):
+            return
         self.crossings += 1
         self._last_crossing = c.time
-        if self.state is State.ALARM:
-            return
         self.state = State.ALARM
         self.alarms += 1
         ev = alarm_event(c.time, c.statistic, c.threshold, reason="cusum", signal=c.signal, side=c.side,

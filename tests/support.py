@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import sys
 from pathlib import Path
@@ -31,3 +32,20 @@ def case_file(case: str, fmu: Path, dest: Path, *, name: str | None = None, extr
     path = dest / f"{case}.toml" if dest.is_dir() else dest
     path.write_text(text + extra, encoding="utf-8")
     return path
+
+
+def unwritable_folder(tmp_path: Path) -> Path:
+    """An existing folder this process cannot create files in: a 0o555 folder, or for root (who
+    ignores modes) a read-only system folder; skips the test when there is none."""
+    import pytest
+
+    folder = tmp_path / "read-only"
+    folder.mkdir()
+    folder.chmod(0o555)
+    for candidate in [folder] + ([Path("/sys"), Path("/proc")] if os.geteuid() == 0 else []):
+        try:
+            (candidate / ".fourbar-probe").mkdir()
+        except OSError:
+            return candidate
+        (candidate / ".fourbar-probe").rmdir()
+    pytest.skip("no folder here refuses this process's writes")

@@ -19,7 +19,7 @@ from typing import Callable
 
 import pytest
 
-from support import FOURBAR_MONITOR, FOURBAR_RUN, REPO, case_file
+from support import FOURBAR_MONITOR, FOURBAR_RUN, REPO, case_file, unwritable_folder
 
 BIN = Path(sys.executable).parent
 FOURBAR_DIAGNOSE = str(BIN / "fourbar-diagnose")
@@ -96,22 +96,6 @@ def _no_traceback(*texts: str) -> None:
 
 # -- fourbar-diagnose --out --------------------------------------------------------------------------
 
-def _unwritable(tmp_path: Path) -> Path:
-    """An existing folder this process cannot create files in: a 0o555 folder, or for root (who
-    ignores modes) a read-only system folder; skip when there is none."""
-    folder = tmp_path / "read-only"
-    folder.mkdir()
-    folder.chmod(0o555)
-    candidates = [folder] + ([Path("/sys"), Path("/proc")] if os.geteuid() == 0 else [])
-    for candidate in candidates:
-        try:
-            (candidate / ".fourbar-probe").mkdir()
-        except OSError:
-            return candidate
-        (candidate / ".fourbar-probe").rmdir()
-    pytest.skip("no folder here refuses this process's writes")
-
-
 @pytest.mark.slow
 def test_diagnose_out_that_cannot_take_the_outputs_is_refused_before_the_diagnosis(pythonfmu_run, tmp_path):
     """--out on a file, under a file, or in a read-only place: exit 2 at once with the path named.
@@ -120,7 +104,7 @@ def test_diagnose_out_that_cannot_take_the_outputs_is_refused_before_the_diagnos
     60 s timeout shows the check comes before the diagnosis."""
     a_file = tmp_path / "verdict.json"
     a_file.write_text("keep me\n")
-    locked = _unwritable(tmp_path)
+    locked = unwritable_folder(tmp_path)
     for out, expected in ((a_file, f"--out {a_file}: exists and is not a folder"),
                           (a_file / "sub", f"--out {a_file / 'sub'}: {a_file} is not a folder"),
                           (locked, f"--out {locked}: cannot write there"),

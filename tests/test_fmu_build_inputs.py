@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from support import FOURBAR_RUN, REPO, case_file
+from support import FOURBAR_RUN, REPO, case_file, unwritable_folder
 
 PYTHON = sys.executable
 
@@ -56,26 +56,11 @@ def test_out_on_a_file_that_is_not_an_fmu_needs_force(tmp_path):
     assert "--force" in build("--help").stdout
 
 
-def _unwritable(tmp_path: Path) -> Path:
-    """An existing folder this process cannot create files in: a 0o555 folder, or for root (who
-    ignores modes) a read-only system folder; skip when there is none."""
-    folder = tmp_path / "read-only"
-    folder.mkdir()
-    folder.chmod(0o555)
-    for candidate in [folder] + ([Path("/sys"), Path("/proc")] if os.geteuid() == 0 else []):
-        try:
-            (candidate / ".fourbar-probe").mkdir()
-        except OSError:
-            return candidate
-        (candidate / ".fourbar-probe").rmdir()
-    pytest.skip("no folder here refuses this process's writes")
-
-
 def test_out_in_a_folder_that_cannot_be_written_is_refused_before_building(tmp_path):
     """--out / --native-out in (or under) a read-only folder: exit 2 at once, naming the folder
     and the OS's reason; the build (seconds) is not started.  It used to build, then fail to
     write the FMU: exit 1 with a bare "[Errno 13] Permission denied: '....fmu.tmp'"."""
-    locked = _unwritable(tmp_path)
+    locked = unwritable_folder(tmp_path)
     for option, only, target in (("--out", "pythonfmu", locked / "F.fmu"),
                                  ("--native-out", "native", locked / "sub" / "N.fmu")):
         started = time.monotonic()
