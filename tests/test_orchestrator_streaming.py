@@ -142,15 +142,21 @@ def test_realtime_pacing(factor, stop, pacing_fmu, tmp_path):
     # unpaced run would show the last block ~1 s early, so 20 ms still catches it.
     EARLY = 0.02
     assert 1.0 - EARLY <= w1 - w0 <= 1.3, w1 - w0
+    lateness = []
     for wall, t in seen:
         # A block is never visible before its simulated time is due (EARLY: the reader's
-        # own lag at the first row, above) and is not held much longer than
-        # one block (0.1 s) plus jitter.  The reader is a thread of this process and shares
-        # the GIL with the FMU's Python code, so its reading can lag by up to ~0.2 s on a
-        # busy 2-core machine (seen once in a clean-clone run); 0.3 s still catches a run
-        # that buffers its rows (up to stop/factor = 1 s late).
+        # own lag at the first row, above).
         assert t / factor <= (wall - w0) + EARLY
-        assert (wall - w0) - t / factor <= 0.1 / factor + 0.3
+        lateness.append((wall - w0) - t / factor)
+    # Nor is it held much longer than one block (0.1 s / factor).  Single blocks can be late on
+    # a busy machine: the whole process was once stalled for 0.66 s in a CI run (the block at
+    # t = 0.3 s appeared at 0.96 s, and the run still finished on time), so the bound is on the
+    # typical block, not the worst.  A run that buffers its rows shows most blocks late by up
+    # to stop/factor = 1 s (median ~0.5 s), so a median of 0.1/factor + 0.1 s and three blocks
+    # in four within 0.1/factor + 0.3 s still catch it.
+    lateness.sort()
+    assert lateness[len(lateness) // 2] <= 0.1 / factor + 0.1, lateness
+    assert lateness[(3 * len(lateness)) // 4] <= 0.1 / factor + 0.3, lateness
     print(f"factor {factor}: loop {result.sim_wall_time_s:.4f} s, seen by reader {w1 - w0:.4f} s "
           f"(whole run_case {result.wall_time_s:.3f} s including FMU loading)")
 
