@@ -1,11 +1,15 @@
 #!/usr/bin/env python3
-"""Build the four-bar FMUs from one sympy derivation and validate them with FMPy.
+"""Build a mechanism's FMUs from one sympy derivation and validate them with FMPy.
 
-- build/FourBar.fmu        pythonfmu (the FMU of record; needs Python in the host)
-- build/FourBarNative.fmu  the same equations printed as C and compiled (needs nothing);
-                           built when a C compiler is found
+- build/<Name>.fmu        pythonfmu (the FMU of record; needs Python in the host)
+- build/<Name>Native.fmu  the same equations printed as C and compiled (needs nothing);
+                          built when a C compiler is found
 
-Usage: python build_fmu.py [--only {pythonfmu,native}] [--out PATH] [--native-out PATH] [--force] [--no-validate]
+The mechanism is a description file (docs/mechanisms.md): a name shipped in
+fmu_src/mechanisms/ (default: fourbar, Table 1's linkage, giving FourBar.fmu) or a path.
+
+Usage: python build_fmu.py [--mechanism NAME|PATH] [--only {pythonfmu,native}] [--out PATH]
+                           [--native-out PATH] [--force] [--no-validate] [--list]
 """
 from __future__ import annotations
 
@@ -16,15 +20,18 @@ from pathlib import Path
 
 _EPILOG = """\
 examples:
-  python build_fmu.py                      # both FMUs (the native one when a C compiler exists)
-  python build_fmu.py --only native        # just build/FourBarNative.fmu
+  python build_fmu.py                      # build/FourBar.fmu and build/FourBarNative.fmu (Table 1)
+  python build_fmu.py --mechanism slider_crank      # build/SliderCrank.fmu and SliderCrankNative.fmu
+  python build_fmu.py --mechanism my_machine.toml   # your own mechanism file (docs/mechanisms.md)
+  python build_fmu.py --list               # the shipped mechanisms
+  python build_fmu.py --only native        # just the native FMU
   CC=clang python build_fmu.py             # choose the C compiler
 
 --out and --native-out name files: an existing FMU there is replaced, any other existing
 file only with --force, a directory never, nor a file in a folder this user cannot write in
 (exit 2, nothing written).  The new FMU replaces the old one only once it is complete.
-exit status: 0 built (and valid), 1 a build failed or fmpy validate found problems, 2 usage error,
-130 interrupted (Ctrl-C), 143 terminated (SIGTERM); an interrupted build leaves no partial file.
+exit status: 0 built (and valid), 1 a build failed or fmpy validate found problems, 2 usage error
+or a mistake in the mechanism file (the message names the item), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM); an interrupted build leaves no partial file.
 """
 
 
@@ -37,11 +44,11 @@ def _is_fmu(path: Path) -> bool:
         return False
 
 
-def _destination_problem(option: str, value: str, force: bool) -> str | None:
+def _destination_problem(option: str, value: str, force: bool, name: str = "FourBar") -> str | None:
     """Why ``value`` cannot be written as an FMU (a message naming ``option``), or None."""
     path = Path(value)
     if path.is_dir():
-        example = path / ("FourBar.fmu" if option == "--out" else "FourBarNative.fmu")
+        example = path / (f"{name}.fmu" if option == "--out" else f"{name}Native.fmu")
         return f"{option} {value}: is a directory; expected the path of the .fmu file to write, e.g. {example}"
     if path.exists() and not force and not _is_fmu(path):
         return (f"{option} {value}: exists and is not an FMU (no zip with a modelDescription.xml); "
@@ -98,14 +105,17 @@ def _report(label: str, path, guid: str, problems, validate: bool, extra: str = 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
         prog="build_fmu.py", epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Build the four-bar linkage as FMI 2.0 co-simulation FMUs: FourBar.fmu (pythonfmu) and "
-                    "FourBarNative.fmu (generated C, no Python needed), then validate them with FMPy.")
+        description="Build a planar mechanism (default: Table 1's four-bar) as FMI 2.0 co-simulation FMUs: "
+                    "<Name>.fmu (pythonfmu) and <Name>Native.fmu (generated C, no Python needed), then "
+                    "validate them with FMPy.")
+    parser.add_argument("--mechanism", default="fourbar", metavar="NAME|PATH",
+                        help="a mechanism shipped in fmu_src/mechanisms/ or the path of a mechanism file "
+                             "(default: %(default)s)")
+    parser.add_argument("--list", action="store_true", help="list the shipped mechanisms and exit")
     parser.add_argument("--only", choices=("pythonfmu", "native"),
                         help="build just one of the two FMUs (default: both; native only if a C compiler exists)")
-    parser.add_argument("--out", default="build/FourBar.fmu",
-                        help="where to write the pythonfmu FMU (default: %(default)s)")
-    parser.add_argument("--native-out", default="build/FourBarNative.fmu",
-                        help="where to write the native FMU (default: %(default)s)")
+    parser.add_argument("--out", help="where to write the pythonfmu FMU (default: build/<Name>.fmu)")
+    parser.add_argument("--native-out", help="where to write the native FMU (default: build/<Name>Native.fmu)")
     parser.add_argument("--force", action="store_true",
                         help="replace an existing --out/--native-out file even if it is not an FMU "
                              "(an existing FMU is always replaced; a directory never is)")
@@ -115,9 +125,27 @@ def main(argv=None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:
         return int(exc.code or 0)
+    from fmu_src.mechanism.description import MechanismError, load_mechanism, shipped_mechanisms
+
+    if args.list:
+        for name in shipped_mechanisms():
+            try:
+                mech = load_mechanism(name)
+                print(f"{name:16s} {mech.name}.fmu / {mech.name}Native.fmu: {mech.description}")
+            except MechanismError as exc:
+                print(f"{name:16s} (broken: {exc})")
+        return 0
+    try:
+        mech = load_mechanism(args.mechanism)
+    except MechanismError as exc:
+        print(f"build_fmu.py: error: {exc}", file=sys.stderr)
+        return 2
+    args.out = args.out or f"build/{mech.name}.fmu"
+    args.native_out = args.native_out or f"build/{mech.name}Native.fmu"
     targets = [("--out", args.out)] if args.only in (None, "pythonfmu") else []
     targets += [("--native-out", args.native_out)] if args.only in (None, "native") else []
-    problems = [p for p in (_destination_problem(option, value, args.force) for option, value in targets) if p]
+    problems = [p for p in (_destination_problem(option, value, args.force, mech.name) for option, value in targets)
+                if p]
     for problem in problems:
         print(f"build_fmu.py: error: {problem}", file=sys.stderr)
     if problems:
@@ -127,6 +155,9 @@ def main(argv=None) -> int:
     with StopSignals():
         try:
             return _build(args)
+        except MechanismError as exc:
+            print(f"build_fmu.py: error: {exc}", file=sys.stderr)
+            return 2
         except KeyboardInterrupt as exc:   # Ctrl-C or SIGTERM: the builds remove their partial files
             signum = signal_of(exc)
             print(f"build_fmu.py: {stop_reason(signum)}; no partial FMU was left", file=sys.stderr)
@@ -138,7 +169,7 @@ def _build(args) -> int:
     if args.only in (None, "pythonfmu"):
         from fmu_src.build import build_fmu
         try:
-            result = build_fmu(args.out, validate=args.validate)
+            result = build_fmu(args.out, validate=args.validate, mechanism=args.mechanism)
         except RuntimeError as exc:
             print(f"build_fmu.py: error: pythonfmu FMU: {exc}", file=sys.stderr)
             return 1
@@ -149,7 +180,7 @@ def _build(args) -> int:
     if args.only in (None, "native"):
         from fmu_src.native_build import CompilerNotFound, build_native_fmu
         try:
-            native = build_native_fmu(args.native_out, validate=args.validate)
+            native = build_native_fmu(args.native_out, validate=args.validate, mechanism=args.mechanism)
         except CompilerNotFound as exc:
             if args.only == "native":
                 print(f"build_fmu.py: error: native FMU: {exc}", file=sys.stderr)

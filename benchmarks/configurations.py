@@ -76,10 +76,17 @@ MASSES = ("m2", "m3", "m4")
 PARAMETERS = (*LENGTHS, *MASSES, "g")
 STARTS = ("theta2_start", "omega2_start")
 
-def _fmu_defaults() -> dict[str, float]:
-    from fmu_src.fourbar_model.variables import BY_NAME
+def _eq():
+    """The four-bar's generated equations module (the FMUs' own kinematics and energy)."""
+    from fmu_src.mechanism.check import prepare_mechanism
 
-    return {name: float(BY_NAME[name].start) for name in (*PARAMETERS, *STARTS)}
+    return prepare_mechanism("fourbar").module
+
+
+def _fmu_defaults() -> dict[str, float]:
+    """The four-bar FMUs' start values, from the variable table of fmu_src/mechanisms/fourbar.toml."""
+    starts = {v.name: v.start for v in _eq().VARIABLES}
+    return {name: float(starts[name]) for name in (*PARAMETERS, *STARTS)}
 
 
 #: The FMU's start values: what a case file that does not name a parameter gets.
@@ -147,33 +154,52 @@ def _p(values: dict) -> tuple[float, ...]:
     return tuple(float(values[name]) for name in PARAMETERS)
 
 
-def _eq():
-    from fmu_src.fourbar_model import equations
-
-    return equations
+def _closure(th: float, p: tuple[float, ...]) -> tuple[float, float, float] | None:
+    """(th3, th4, cos of the transmission angle) on branch +1 (the coupler-rocker joint B to
+    the left of the line from the crank tip A to the rocker pivot O4: Table 1's assembly),
+    or None where the loop does not close (B on a circle of radius L3 about A and L4 about O4)."""
+    L1, L2, L3, L4 = p[:4]
+    ax, ay = L2 * math.cos(th), L2 * math.sin(th)
+    dx, dy = L1 - ax, -ay
+    d2 = dx * dx + dy * dy
+    if d2 == 0.0:
+        return None
+    d = math.sqrt(d2)
+    a = (L3 * L3 - L4 * L4 + d2) / (2.0 * d)
+    h2 = L3 * L3 - a * a
+    if not h2 > 1e-12 * L3 * L3:
+        return None
+    h = math.sqrt(h2)
+    bx, by = ax + (a * dx - h * dy) / d, ay + (a * dy + h * dx) / d
+    return math.atan2(by - ay, bx - ax), math.atan2(by, bx - L1), (L3 * L3 + L4 * L4 - d2) / (2.0 * L3 * L4)
 
 
 def _reduced(theta: np.ndarray, p: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """At each crank angle (branch +1, the FMU's start branch): reduced inertia M (kg m2),
-    potential V (J), and sin of the transmission angle (NaN where the loop does not close)."""
+    potential V (J), and sin of the transmission angle (NaN where the loop does not close).
+
+    The angles come from the closed-form closure above; the link centres and the rates at a
+    unit crank rate from the FMU's generated kinematics (Newton-Raphson from the closed form
+    converges at once), the energy from its generated energy."""
+    from fmu_src.mechanism_model.dae import AssemblyError, MechanismDAE
+
     eq = _eq()
-    L3, L4 = p[2], p[3]
+    dae = MechanismDAE(eq, p)
+    i2, i3, i4 = (eq.COORDINATES.index(c) for c in ("theta2", "theta3", "theta4"))
     M = np.full(theta.shape, np.nan)
     V = np.full(theta.shape, np.nan)
     sin_mu = np.full(theta.shape, np.nan)
     for i, th in enumerate(theta.tolist()):
-        try:
-            d, a, h2 = eq.closure_reach(th, p)
-        except ZeroDivisionError:
+        closed = _closure(th, p)
+        if closed is None:
             continue
-        if not h2 > 1e-12 * L3 * L3:
-            continue
-        cos_mu = (L3 * L3 + L4 * L4 - d * d) / (2.0 * L3 * L4)
-        th3, th4 = eq.closure_angles(th, d, a, math.sqrt(h2), 1.0, p)
-        q = eq.positions(th, th3, th4, p)
+        th3, th4, cos_mu = closed
+        guess = list(eq.GUESS)
+        guess[i2], guess[i3], guess[i4] = th, th3, th4
         try:
-            qd = eq.velocities(q, 1.0, p)
-        except ZeroDivisionError:
+            q = dae.positions(guess, 0.0)
+            qd = dae.velocities([1.0], 0.0)
+        except AssemblyError:
             continue
         T, V[i] = eq.energy(q, qd, p)
         M[i] = 2.0 * T

@@ -1,18 +1,22 @@
-"""The mechanical part: the four-bar linkage as an FMI 2.0 co-simulation FMU.
+"""The mechanical part: any planar mechanism described in a file, as FMI 2.0 co-simulation FMUs.
 
-- ``derivation.derive_equations``: M, Q, Phi, Phi_q, gamma from the Lagrangian (sympy).
-- ``codegen.generate_module``: the equations as plain numpy code (what the FMU ships).
-- ``fourbar_model``: the FMU's run-time package (numpy/scipy only): the DAE integrator.
-- ``fourbar_slave.py``: the pythonfmu ``Fmi2Slave`` (the FMU's script, not imported here).
+- ``mechanism``: the description file (``description``), the sympy derivation of eq. (10)-(11)
+  (``derivation``), the variable table (``table``), the generated Python (``python_code``) and
+  the numerical checks before a build (``check``).  Build time only.
+- ``mechanisms/``: the shipped mechanism files (fourbar.toml: Table 1's linkage, the default).
+- ``mechanism_model``: the pythonfmu FMUs' run-time package (numpy/scipy only): the DAE
+  integrator (``dae``) and the slave (``slave``).
 - ``build.build_fmu``: derive, generate, package with pythonfmu, complete and validate.
+- ``c_codegen`` / ``native/`` / ``native_build``: the same equations printed as C, the native FMU.
 
 Attributes are imported on first use, so ``import fmu_src`` loads neither sympy nor pythonfmu.
 """
 from importlib import import_module
 
-__all__ = ["build_fmu", "derive_equations", "generate_module"]
+__all__ = ["build_fmu", "load_mechanism", "prepare_mechanism"]
 
-_HOME = {"build_fmu": ".build", "derive_equations": ".derivation", "generate_module": ".codegen"}
+_HOME = {"build_fmu": ".build", "load_mechanism": ".mechanism.description",
+         "prepare_mechanism": ".mechanism.check"}
 
 
 def __getattr__(name):

@@ -1,4 +1,9 @@
-"""Build ``FourBar.fmu``: derive, generate, package with pythonfmu, complete and validate.
+"""Build a mechanism's pythonfmu FMU (``FourBar.fmu`` by default): derive, generate, package
+with pythonfmu, complete and validate.
+
+The FMU ships the run-time package ``mechanism_model`` (numpy and scipy only) with the
+mechanism's generated ``equations.py`` in it, and a two-line script defining the slave class
+named after the mechanism (``FourBar``, ``SliderCrank``...).
 
 pythonfmu writes no units and no ``<InitialUnknowns>`` (its issues #131/#193), so
 ``fmpy validate`` rejects its FMUs as they come.  ``build_fmu`` rewrites the model
@@ -26,10 +31,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from .codegen import write_module
-from .fourbar_model.variables import BY_NAME, UNITS, VARIABLES
+from .mechanism.check import CheckedMechanism, prepare_mechanism
+from .mechanism.description import Mechanism
+from .mechanism.table import variable_table
+from .mechanism_model.variables import UNITS
 
-__all__ = ["BuildResult", "build_fmu", "content_guid", "RUNTIME_REQUIREMENTS"]
+__all__ = ["BuildResult", "build_fmu", "content_guid", "default_destination", "unit_definitions",
+           "RUNTIME_REQUIREMENTS"]
 
 HERE = Path(__file__).resolve().parent
 #: Run-time needs of the FMU's Python code (``pythonfmu deploy`` installs these).
@@ -55,11 +63,11 @@ def unit_definitions() -> ET.Element:
     return units
 
 
-def _complete_model_description(xml: bytes) -> bytes:
-    """Add units and <InitialUnknowns> to pythonfmu's model description.
+def _complete_model_description(xml: bytes, table) -> bytes:
+    """Add units, ranges and <InitialUnknowns> to pythonfmu's model description.
 
-    Also checks that pythonfmu numbered the variables as the shared table does
-    (``fourbar_model/variables.py``): the native FMU relies on the same value references.
+    Also checks that pythonfmu numbered the variables as the mechanism's table does
+    (``mechanism.table``): the native FMU relies on the same value references.
     """
     root = ET.fromstring(xml)
     # Unit definitions go right after the <CoSimulation> element (schema order).
@@ -69,14 +77,17 @@ def _complete_model_description(xml: bytes) -> bytes:
     variables = root.find("ModelVariables")
     outputs = []
     written = [(sv.get("name"), int(sv.get("valueReference"))) for sv in variables.findall("ScalarVariable")]
-    expected = [(v.name, vr) for vr, v in enumerate(VARIABLES)]
+    expected = [(v.name, vr) for vr, v in enumerate(table)]
     if written != expected:
         raise RuntimeError(f"pythonfmu numbered the variables {written}, the shared table expects {expected}")
+    by_name = {v.name: v for v in table}
     for index, sv in enumerate(variables.findall("ScalarVariable"), start=1):
-        var = BY_NAME[sv.get("name")]
+        var = by_name[sv.get("name")]
         real = sv.find("Real")
         if real is not None and var.minimum is not None:
             real.set("min", repr(var.minimum))
+        if real is not None and var.maximum is not None:
+            real.set("max", repr(var.maximum))
         if real is not None and var.unit:
             real.set("unit", var.unit)
             if var.display_unit:
@@ -117,46 +128,83 @@ def content_guid(files: dict[str, bytes]) -> str:
     return str(uuid.UUID(bytes=digest.digest()[:16], version=5))
 
 
-def _stage(stage: Path) -> Path:
-    """Copy the slave and its run-time package into ``stage``, the equations generated first.
+#: The run-time package's hand-written modules (the generated ``equations.py`` joins them).
+RUNTIME_MODULES = ("__init__.py", "dae.py", "slave.py", "variables.py")
 
-    The generated module is written in place, ``fmu_src/fourbar_model/equations.py``
-    (gitignored), so that editors and readers can follow slave -> dae -> equations.
-    """
-    write_module(HERE / "fourbar_model" / "equations.py")
-    shutil.copy2(HERE / "fourbar_slave.py", stage / "fourbar_slave.py")
-    shutil.copytree(HERE / "fourbar_model", stage / "fourbar_model",
-                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+
+#: pythonfmu 0.7.0's binary, at every fmi2Instantiate, finds the slave class by running the
+#: script again in its module's namespace and then releases a reference it does not own: the
+#: module's globals dict (``Py_DECREF`` of the borrowed ``PyModule_GetDict``).  A script whose
+#: globals few objects refer to (one class, no functions) loses them at the first instance, and
+#: the next fmi2Instantiate in the process fails ("module has no attribute ...") or crashes.
+#: The generated script keeps this many references to its own globals (one list, 0.8 MB), so a
+#: process may instantiate the FMU that many times (tests/test_fmu_build.py instantiates it 200
+#: times).  Where the old hand-written slave lived in the script, each of its methods held such
+#: a reference, which hid the problem for a dozen instances.
+PYTHONFMU_INSTANCES = 100_000
+
+
+def _script(checked: CheckedMechanism) -> str:
+    mech = checked.mechanism
+    return (f'"""{mech.name}: {mech.description}.\n\nThe pythonfmu script of the FMU, generated by '
+            f'fmu_src/build.py from {Path(mech.source).name}; the slave is mechanism_model.slave."""\n'
+            f"from mechanism_model.slave import MechanismSlave\n\n"
+            f"# pythonfmu 0.7.0 releases one reference to this module's globals at every fmi2Instantiate\n"
+            f"# (fmu_src/build.py, PYTHONFMU_INSTANCES): these keep them alive.\n"
+            f"_PYTHONFMU_GLOBALS_REFERENCES = [globals()] * {PYTHONFMU_INSTANCES}\n\n\n"
+            f"class {mech.name}(MechanismSlave):\n"
+            f"    description = {mech.description!r}\n")
+
+
+def _stage(stage: Path, checked: CheckedMechanism) -> Path:
+    """Write the slave script and the run-time package, with the generated equations, into ``stage``."""
+    package = stage / "mechanism_model"
+    package.mkdir()
+    for name in RUNTIME_MODULES:
+        shutil.copy2(HERE / "mechanism_model" / name, package / name)
+    (package / "equations.py").write_text(checked.source, encoding="utf-8", newline="\n")
+    script = stage / f"{checked.mechanism.name.lower()}_slave.py"
+    script.write_text(_script(checked), encoding="utf-8", newline="\n")
     (stage / "requirements.txt").write_text("\n".join(RUNTIME_REQUIREMENTS) + "\n")
-    return stage / "fourbar_slave.py"
+    return script
 
 
-def build_fmu(dest: str | Path = "build/FourBar.fmu", validate: bool = True) -> BuildResult:
-    """Derive the equations, build the FMU at ``dest`` and validate it.
+def default_destination(mechanism: str | Path | Mechanism = "fourbar") -> Path:
+    """build/<Name>.fmu for a mechanism."""
+    return Path("build") / f"{prepare_mechanism(mechanism).mechanism.name}.fmu"
 
-    pythonfmu imports the slave script to write the model description; that import
-    runs in a child process so that the caller's ``sys.modules`` never holds the
-    staged modules (a later FMU load in this process would otherwise reuse them).
+
+def build_fmu(dest: str | Path | None = None, validate: bool = True,
+              mechanism: str | Path | Mechanism = "fourbar") -> BuildResult:
+    """Derive the mechanism's equations, build its FMU at ``dest`` and validate it.
+
+    ``mechanism`` is a shipped name (fmu_src/mechanisms/NAME.toml), a path or a Mechanism;
+    ``dest`` defaults to build/<Name>.fmu.  Raises MechanismError for a description with a
+    mistake.  pythonfmu imports the slave script to write the model description; that import
+    runs in a child process so that the caller's ``sys.modules`` never holds the staged
+    modules (a later FMU load in this process would otherwise reuse them).
     """
-    dest = Path(dest).resolve()
+    checked = prepare_mechanism(mechanism)
+    table = variable_table(checked.equations)
+    dest = Path(dest if dest is not None else default_destination(mechanism)).resolve()
     dest.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="fourbar_stage_") as tmp:
         stage = Path(tmp)
-        script = _stage(stage)
+        script = _stage(stage, checked)
         raw = stage / "raw.fmu"
         code = ("import sys; from pythonfmu.builder import FmuBuilder; "
                 "FmuBuilder.build_FMU(sys.argv[1], dest=sys.argv[2], "
                 "project_files=[sys.argv[3], sys.argv[4]])")
         proc = subprocess.run(
             [sys.executable, "-c", code, str(script), str(raw),
-             str(stage / "fourbar_model"), str(stage / "requirements.txt")],
+             str(stage / "mechanism_model"), str(stage / "requirements.txt")],
             cwd=stage, capture_output=True, text=True)
         if proc.returncode != 0:
             raise RuntimeError(f"pythonfmu could not build the FMU:\n{proc.stderr.strip()}")
         with zipfile.ZipFile(raw) as zin:
             items = zin.infolist()
             files = {item.filename: zin.read(item.filename) for item in items}
-        files["modelDescription.xml"] = _complete_model_description(files["modelDescription.xml"])
+        files["modelDescription.xml"] = _complete_model_description(files["modelDescription.xml"], table)
         guid = content_guid(files)
         files["modelDescription.xml"] = _with_guid(files["modelDescription.xml"], guid)
         tmp_dest = dest.with_name(f".{dest.name}.tmp")

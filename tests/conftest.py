@@ -35,7 +35,7 @@ def repo_root() -> Path:
     return REPO
 
 
-def _fresh(built: Path, patterns: tuple[str, ...]) -> bool:
+def _fresh(built: Path, patterns: tuple[str, ...] = ("*.py", "*.c", "*.h", "*.toml")) -> bool:
     """``built`` exists and is newer than every source file matching ``patterns`` under fmu_src/."""
     sources = [p for pattern in patterns for p in (REPO / "fmu_src").rglob(pattern)] + [REPO / "build_fmu.py"]
     return built.exists() and built.stat().st_mtime >= max(p.stat().st_mtime for p in sources)
@@ -69,7 +69,7 @@ def fourbar_fmu(tmp_path_factory) -> Path:
     if env:
         return Path(env)
     built = REPO / "build" / "FourBar.fmu"
-    if _fresh(built, ("*.py",)):
+    if _fresh(built, ("*.py", "*.toml")):
         return built
     dest = tmp_path_factory.mktemp("fmu") / "FourBar.fmu"
     subprocess.run([sys.executable, str(REPO / "build_fmu.py"), "--only", "pythonfmu", "--out", str(dest)],
@@ -81,3 +81,42 @@ def fourbar_fmu(tmp_path_factory) -> Path:
 def either_fmu(request) -> Path:
     """Each of the two FMUs in turn (tests that must hold for both: parametrized, not copied)."""
     return request.getfixturevalue("fourbar_fmu" if request.param == "pythonfmu" else "native_fmu")
+
+
+class MechanismFMUs:
+    """The FMUs of the shipped mechanisms, built once per session on first use.
+
+    ``get("slider_crank", "native")`` is the path of SliderCrankNative.fmu: build/'s copy when
+    it is newer than every source (``python build_fmu.py --mechanism slider_crank`` writes
+    it), else a private build in the session's temporary folder.  The native kind skips the
+    test when there is no C compiler.
+    """
+
+    def __init__(self, factory):
+        self._factory = factory
+        self._built: dict[tuple[str, str], Path] = {}
+
+    def get(self, mechanism: str, kind: str = "pythonfmu") -> Path:
+        key = (mechanism, kind)
+        if key in self._built:
+            return self._built[key]
+        from fmu_src.mechanism.description import load_mechanism
+        name = load_mechanism(mechanism).name + ("Native" if kind == "native" else "")
+        built = REPO / "build" / f"{name}.fmu"
+        if not _fresh(built, ("*.py", "*.toml") if kind == "pythonfmu" else ("*.py", "*.c", "*.h", "*.toml")):
+            if kind == "native":
+                from fmu_src.native_build import find_compiler
+                if find_compiler() is None:
+                    pytest.skip("no C compiler: the native FMU cannot be built here")
+            built = self._factory.mktemp(name) / f"{name}.fmu"
+            option = ["--only", "native", "--native-out"] if kind == "native" else ["--only", "pythonfmu", "--out"]
+            subprocess.run([sys.executable, str(REPO / "build_fmu.py"), "--mechanism", mechanism, *option,
+                            str(built)], check=True, cwd=REPO, capture_output=True)
+        self._built[key] = built
+        return built
+
+
+@pytest.fixture(scope="session")
+def mechanism_fmus(tmp_path_factory) -> MechanismFMUs:
+    """Builds (once) and finds the FMUs of the shipped mechanisms: ``mechanism_fmus.get(name, kind)``."""
+    return MechanismFMUs(tmp_path_factory)

@@ -15,7 +15,7 @@ def test_without_a_compiler_the_pythonfmu_fmu_is_built_and_the_way_to_the_native
     monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
     built = []
 
-    def fake_build(dest, validate=True):     # the pythonfmu build itself is tested elsewhere
+    def fake_build(dest, validate=True, mechanism="fourbar"):     # the pythonfmu build is tested elsewhere
         built.append(dest)
         return pythonfmu_build.BuildResult(path=tmp_path / "FourBar.fmu", guid="g", problems=())
 
@@ -46,3 +46,32 @@ def test_native_guid_is_a_hash_of_the_sources(tmp_path):
     c = build_native_fmu(tmp_path / "c.fmu", validate=False, replace={"model.c": model_c + b"\n/* changed */\n"})
     assert a.guid == b.guid != c.guid
     assert a.platforms[0] in ("linux64", "darwin64", "win64")
+
+
+def test_the_pythonfmu_fmu_can_be_instantiated_many_times_in_one_process(fourbar_fmu, tmp_path):
+    # pythonfmu 0.7.0 releases a reference to the script's globals at every instantiation
+    # (fmu_src/build.py, PYTHONFMU_INSTANCES); without the script's own references the second
+    # instance failed ("module has no attribute 'FourBar'") and later ones crashed the process.
+    # A child process: a failure here must not take the test session down.
+    import subprocess
+    import sys
+    code = f"""
+import shutil
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+for k in range(200):
+    d = extract({str(fourbar_fmu)!r})
+    md = read_model_description(d)
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier, instanceName=f"i{{k}}")
+    fmu.instantiate()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    fmu.doStep(0.0, 0.01)
+    fmu.terminate()
+    fmu.freeInstance()
+    shutil.rmtree(d)
+print("instances: 200")
+"""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert "instances: 200" in proc.stdout, proc.stderr[-2000:]

@@ -1,5 +1,5 @@
 """The monitor is independent of the simulation: it imports nothing from orchestrator/,
-fmu_src/ (or the generated fourbar_model) or sweep/, and it is cheap to import.
+fmu_src/ (or the FMU run-time mechanism_model) or sweep/, and it is cheap to import.
 """
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import pytest
 
 from test_monitor_support import REPO, orchestrated
 
-FORBIDDEN = ("orchestrator", "fmu_src", "fourbar_model", "sweep", "fmpy", "pythonfmu")
+FORBIDDEN = ("orchestrator", "fmu_src", "mechanism_model", "sweep", "fmpy", "pythonfmu")
 
 
 def test_no_forbidden_import_in_the_source():

@@ -1,0 +1,282 @@
+"""The constrained equations of motion of any described planar mechanism (sympy, build time).
+
+From a :class:`~fmu_src.mechanism.description.Mechanism`:
+
+- coordinates ``q``: for every body its centre ``(x, y)`` and, if it rotates, its angle
+  ``theta`` (counter-clockwise from +x); ``qd = dq/dt``;
+- the Lagrangian ``L = T - V`` (the paper's eq. 1) of the bodies, each with its mass at its
+  origin and its inertia about it; ``M = d2L/dqd2`` and ``Q = dL/dq - (d2L/dqd dq) qd``
+  (eq. 2/10), so that ``M`` is diagonal (centroidal coordinates);
+- the holonomic constraints ``Phi(q, t) = 0``, two rows per revolute joint (the two points
+  coincide), two per prismatic joint (the point stays on the line; the relative angle is
+  fixed, if the sliding body rotates, else one row), one per driver (the joint coordinate
+  equals ``s_ref + v (t - t_ref)``);
+- eq. (11)::
+
+      [[M,     Phi_q^T],   [qdd   ]   [Q    ]
+       [Phi_q, 0      ]] . [lambda] = [gamma],   gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt
+
+  with ``nu = -Phi_t`` on the velocity level (``Phi_q qd = nu``).
+
+Sign convention, stated once for the whole project: ``M qdd + Phi_q^T lambda = Q``, so the
+constraint forces on the bodies are ``-Phi_q^T lambda``.  A joint's reaction output
+``<joint>_Fx, <joint>_Fy`` is the force (N, global axes) that the joint applies to the body of
+its *second* point (when that is the ground, the force the ground applies through the joint,
+i.e. minus the force on the first body).  A prismatic joint whose slider rotates adds
+``<joint>_M``, the moment (N.m) it applies to the second body about the sliding point.  A
+driver's ``<driver>_torque`` (revolute) or ``<driver>_force`` (prismatic) is what the motor
+applies to the second body, ``<driver>_work`` the work it has done since the start (J), so that
+``energy - sum(work)`` is conserved.
+
+Nothing here knows a particular mechanism: the four-bar is ``fmu_src/mechanisms/fourbar.toml``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+from .description import RATE_PREFIX, Joint, Mechanism, PointRef
+
+__all__ = ["MechanismEquations", "OutputSpec", "derive", "RUNTIME_OUTPUTS"]
+
+#: Outputs computed by the run-time code rather than from an expression of the state.
+RUNTIME_OUTPUTS = ("constraint_residual",)
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    """One output variable: its expression in (q, qd, lambda, t, p, d) or, for a driver's
+    work, the index of the integrated work (``work``); ``constraint_residual`` has neither."""
+
+    name: str
+    unit: str
+    description: str
+    expression: sp.Expr | None = None
+    work: int | None = None
+    display_unit: str | None = None
+
+
+@dataclass(frozen=True)
+class MechanismEquations:
+    """The symbolic pieces of the DAE of one mechanism (read-only; sympy objects)."""
+
+    mechanism: Mechanism
+    coordinates: tuple[str, ...]
+    q: sp.Matrix                # n x 1
+    qd: sp.Matrix               # n x 1
+    t: sp.Symbol
+    params: tuple[sp.Symbol, ...]    # the [parameters], in file order (p)
+    drive: tuple[sp.Symbol, ...]     # per driver (s_ref, t_ref, v): the run-time array d
+    mass_matrix: sp.Matrix      # n x n, diagonal
+    forces: sp.Matrix           # n x 1, Q
+    constraints: sp.Matrix      # m x 1, Phi(q, t)
+    jacobian: sp.Matrix         # m x n, Phi_q (independent of t)
+    nu: sp.Matrix               # m x 1, -Phi_t
+    gamma: sp.Matrix            # m x 1
+    kinetic_energy: sp.Expr
+    potential_energy: sp.Expr
+    multipliers: sp.Matrix      # m x 1
+    joint_rows: dict[str, tuple[int, ...]]     # joint or driver name -> its rows of Phi
+    driver_rows: tuple[int, ...]               # the row of each driver, in driver order
+    outputs: tuple[OutputSpec, ...]            # in the FMU's output order
+    available: tuple[str, ...]                 # every output name the mechanism offers
+
+    @property
+    def n(self) -> int:
+        return self.q.rows
+
+    @property
+    def m(self) -> int:
+        return self.constraints.rows
+
+    @property
+    def independent(self) -> tuple[int, ...]:
+        """Indices in q of the coordinates whose start values the file gives."""
+        return tuple(self.coordinates.index(c) for c in self.mechanism.independent)
+
+
+def _rotation(theta) -> sp.Matrix:
+    c, s = sp.cos(theta), sp.sin(theta)
+    return sp.Matrix([[c, -s], [s, c]])
+
+
+class _Frames:
+    """Global positions of body points as expressions of q and p."""
+
+    def __init__(self, mech: Mechanism, q: dict[str, sp.Symbol], params: dict[str, sp.Symbol]):
+        self.mech, self.q, self.params = mech, q, params
+        self.bodies = {b.name: b for b in mech.bodies}
+
+    def angle(self, body: str) -> sp.Expr:
+        if body == "ground":
+            return sp.Integer(0)
+        b = self.bodies[body]
+        return self.q[f"theta{b.label}"] if b.rotates else sp.Integer(0)
+
+    def point(self, ref: PointRef) -> sp.Matrix:
+        if ref.body == "ground":
+            return sp.Matrix(self.mech.ground[ref.point])
+        b = self.bodies[ref.body]
+        local = sp.Matrix(b.points[ref.point])
+        return sp.Matrix([self.q[f"x{b.label}"], self.q[f"y{b.label}"]]) + _rotation(self.angle(ref.body)) * local
+
+    def direction(self, body: str, angle: float) -> sp.Matrix:
+        """Unit vector of a line at ``angle`` (rad) in ``body``'s frame."""
+        return _rotation(self.angle(body)) * sp.Matrix([sp.cos(sp.Float(angle)) if angle else 1,
+                                                         sp.sin(sp.Float(angle)) if angle else 0])
+
+
+def _joint_constraints(joint: Joint, frames: _Frames) -> list[sp.Expr]:
+    a, b = frames.point(joint.first), frames.point(joint.second)
+    if joint.type == "revolute":
+        return [a[0] - b[0], a[1] - b[1]]
+    u = frames.direction(joint.first.body, joint.angle)
+    normal = sp.Matrix([-u[1], u[0]])
+    rows = [((b - a).T * normal)[0]]
+    second = frames.bodies[joint.second.body]
+    if second.rotates:
+        rows.append(frames.angle(joint.second.body) - frames.angle(joint.first.body))
+    return rows
+
+
+def _joint_coordinate(joint: Joint, frames: _Frames) -> sp.Expr:
+    """What a driver prescribes: the relative angle (revolute) or the position along the line."""
+    if joint.type == "revolute":
+        return frames.angle(joint.second.body) - frames.angle(joint.first.body)
+    u = frames.direction(joint.first.body, joint.angle)
+    return ((frames.point(joint.second) - frames.point(joint.first)).T * u)[0]
+
+
+_CACHE: dict[int, tuple[Mechanism, "MechanismEquations"]] = {}
+
+
+def derive(mech: Mechanism) -> MechanismEquations:
+    """The DAE of ``mech`` (cached per mechanism object: treat the result as read-only)."""
+    hit = _CACHE.get(id(mech))
+    if hit is None or hit[0] is not mech:
+        hit = _CACHE[id(mech)] = (mech, _derive(mech))
+    return hit[1]
+
+
+def _derive(mech: Mechanism) -> MechanismEquations:
+    names = mech.coordinates
+    q = sp.Matrix(sp.symbols(" ".join(names), real=True)) if len(names) > 1 else sp.Matrix([sp.Symbol(names[0], real=True)])
+    qd = sp.Matrix([sp.Symbol(f"{n}_d", real=True) for n in names])
+    qsym = dict(zip(names, q))
+    params = {p.name: sp.Symbol(p.name, real=True) for p in mech.parameters}
+    t = sp.Symbol("t", real=True)
+    frames = _Frames(mech, qsym, params)
+
+    # Lagrangian (eq. 1): each body's mass at its origin, its inertia about it.
+    T, V = sp.Integer(0), sp.Integer(0)
+    g = params[mech.gravity] if mech.gravity else sp.Integer(0)
+    for body in mech.bodies:
+        xd, yd = (qd[names.index(f"{c}{body.label}")] for c in ("x", "y"))
+        T += sp.Rational(1, 2) * body.mass * (xd**2 + yd**2)
+        if body.rotates:
+            T += sp.Rational(1, 2) * body.inertia * qd[names.index(f"theta{body.label}")]**2
+        V += body.mass * g * qsym[f"y{body.label}"]
+    lagrangian = T - V
+    dL_dqd = sp.Matrix([sp.diff(lagrangian, s) for s in qd])
+    M = sp.simplify(dL_dqd.jacobian(qd))
+    Q = sp.simplify(sp.Matrix([sp.diff(lagrangian, s) for s in q]) - dL_dqd.jacobian(q) * qd)
+    if not M.is_diagonal():
+        raise ValueError("centroidal coordinates give a diagonal mass matrix; this one is not")
+
+    # Constraints: joints in file order, then drivers.
+    rows: list[sp.Expr] = []
+    joint_rows: dict[str, tuple[int, ...]] = {}
+    for joint in mech.joints:
+        new = _joint_constraints(joint, frames)
+        joint_rows[joint.name] = tuple(range(len(rows), len(rows) + len(new)))
+        rows += new
+    drive: list[sp.Symbol] = []
+    driver_rows = []
+    joints = {j.name: j for j in mech.joints}
+    for driver in mech.drivers:
+        s_ref, t_ref, v = sp.symbols(f"{driver.name}_s_ref {driver.name}_t_ref {driver.name}_v", real=True)
+        drive += [s_ref, t_ref, v]
+        driver_rows.append(len(rows))
+        joint_rows[driver.name] = (len(rows),)
+        rows.append(_joint_coordinate(joints[driver.joint], frames) - (s_ref + v * (t - t_ref)))
+    Phi = sp.Matrix(rows)
+    Phi_q = Phi.jacobian(q)
+    if t in Phi_q.free_symbols:
+        raise ValueError("a constraint Jacobian that depends on time is not supported")
+    Phi_t = Phi.diff(t)
+    nu = -Phi_t
+    gamma = -(Phi_q * qd).jacobian(q) * qd - 2 * Phi_t.jacobian(q) * qd - Phi_t.diff(t)
+    gamma = gamma.applyfunc(sp.simplify)
+    lam = sp.Matrix([sp.Symbol(f"lambda_{k}", real=True) for k in range(Phi.rows)])
+
+    outputs, available = _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, T + V)
+    eqs = MechanismEquations(
+        mechanism=mech, coordinates=names, q=q, qd=qd, t=t, params=tuple(params.values()), drive=tuple(drive),
+        mass_matrix=M, forces=Q, constraints=Phi, jacobian=Phi_q, nu=nu, gamma=gamma,
+        kinetic_energy=T, potential_energy=V, multipliers=lam, joint_rows=joint_rows,
+        driver_rows=tuple(driver_rows), outputs=outputs, available=available)
+    return eqs
+
+
+def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy):
+    """Every output the mechanism offers, then the ones the file selects, in its order."""
+    offered: dict[str, OutputSpec] = {}
+    for body in mech.bodies:
+        for c in body.coordinates:
+            i = names.index(c)
+            prefix = c[: len(c) - len(body.label)]
+            if prefix == "theta":
+                offered[c] = OutputSpec(c, "rad", f"{body.name.capitalize()} angle from +x [rad]", q[i],
+                                        display_unit="deg")
+            else:
+                offered[c] = OutputSpec(c, "m", f"{prefix} of the {body.name}'s centre [m]", q[i])
+        for c in body.coordinates:
+            i = names.index(c)
+            prefix = c[: len(c) - len(body.label)]
+            rate = RATE_PREFIX[prefix] + body.label
+            if prefix == "theta":
+                offered[rate] = OutputSpec(rate, "rad/s", f"{body.name.capitalize()} angular velocity [rad/s]", qd[i])
+            else:
+                offered[rate] = OutputSpec(rate, "m/s", f"{prefix}-velocity of the {body.name}'s centre [m/s]", qd[i])
+    offered["energy"] = OutputSpec("energy", "J", "Total mechanical energy T + V, V = 0 at y = 0 [J]", energy)
+    offered["constraint_residual"] = OutputSpec(
+        "constraint_residual", "1", "max(|Phi|, |Phi_q qd - nu|) of the reported state [m, m/s, rad, rad/s]")
+    index = {n: k for k, n in enumerate(names)}
+    for joint in mech.joints:
+        r = list(joint_rows[joint.name])
+        forces = -(Phi_q.extract(r, list(range(len(names)))).T * lam.extract(r, [0]))   # on every coordinate
+        on_second = joint.second.body != "ground"
+        body = frames.bodies[(joint.second if on_second else joint.first).body]
+        sign = 1 if on_second else -1
+        fx, fy = (sign * forces[index[f"{c}{body.label}"]] for c in ("x", "y"))
+        whom = f"the {body.name}" if on_second else "the ground (minus the force on the " + body.name + ")"
+        offered[f"{joint.name}_Fx"] = OutputSpec(f"{joint.name}_Fx", "N", f"x-force of joint {joint.name} on "
+                                                 f"{whom} [N]", sp.simplify(fx))
+        offered[f"{joint.name}_Fy"] = OutputSpec(f"{joint.name}_Fy", "N", f"y-force of joint {joint.name} on "
+                                                 f"{whom} [N]", sp.simplify(fy))
+        if joint.type == "prismatic" and body.rotates:
+            torque = forces[index[f"theta{body.label}"]]
+            arm = frames.point(joint.second) - sp.Matrix([q[index[f"x{body.label}"]], q[index[f"y{body.label}"]]])
+            moment = torque - (arm[0] * fy - arm[1] * fx)
+            offered[f"{joint.name}_M"] = OutputSpec(f"{joint.name}_M", "N.m", f"moment of joint {joint.name} on "
+                                                    f"the {body.name} about the sliding point [N.m]", sp.simplify(moment))
+    joints = {j.name: j for j in mech.joints}
+    for k, driver in enumerate(mech.drivers):
+        (row,) = joint_rows[driver.name]
+        joint = joints[driver.joint]
+        kind, unit = ("torque", "N.m") if joint.type == "revolute" else ("force", "N")
+        offered[f"{driver.name}_{kind}"] = OutputSpec(
+            f"{driver.name}_{kind}", unit, f"{kind.capitalize()} of driver {driver.name} on the second body of "
+            f"joint {joint.name} [{unit}]", -lam[row])
+        offered[f"{driver.name}_work"] = OutputSpec(
+            f"{driver.name}_work", "J", f"Work done by driver {driver.name} since the start [J]", work=k)
+    available = tuple(offered)
+    chosen = mech.outputs or tuple(n for n in available if not n.startswith(("vx", "vy")))
+    unknown = [n for n in chosen if n not in offered]
+    if unknown:
+        from .description import MechanismError
+        raise MechanismError(f"{mech.source}: [outputs]: {', '.join(map(repr, unknown))} "
+                             f"{'is' if len(unknown) == 1 else 'are'} not an output of this mechanism "
+                             f"(available: {', '.join(available)})")
+    return tuple(offered[n] for n in chosen), available

@@ -1,0 +1,558 @@
+"""A planar mechanism described in a TOML file: loading and checking (build time only).
+
+The file format is taught in docs/mechanisms.md, with fmu_src/mechanisms/slider_crank.toml as
+the worked example.  This module turns a file into a :class:`Mechanism` (typed, immutable) or
+raises :class:`MechanismError` with a message that names the file and the item at fault.
+What needs numbers (is the mechanism assembled at its start values? are its constraints
+independent?) is checked by ``fmu_src.mechanism.check``, after the derivation.
+
+Conventions, stated once:
+- every body has its centre of mass at its own origin; a point of a body is given in the
+  body's frame (x along the body's axis, angles counter-clockwise from the global +x);
+- lengths, masses and rates are in SI units; angles in the file (guesses, start values,
+  prismatic directions) are in degrees unless a parameter says ``unit = "rad"``;
+- gravity acts along -y.
+"""
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import sympy as sp
+
+__all__ = ["Mechanism", "Parameter", "Body", "PointRef", "Joint", "Driver", "StartValue",
+           "MechanismError", "load_mechanism", "parse_mechanism", "MECHANISM_DIR", "resolve_mechanism",
+           "shipped_mechanisms", "RATE_PREFIX", "POSITIVE"]
+
+#: Where the shipped mechanism files live (``--mechanism NAME`` looks here).
+MECHANISM_DIR = Path(__file__).resolve().parent.parent / "mechanisms"
+#: The smallest positive normal double: as an (inclusive) FMI min it says "greater than zero".
+POSITIVE = 2.2250738585072014e-308
+#: A coordinate's rate: theta2 -> omega2, x4 -> vx4, y4 -> vy4.
+RATE_PREFIX = {"theta": "omega", "x": "vx", "y": "vy"}
+_UNITS = {"m", "kg", "kg.m2", "m/s2", "rad", "deg", "rad/s", "m/s", "1", "N", "N.m", "J", "s"}
+_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
+_RESERVED = {"t", "rtol", "atol", "integrator", "energy", "constraint_residual", "ground", "pi", "E", "I"}
+
+
+class MechanismError(ValueError):
+    """A mechanism file that cannot be used; the message names the file and the item."""
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A model parameter of the FMU (tunable unless ``fixed``), in SI units."""
+
+    name: str
+    value: float
+    unit: str                 # the FMU's unit ("rad" for a parameter given in degrees)
+    description: str
+    minimum: float | None = None
+    maximum: float | None = None
+    fixed: bool = False
+    display_unit: str | None = None   # "deg" when the file gave degrees
+
+
+@dataclass(frozen=True)
+class PointRef:
+    """A named point of a body ("ground" for the fixed frame)."""
+
+    body: str
+    point: str
+
+    def __str__(self) -> str:
+        return f"{self.body}.{self.point}"
+
+
+@dataclass(frozen=True)
+class Body:
+    """A rigid body: a slender rod (I = m L^2/12) or a block with a given inertia."""
+
+    name: str
+    label: str                          # its variables are x<label>, y<label>, theta<label>
+    kind: str                           # "rod" or "block"
+    mass: sp.Expr
+    inertia: sp.Expr                    # about the centre of mass
+    rotates: bool                       # False: no angle coordinate (a block that only translates)
+    points: dict[str, tuple[sp.Expr, sp.Expr]]   # name -> (x, y) in the body frame
+    guess: tuple[float, float, float]   # (x, y, angle in rad) where assembly starts
+    description: str
+    length: sp.Expr | None = None
+
+    @property
+    def coordinates(self) -> tuple[str, ...]:
+        return (f"x{self.label}", f"y{self.label}") + ((f"theta{self.label}",) if self.rotates else ())
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A revolute joint (two points coincide) or a prismatic one (the second point stays on
+    a line through the first, fixed in the first body; their relative angle is fixed)."""
+
+    name: str
+    type: str                      # "revolute" or "prismatic"
+    first: PointRef
+    second: PointRef
+    angle: float = 0.0             # prismatic: the line's direction in the first body's frame, rad
+
+
+@dataclass(frozen=True)
+class Driver:
+    """A joint coordinate prescribed in time: constant speed from a start value.
+
+    Revolute joint: the second body's angle relative to the first's; prismatic joint: the
+    second point's position along the line.  ``start`` and ``speed`` name parameters.
+    """
+
+    name: str
+    joint: str
+    start: str
+    speed: str
+
+
+@dataclass(frozen=True)
+class StartValue:
+    """The start value of an independent coordinate or of its rate (a fixed FMU parameter
+    named ``<coordinate>_start``)."""
+
+    coordinate: str
+    value: float               # SI (rad, m, rad/s, m/s)
+    unit: str
+    description: str
+    display_unit: str | None = None
+
+    @property
+    def parameter(self) -> str:
+        return f"{self.coordinate}_start"
+
+
+@dataclass(frozen=True)
+class Mechanism:
+    """A mechanism description, checked for consistency of its names (see the module doc)."""
+
+    name: str                      # the FMU's model name (a C identifier)
+    description: str
+    source: str                    # the file it came from
+    gravity: str | None            # parameter name of g (acting along -y), or None
+    parameters: tuple[Parameter, ...]
+    ground: dict[str, tuple[sp.Expr, sp.Expr]]
+    bodies: tuple[Body, ...]
+    joints: tuple[Joint, ...]
+    drivers: tuple[Driver, ...]
+    start: tuple[StartValue, ...]  # per independent coordinate: its value, then its rate
+    outputs: tuple[str, ...] | None    # None: every output (see derivation.available_outputs)
+
+    @property
+    def independent(self) -> tuple[str, ...]:
+        """The independent coordinates whose start values the file gives, in file order."""
+        return tuple(s.coordinate for s in self.start[::2])
+
+    @property
+    def coordinates(self) -> tuple[str, ...]:
+        return tuple(c for b in self.bodies for c in b.coordinates)
+
+    def body(self, name: str) -> Body:
+        return next(b for b in self.bodies if b.name == name)
+
+
+def shipped_mechanisms() -> tuple[str, ...]:
+    """Names of the mechanism files in fmu_src/mechanisms/."""
+    return tuple(sorted(p.stem for p in MECHANISM_DIR.glob("*.toml")))
+
+
+def resolve_mechanism(name_or_path: str) -> Path:
+    """The file of a shipped mechanism name (``slider_crank``) or a path to a .toml file."""
+    path = Path(name_or_path)
+    if path.suffix == ".toml" or path.parent != Path("."):
+        if not path.is_file():
+            raise MechanismError(f"{name_or_path}: no such mechanism file")
+        return path
+    shipped = MECHANISM_DIR / f"{name_or_path}.toml"
+    if not shipped.is_file():
+        raise MechanismError(f"unknown mechanism {name_or_path!r}: the shipped ones are "
+                             f"{', '.join(shipped_mechanisms())}; or give the path of a .toml file")
+    return shipped
+
+
+def load_mechanism(name_or_path: str | Path) -> Mechanism:
+    """Read and check a mechanism file (a shipped name or a path)."""
+    path = resolve_mechanism(str(name_or_path))
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise MechanismError(f"{path}: not valid TOML: {exc}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise MechanismError(f"{path}: cannot be read: {exc}") from None
+    return parse_mechanism(data, str(path))
+
+
+class _Reader:
+    """Typed access to the TOML tables, each error naming the file and the item."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, where: str, message: str) -> MechanismError:
+        return MechanismError(f"{self.source}: {where}: {message}")
+
+    def table(self, data, key: str, where: str, required: bool = True) -> dict:
+        value = data.get(key)
+        if value is None:
+            if required:
+                raise self.fail(where, f"missing '{key}'")
+            return {}
+        if not isinstance(value, dict):
+            raise self.fail(where, f"'{key}' must be a table, got {type(value).__name__}")
+        return value
+
+    def string(self, data, key: str, where: str, default: str | None = None) -> str:
+        value = data.get(key, default)
+        if value is None:
+            raise self.fail(where, f"missing '{key}'")
+        if not isinstance(value, str) or not value:
+            raise self.fail(where, f"'{key}' must be a non-empty string, got {value!r}")
+        return value
+
+    def number(self, data, key: str, where: str, default: float | None = None) -> float:
+        value = data.get(key, default)
+        if value is None:
+            raise self.fail(where, f"missing '{key}'")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise self.fail(where, f"'{key}' must be a finite number, got {value!r}")
+        return float(value)
+
+    def unknown_keys(self, data: dict, allowed: set, where: str) -> None:
+        extra = sorted(set(data) - allowed)
+        if extra:
+            raise self.fail(where, f"unknown key{'s' if len(extra) > 1 else ''} {', '.join(map(repr, extra))} "
+                                   f"(allowed: {', '.join(sorted(allowed))})")
+
+
+def _expression(reader: _Reader, value, where: str, symbols: dict[str, sp.Symbol]) -> sp.Expr:
+    """A number, or a string expression over the parameters (e.g. "L1", "-L2/2")."""
+    if isinstance(value, bool):
+        raise reader.fail(where, f"expected a number or an expression of parameters, got {value!r}")
+    if isinstance(value, (int, float)):
+        if not math.isfinite(value):
+            raise reader.fail(where, f"must be finite, got {value!r}")
+        return sp.Float(value) if isinstance(value, float) else sp.Integer(value)
+    if not isinstance(value, str) or not value.strip():
+        raise reader.fail(where, f"expected a number or an expression of parameters, got {value!r}")
+    try:
+        expr = sp.sympify(value, locals=dict(symbols), rational=True)
+    except (sp.SympifyError, SyntaxError, TypeError, ValueError, AttributeError) as exc:
+        raise reader.fail(where, f"cannot read {value!r} as an expression: {exc}") from None
+    if not isinstance(expr, sp.Expr):
+        raise reader.fail(where, f"{value!r} is not an arithmetic expression")
+    unknown = sorted(str(s) for s in expr.free_symbols if str(s) not in symbols)
+    if unknown:
+        raise reader.fail(where, f"{value!r} uses {', '.join(unknown)}, which {'is' if len(unknown) == 1 else 'are'} "
+                                 f"not a parameter (parameters: {', '.join(symbols) or 'none'})")
+    return expr
+
+
+def _parameters(reader: _Reader, table: dict) -> tuple[Parameter, ...]:
+    out = []
+    for name, spec in table.items():
+        where = f"parameters.{name}"
+        if not _NAME.match(name) or name in _RESERVED:
+            raise reader.fail(where, f"{name!r} cannot be a parameter name (letters, digits and _, starting "
+                                     f"with a letter; not one of {', '.join(sorted(_RESERVED))})")
+        if not isinstance(spec, dict):
+            raise reader.fail(where, "must be a table, e.g. { value = 1.0, unit = \"m\", description = \"...\" }")
+        reader.unknown_keys(spec, {"value", "unit", "description", "min", "max", "positive", "fixed"}, where)
+        unit = reader.string(spec, "unit", where, "1")
+        if unit not in _UNITS:
+            raise reader.fail(where, f"unit {unit!r} is not one of {', '.join(sorted(_UNITS))}")
+        value = reader.number(spec, "value", where)
+        minimum = reader.number(spec, "min", where) if "min" in spec else None
+        maximum = reader.number(spec, "max", where) if "max" in spec else None
+        positive = spec.get("positive", False)
+        if not isinstance(positive, bool):
+            raise reader.fail(where, f"'positive' must be true or false, got {positive!r}")
+        fixed = spec.get("fixed", False)
+        if not isinstance(fixed, bool):
+            raise reader.fail(where, f"'fixed' must be true or false, got {fixed!r}")
+        display = None
+        if unit == "deg":
+            unit, display = "rad", "deg"
+            value = math.radians(value)
+            minimum = None if minimum is None else math.radians(minimum)
+            maximum = None if maximum is None else math.radians(maximum)
+        if positive:
+            minimum = POSITIVE if minimum is None else max(minimum, POSITIVE)
+        if (minimum is not None and value < minimum) or (maximum is not None and value > maximum) \
+                or (positive and not value > 0.0):
+            raise reader.fail(where, f"value {value!r} is outside its own range "
+                                     f"[{minimum if minimum is not None else '-inf'}, "
+                                     f"{maximum if maximum is not None else 'inf'}]")
+        out.append(Parameter(name, value, unit, reader.string(spec, "description", where, name),
+                             minimum, maximum, fixed, display))
+    if not out:
+        raise reader.fail("parameters", "a mechanism needs at least one parameter (its lengths and masses)")
+    return tuple(out)
+
+
+def _point_pair(reader: _Reader, value, where: str, symbols) -> tuple[sp.Expr, sp.Expr]:
+    if not isinstance(value, list) or len(value) != 2:
+        raise reader.fail(where, f"a point is [x, y] (numbers or parameter expressions), got {value!r}")
+    return (_expression(reader, value[0], f"{where}[0]", symbols),
+            _expression(reader, value[1], f"{where}[1]", symbols))
+
+
+def _bodies(reader: _Reader, items, symbols) -> tuple[Body, ...]:
+    if not isinstance(items, list) or not items:
+        raise reader.fail("bodies", "a mechanism needs at least one [[bodies]] entry")
+    bodies, labels = [], {}
+    for k, spec in enumerate(items):
+        where = f"bodies[{k}]"
+        if not isinstance(spec, dict):
+            raise reader.fail(where, "must be a table")
+        name = reader.string(spec, "name", where)
+        where = f"bodies[{k}] '{name}'"
+        reader.unknown_keys(spec, {"name", "label", "kind", "length", "mass", "inertia", "rotates", "points",
+                                   "angle", "x", "y", "description"}, where)
+        if not _NAME.match(name) or name == "ground":
+            raise reader.fail(where, "a body name is letters, digits and _, starting with a letter, and not 'ground'")
+        if any(b.name == name for b in bodies):
+            raise reader.fail(where, "a second body with this name")
+        label = str(spec.get("label", name))
+        if not re.fullmatch(r"[A-Za-z0-9_]+", label):
+            raise reader.fail(where, f"label {label!r}: letters, digits and _ only (it names x{label}, theta{label})")
+        if label in labels:
+            raise reader.fail(where, f"label {label!r} is already the label of body '{labels[label]}'")
+        labels[label] = name
+        kind = reader.string(spec, "kind", where)
+        mass = _expression(reader, spec.get("mass"), f"{where}.mass", symbols) if "mass" in spec else None
+        if mass is None:
+            raise reader.fail(where, "missing 'mass'")
+        rotates = spec.get("rotates", True)
+        if not isinstance(rotates, bool):
+            raise reader.fail(where, f"'rotates' must be true or false, got {rotates!r}")
+        points: dict[str, tuple[sp.Expr, sp.Expr]] = {"centre": (sp.Integer(0), sp.Integer(0))}
+        length = None
+        if kind == "rod":
+            if "inertia" in spec:
+                raise reader.fail(where, "a rod's inertia is m L^2/12; give 'inertia' only for kind = \"block\"")
+            if not rotates:
+                raise reader.fail(where, "a rod rotates; use kind = \"block\" for a body that only translates")
+            length = _expression(reader, spec.get("length"), f"{where}.length", symbols) if "length" in spec else None
+            if length is None:
+                raise reader.fail(where, "a rod needs 'length'")
+            inertia = mass * length**2 / 12
+            points["tail"] = (-length / 2, sp.Integer(0))
+            points["tip"] = (length / 2, sp.Integer(0))
+        elif kind == "block":
+            if "length" in spec:
+                raise reader.fail(where, "'length' is for rods; a block's points are given in 'points'")
+            if rotates:
+                if "inertia" not in spec:
+                    raise reader.fail(where, "a block that rotates needs 'inertia' (kg.m2 about its centre of mass)")
+                inertia = _expression(reader, spec["inertia"], f"{where}.inertia", symbols)
+            else:
+                if "inertia" in spec:
+                    raise reader.fail(where, "a block with rotates = false has no inertia to give")
+                inertia = sp.Integer(0)
+        else:
+            raise reader.fail(where, f"kind {kind!r} is not \"rod\" or \"block\"")
+        extra = spec.get("points", {})
+        if not isinstance(extra, dict):
+            raise reader.fail(where, "'points' must be a table of name = [x, y]")
+        for pname, value in extra.items():
+            if pname in points:
+                raise reader.fail(where, f"point {pname!r} is predefined for a {kind}")
+            if not _NAME.match(pname):
+                raise reader.fail(where, f"point name {pname!r}: letters, digits and _, starting with a letter")
+            points[pname] = _point_pair(reader, value, f"{where}.points.{pname}", symbols)
+        guess = (reader.number(spec, "x", where, 0.0), reader.number(spec, "y", where, 0.0),
+                 math.radians(reader.number(spec, "angle", where, 0.0)))
+        bodies.append(Body(name, label, kind, mass, inertia, rotates, points, guess,
+                           str(spec.get("description", name)), length))
+    return tuple(bodies)
+
+
+def _point_ref(reader: _Reader, value, where: str, bodies: dict[str, Body], ground: dict) -> PointRef:
+    if not isinstance(value, str) or value.count(".") != 1:
+        raise reader.fail(where, f"a point is written 'body.point' (e.g. 'crank.tip', 'ground.O'), got {value!r}")
+    body, point = value.split(".")
+    if body == "ground":
+        if point not in ground:
+            raise reader.fail(where, f"{value!r}: the ground has no point {point!r} "
+                                     f"(ground points: {', '.join(ground) or 'none'})")
+    elif body not in bodies:
+        raise reader.fail(where, f"{value!r}: no body named {body!r} (bodies: {', '.join(bodies)}; or 'ground')")
+    elif point not in bodies[body].points:
+        raise reader.fail(where, f"{value!r}: body {body!r} has no point {point!r} "
+                                 f"(its points: {', '.join(bodies[body].points)})")
+    return PointRef(body, point)
+
+
+def _joints(reader: _Reader, items, bodies: tuple[Body, ...], ground) -> tuple[Joint, ...]:
+    if not isinstance(items, list) or not items:
+        raise reader.fail("joints", "a mechanism needs at least one [[joints]] entry")
+    by_name = {b.name: b for b in bodies}
+    joints = []
+    for k, spec in enumerate(items):
+        where = f"joints[{k}]"
+        if not isinstance(spec, dict):
+            raise reader.fail(where, "must be a table")
+        name = reader.string(spec, "name", where)
+        where = f"joints[{k}] '{name}'"
+        reader.unknown_keys(spec, {"name", "type", "connects", "angle"}, where)
+        if not _NAME.match(name):
+            raise reader.fail(where, "a joint name is letters, digits and _, starting with a letter")
+        if any(j.name == name for j in joints):
+            raise reader.fail(where, "a second joint with this name")
+        kind = reader.string(spec, "type", where)
+        if kind not in ("revolute", "prismatic"):
+            raise reader.fail(where, f"type {kind!r} is not \"revolute\" or \"prismatic\" (planar joints only)")
+        connects = spec.get("connects")
+        if not isinstance(connects, list) or len(connects) != 2:
+            raise reader.fail(where, "'connects' must name two points, e.g. [\"ground.O\", \"crank.tail\"]")
+        first, second = (_point_ref(reader, v, f"{where}.connects", by_name, ground) for v in connects)
+        if first.body == second.body:
+            raise reader.fail(where, f"connects two points of the same body ({first.body!r})")
+        angle = 0.0
+        if kind == "prismatic":
+            angle = math.radians(reader.number(spec, "angle", where, 0.0))
+            guide_turns = first.body != "ground" and by_name[first.body].rotates
+            if second.body != "ground" and not by_name[second.body].rotates and guide_turns:
+                raise reader.fail(where, f"body {second.body!r} does not rotate, but slides on a guide of "
+                                         f"{first.body!r}, which does: give {second.body!r} rotates = true")
+            if second.body == "ground":
+                raise reader.fail(where, "the sliding point (second) must be on a body; put the guide "
+                                         "(first) on the ground")
+        elif "angle" in spec:
+            raise reader.fail(where, "'angle' is the line of a prismatic joint; a revolute joint has none")
+        joints.append(Joint(name, kind, first, second, angle))
+    connected = {r.body for j in joints for r in (j.first, j.second)}
+    for body in bodies:
+        if body.name not in connected:
+            raise reader.fail(f"body '{body.name}'", "no joint connects it (missing constraints)")
+    return tuple(joints)
+
+
+def _drivers(reader: _Reader, items, joints, parameters) -> tuple[Driver, ...]:
+    if items is None:
+        return ()
+    if not isinstance(items, list):
+        raise reader.fail("drivers", "use [[drivers]] entries")
+    params = {p.name: p for p in parameters}
+    drivers = []
+    for k, spec in enumerate(items):
+        where = f"drivers[{k}]"
+        if not isinstance(spec, dict):
+            raise reader.fail(where, "must be a table")
+        name = reader.string(spec, "name", where)
+        where = f"drivers[{k}] '{name}'"
+        reader.unknown_keys(spec, {"name", "joint", "start", "speed"}, where)
+        if not _NAME.match(name):
+            raise reader.fail(where, "a driver name is letters, digits and _, starting with a letter")
+        joint = reader.string(spec, "joint", where)
+        if joint not in {j.name for j in joints}:
+            raise reader.fail(where, f"drives joint {joint!r}, which does not exist "
+                                     f"(joints: {', '.join(j.name for j in joints)})")
+        if any(d.joint == joint for d in drivers):
+            raise reader.fail(where, f"joint {joint!r} already has a driver")
+        start, speed = reader.string(spec, "start", where), reader.string(spec, "speed", where)
+        for role, pname in (("start", start), ("speed", speed)):
+            if pname not in params:
+                raise reader.fail(where, f"{role} {pname!r} is not a parameter (add it to [parameters])")
+        if not params[start].fixed:
+            raise reader.fail(where, f"start {start!r} must be a fixed parameter (fixed = true): it only "
+                                     f"applies at the start")
+        drivers.append(Driver(name, joint, start, speed))
+    return tuple(drivers)
+
+
+def _start(reader: _Reader, table: dict, bodies: tuple[Body, ...]) -> tuple[StartValue, ...]:
+    coordinates = {c: b for b in bodies for c in b.coordinates}
+    rates = {}
+    for b in bodies:
+        for c in b.coordinates:
+            prefix = c[: len(c) - len(b.label)]
+            rates[RATE_PREFIX[prefix] + b.label] = c
+    given = {}
+    for key, spec in table.items():
+        where = f"start.{key}"
+        if isinstance(spec, (int, float)) and not isinstance(spec, bool):
+            spec = {"value": spec}
+        if not isinstance(spec, dict):
+            raise reader.fail(where, "must be a number or { value = ..., unit = ..., description = ... }")
+        reader.unknown_keys(spec, {"value", "unit", "description"}, where)
+        if key not in coordinates and key not in rates:
+            raise reader.fail(where, f"{key!r} is not a coordinate or a rate of one (coordinates: "
+                                     f"{', '.join(coordinates)}; rates: {', '.join(rates)})")
+        given[key] = spec
+    out = []
+    for key, spec in given.items():
+        if key not in coordinates:
+            continue
+        is_angle = key.startswith("theta")
+        rate = next(r for r, c in rates.items() if c == key)
+        for name, default_unit, si_units in ((key, "deg" if is_angle else "m", ("rad", "deg") if is_angle else ("m",)),
+                                             (rate, "rad/s" if is_angle else "m/s",
+                                              ("rad/s",) if is_angle else ("m/s",))):
+            where = f"start.{name}"
+            s = given.get(name, {"value": 0.0})
+            unit = s.get("unit", default_unit)
+            if unit not in si_units:
+                raise reader.fail(where, f"unit {unit!r}: expected {' or '.join(si_units)}")
+            value = reader.number(s, "value", where)
+            display = None
+            if unit == "deg":
+                value, unit, display = math.radians(value), "rad", "deg"
+            what = "angle" if name == key and is_angle else ("position" if name == key else "rate")
+            description = s.get("description", f"Initial {what} {name} of body '{coordinates[key].name}'")
+            out.append(StartValue(name, value, unit, str(description), display))
+    for key in given:
+        if key in rates and rates[key] not in given:
+            raise reader.fail(f"start.{key}", f"a start rate needs its coordinate {rates[key]!r} in [start] too")
+    return tuple(out)
+
+
+def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
+    """A :class:`Mechanism` from the TOML tables (``source`` names the file in messages)."""
+    reader = _Reader(source)
+    reader.unknown_keys(data, {"mechanism", "parameters", "ground", "bodies", "joints", "drivers", "start",
+                               "outputs"}, "top level")
+    head = reader.table(data, "mechanism", "top level")
+    reader.unknown_keys(head, {"name", "description", "gravity"}, "[mechanism]")
+    name = reader.string(head, "name", "[mechanism]")
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", name) or name.endswith("Native"):
+        raise reader.fail("[mechanism]", f"name {name!r} must be a C identifier (it names the FMU) and not end "
+                                         f"in 'Native' (the native FMU is <name>Native)")
+    parameters = _parameters(reader, reader.table(data, "parameters", "top level"))
+    symbols = {p.name: sp.Symbol(p.name, real=True) for p in parameters}
+    gravity = head.get("gravity")
+    if gravity is not None and (not isinstance(gravity, str) or gravity not in symbols):
+        raise reader.fail("[mechanism]", f"gravity {gravity!r} must name a parameter (acceleration along -y)")
+    ground_table = reader.table(data, "ground", "top level", required=False)
+    reader.unknown_keys(ground_table, {"points"}, "[ground]")
+    ground_points = ground_table.get("points", {})
+    if not isinstance(ground_points, dict):
+        raise reader.fail("[ground]", "'points' must be a table of name = [x, y]")
+    ground = {k: _point_pair(reader, v, f"ground.points.{k}", symbols) for k, v in ground_points.items()}
+    bodies = _bodies(reader, data.get("bodies"), symbols)
+    joints = _joints(reader, data.get("joints"), bodies, ground)
+    drivers = _drivers(reader, data.get("drivers"), joints, parameters)
+    start = _start(reader, reader.table(data, "start", "top level", required=False), bodies)
+    names = {p.name for p in parameters}
+    for s in start:
+        if s.parameter in names:
+            raise reader.fail(f"parameters.{s.parameter}", f"is also made by [start] {s.coordinate}")
+    outputs = None
+    if "outputs" in data:
+        table = reader.table(data, "outputs", "top level")
+        reader.unknown_keys(table, {"variables"}, "[outputs]")
+        variables = table.get("variables")
+        if not isinstance(variables, list) or not variables or not all(isinstance(v, str) for v in variables):
+            raise reader.fail("[outputs]", "'variables' must be a non-empty list of output names")
+        if len(set(variables)) != len(variables):
+            raise reader.fail("[outputs]", "a variable is listed twice")
+        outputs = tuple(variables)
+    return Mechanism(name, str(head.get("description", name)), source, gravity, parameters, ground, bodies,
+                     joints, drivers, start, outputs)

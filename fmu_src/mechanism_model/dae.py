@@ -1,0 +1,418 @@
+"""Integration of a mechanism's Lagrange-multiplier DAE (numpy and scipy only).
+
+At every right-hand-side evaluation the paper's eq. (11)::
+
+    [[M,     Phi_q^T],   [qdd   ]   [Q    ]
+     [Phi_q, 0      ]] . [lambda] = [gamma]
+
+is solved for the accelerations and the multipliers, with ``M qdd + Phi_q^T lambda = Q``: the
+joints act on the bodies with ``-Phi_q^T lambda``.  ``M`` is diagonal (each body in its centre
+of mass frame), so the solve is the range-space form::
+
+    (Phi_q M^-1 Phi_q^T) lambda = Phi_q M^-1 Q - gamma,   qdd = M^-1 (Q - Phi_q^T lambda)
+
+with the symmetric positive definite matrix factorised by LAPACK (``dposv``).
+
+Constraint stabilisation is generalized-coordinate partitioning (Wehage and Haug): the
+explicit Runge-Kutta method integrates the independent coordinates and their rates (plus each
+driver's work); the dependent coordinates are recovered from ``Phi(q, t) = 0`` by
+Newton-Raphson, started from the last accepted state moved along its velocity (so the assembly
+branch is kept by continuity), and their rates from ``Phi_q qd = nu``.  Every reported state
+satisfies both to round-off.  Newton-Raphson starts from the second-order Taylor predictor of the
+latest state computed (a right-hand-side evaluation or a reported state): it converges in one
+to three iterations, and on the branch the motion is on.  When the dependent block of ``Phi_q``
+becomes ill-conditioned (reviewed at every communication point) the independent coordinates are
+chosen again, from a column-pivoted QR factorization of ``Phi_q``, and the integrator restarts.  A driven mechanism with no degree of freedom integrates only
+its drivers' work: its positions come from the constraints alone.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.integrate import DOP853, RK45
+from scipy.linalg import lapack, qr
+
+__all__ = ["AssemblyError", "IntegrationError", "MechanismDAE", "choose_partition", "snap_time", "INTEGRATORS",
+           "TIME_RESOLUTION"]
+
+#: Explicit Runge-Kutta methods that may be selected (scipy classes).
+INTEGRATORS = {"DOP853": DOP853, "RK45": RK45}
+
+#: Time resolution of the FMU: 1 ns.  Communication times are snapped to whole
+#: nanoseconds, so masters that compute the same grid differently (FMPy: n*h; libcosim:
+#: integer nanoseconds) drive exactly the same arithmetic.  Without it a one-ulp difference
+#: at a re-assembly changes the Runge-Kutta step sequence, and at Table 1's atol = 1e-6
+#: the trajectories then differ by up to the global error (~3e-3 m was measured).
+TIME_RESOLUTION = 1e-9
+_TICKS = 1e9    # 1 / TIME_RESOLUTION, exactly: t * _TICKS is the arithmetic the native FMU does too
+
+#: Newton-Raphson stops once a correction is below NEWTON_STEP times (1 + |q|): convergence is
+#: quadratic, so the error left is of the order of its square, far below round-off.
+NEWTON_STEP = 1e-8
+NEWTON_ITERATIONS = 25
+#: The partition is reviewed when the dependent block's smallest pivot falls below this fraction
+#: of its largest (|U_ii| of its LU factorization; >= 0.25 throughout the shipped mechanisms'
+#: motions with their declared independent coordinates).  A block on its way to singular can
+#: drop from 0.02 to 0.003 within one 0.01 s step (seen on the five-bar), so the review starts early.
+REPARTITION_REVIEW = 0.1
+#: ... and the independent coordinates change when the column-pivoted QR's choice has a dependent
+#: block at least this many times better conditioned (hysteresis: no flip-flop between two
+#: choices of similar quality).
+REPARTITION_GAIN = 4.0
+
+
+def snap_time(t):
+    """``t`` (s, float or array) rounded to whole ``TIME_RESOLUTION`` ticks, in one canonical form."""
+    if isinstance(t, float):
+        return round(t * _TICKS) / _TICKS
+    return np.round(np.asarray(t) * _TICKS) / _TICKS if np.ndim(t) else round(float(t) * _TICKS) / _TICKS
+
+
+class AssemblyError(ValueError):
+    """The mechanism cannot be assembled (Phi = 0 has no solution near the guess, or a toggle)."""
+
+
+class IntegrationError(RuntimeError):
+    """The Runge-Kutta integration failed (step size collapse, singular system...)."""
+
+
+def _pivot_ratio(lu: np.ndarray) -> float:
+    """min |U_ii| / max |U_ii| of an LU factorization (1 for an empty one)."""
+    d = np.abs(np.diag(lu))
+    return float(d.min() / d.max()) if d.size and d.max() > 0.0 else (1.0 if not d.size else 0.0)
+
+
+def choose_partition(J: np.ndarray, n_independent: int) -> tuple[int, ...]:
+    """The independent coordinates from a column-pivoted QR of Phi_q: the columns QR picks
+    first form the best-conditioned dependent block; the rest are independent."""
+    _, perm = qr(J, mode="r", pivoting=True)
+    return tuple(sorted(int(i) for i in perm[J.shape[1] - n_independent:]))
+
+
+class MechanismDAE:
+    """Explicit Runge-Kutta integration of a mechanism's DAE, one communication step at a time.
+
+    Parameters
+    ----------
+    eq : module
+        The mechanism's generated equations module.
+    p : sequence of float
+        The parameters, in ``eq.PARAMETERS`` order.
+    method : {"DOP853", "RK45"}
+    rtol, atol : float
+        Tolerances of the Runge-Kutta error control on the independent coordinates, their
+        rates and the drivers' work.
+    t_bound : float
+        Time the integrator may not step beyond (the experiment's stop time), s.
+
+    The Jacobian is kept with its columns permuted, dependent coordinates first (``_Jp``,
+    Fortran order), so that the dependent block is a contiguous view; only its structurally
+    nonzero entries are written.
+    """
+
+    def __init__(self, eq, p, method: str = "DOP853", rtol: float = 1e-10, atol: float = 1e-10,
+                 t_bound: float = math.inf):
+        if method not in INTEGRATORS:
+            raise ValueError(f"integrator {method!r} is not one of {sorted(INTEGRATORS)}")
+        self.eq, self.method, self.rtol, self.atol, self.t_bound = eq, method, rtol, atol, t_bound
+        self.n, self.m = eq.N_COORDINATES, eq.N_CONSTRAINTS
+        self.rhs_evaluations = 0
+        self.starts = 0
+        self.repartitions = 0
+        self._solver = None
+        self._dense = None
+        self.p = tuple(float(v) for v in p)
+        self.d = self.drive_at(0.0)
+        self.work = [0.0] * len(eq.DRIVERS)
+        self.t, self.q, self.qd = 0.0, list(eq.GUESS), [0.0] * self.n
+        self._Jp = np.zeros((self.m, self.n), order="F")
+        self._Jp_flat = self._Jp.reshape(-1, order="F")        # a view: entry (i, k) at i + m k
+        self._minv = None
+        self._set_partition(tuple(eq.INDEPENDENT))
+
+    # -- set-up -----------------------------------------------------------------------
+    def _set_partition(self, independent: tuple[int, ...]) -> None:
+        self.independent = tuple(independent)
+        self.dependent = tuple(i for i in range(self.n) if i not in self.independent)
+        self._order = list(self.dependent + self.independent)       # column k of _Jp is q[_order[k]]
+        column = {j: k for k, j in enumerate(self._order)}
+        self._flat_index = np.array([i + self.m * column[j] for i, j in self.eq.JACOBIAN_ENTRIES], dtype=np.intp)
+        self._Jp[:] = 0.0          # the structural zeros move with the columns
+        self._minv = None
+
+    def drive_at(self, t: float) -> list:
+        """The drivers' (s_ref, t_ref, v) for a start at time t (s_ref = the start parameter)."""
+        d = []
+        for _, start, speed, _ in self.eq.DRIVERS:
+            d += [self.p[start], t, self.p[speed]]
+        return d
+
+    def assemble(self, t: float, guess, rates) -> None:
+        """The consistent state at time t: q[INDEPENDENT] and qd[INDEPENDENT] from ``guess`` and
+        ``rates`` (sequences of n), the dependent coordinates by Newton-Raphson from ``guess``."""
+        self.d = self.drive_at(t)
+        q = self.positions(guess, t)
+        qd = self.velocities([rates[i] for i in self.independent], t)
+        self.t, self.q, self.qd = float(t), q, qd
+
+    def worst_joint(self, phi) -> str:
+        k = int(np.argmax(np.abs(phi)))
+        return next((name for name, rows in self.eq.JOINT_ROWS.items() if k in rows), f"row {k}")
+
+    def rank_problem(self) -> str | None:
+        """Why the constraints at the current q are not independent, or None."""
+        J = self.eq.jacobian(self.q, self.p)
+        s = np.linalg.svd(J, compute_uv=False)
+        if s.size and s.min() < 1e-9 * max(1.0, s.max()):
+            # The rows that depend on earlier ones: QR of Phi_q^T with column pivoting.
+            _, r, perm = qr(J.T, pivoting=True)
+            rank = int(np.sum(np.abs(np.diag(r)) > 1e-9 * max(1.0, abs(r[0, 0]))))
+            rows = sorted(int(k) for k in perm[rank:])
+            names = sorted({name for name, rs in self.eq.JOINT_ROWS.items() if set(rs) & set(rows)})
+            return (f"redundant constraints: rank {rank} of {J.shape[0]} constraint rows; joint(s) "
+                    f"{', '.join(names)} repeat what the others already fix")
+        return None
+
+    # -- kinematics -------------------------------------------------------------------
+    def _kinematics(self, q, t: float) -> list:
+        """Phi at q (returned) and Phi_q at q (into _Jp)."""
+        phi, entries = self.eq.kinematics(q, t, self.p, self.d)
+        self._Jp_flat[self._flat_index] = entries
+        return phi
+
+    def positions(self, guess, t: float) -> list:
+        """q with q[independent] from ``guess`` and Phi(q, t) = 0, by Newton-Raphson from ``guess``;
+        on return _Jp holds Phi_q at q."""
+        q = [float(v) for v in guess]
+        dependent, m = self.dependent, self.m
+        converged = False
+        for _ in range(NEWTON_ITERATIONS + 1):
+            phi = self._kinematics(q, t)
+            if converged:
+                return q
+            lu, piv, dx, info = lapack.dgesv(self._Jp[:, :m], phi)
+            if info != 0:
+                raise AssemblyError("the constraint Jacobian is singular there (a toggle or dead-point "
+                                    "configuration)")
+            step = 0.0
+            for i, dxi in zip(dependent, dx.tolist()):
+                qi = q[i] - dxi
+                q[i] = qi
+                r = abs(dxi) / (1.0 + abs(qi))
+                if not r <= step:
+                    step = r
+            if not math.isfinite(step):
+                break
+            converged = step <= NEWTON_STEP
+        phi = self.eq.constraints(q, t, self.p, self.d)
+        raise AssemblyError(f"Phi = 0 has no solution near the previous configuration (Newton-Raphson left "
+                            f"a residual of {np.max(np.abs(phi)):.3g} in joint {self.worst_joint(phi)}): "
+                            f"the loop cannot be closed")
+
+    def velocities(self, qd_independent, t: float) -> list:
+        """qd with qd[independent] given and Phi_q qd = nu (Phi_q from the last ``positions``)."""
+        m = self.m
+        qd = [0.0] * self.n
+        for i, v in zip(self.independent, qd_independent):
+            qd[i] = float(v)
+        rhs = np.array(self.eq.nu(t, self.p, self.d)) if self.eq.DRIVERS else np.zeros(m)
+        if self.independent:
+            rhs -= self._Jp[:, m:] @ np.asarray(qd_independent, dtype=float)
+        lu, piv, x, info = lapack.dgesv(self._Jp[:, :m], rhs)
+        if info != 0:
+            raise AssemblyError("the constraint Jacobian is singular: a toggle (dead-point) configuration")
+        for i, v in zip(self.dependent, x.tolist()):
+            qd[i] = v
+        return qd
+
+    # -- the DAE ----------------------------------------------------------------------
+    def _mass_inverse(self, q) -> np.ndarray:
+        """M^-1's diagonal in _Jp's column order."""
+        if self._minv is None or not self.eq.MASS_IS_CONSTANT:
+            self._minv = 1.0 / np.asarray(self.eq.mass_diagonal(q, self.p))[self._order]
+        return self._minv
+
+    def _solve_permuted(self, q, qd, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(qdd in _Jp's column order, lambda) of eq. (11), with _Jp at q: the range-space solve."""
+        Jp = self._Jp
+        minv = self._mass_inverse(q)
+        Q, gamma = self.eq.dynamics(q, qd, t, self.p, self.d)
+        Qp = np.array(Q)[self._order]
+        JM = Jp * minv
+        c, lam, info = lapack.dposv(JM @ Jp.T, JM @ Qp - np.array(gamma), lower=1)
+        if info != 0:
+            raise IntegrationError("Phi_q M^-1 Phi_q^T is singular: a toggle (dead-point) configuration")
+        return minv * (Qp - Jp.T @ lam), lam
+
+    def solve(self, q, qd, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(qdd, lambda) of eq. (11) at a consistent state (q, qd) at time t."""
+        self._kinematics(q, t)
+        qdd_p, lam = self._solve_permuted(q, qd, t)
+        qdd = np.empty(self.n)
+        qdd[self._order] = qdd_p
+        return qdd, lam
+
+    def _state(self, t: float, y) -> tuple[list, list]:
+        """(q, qd) for the integrated y at time t, the dependent part by Newton-Raphson from the
+        second-order Taylor predictor of the last accepted state (_Jp then holds Phi_q at q)."""
+        k = len(self.independent)
+        tb, qb, qdb, qddb = self._base
+        dt = t - tb
+        half = 0.5 * dt * dt
+        guess = [a + b * dt + c * half for a, b, c in zip(qb, qdb, qddb)]
+        for j, i in enumerate(self.independent):
+            guess[i] = y[j]
+        q = self.positions(guess, t)
+        return q, self.velocities(y[k:2 * k], t)
+
+    def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        self.rhs_evaluations += 1
+        yl = y.tolist()
+        q, qd = self._state(t, yl)
+        qdd_p, lam = self._solve_permuted(q, qd, t)
+        qdd = [0.0] * self.n
+        for i, v in zip(self._order, qdd_p.tolist()):
+            qdd[i] = v
+        self._base = (t, q, qd, qdd)      # the next predictor's base: the latest state on the manifold
+        k = len(self.independent)
+        out = yl[k:2 * k] + qdd_p[self.m:].tolist()
+        if self.eq.DRIVERS:
+            nu = self.eq.nu(t, self.p, self.d)
+            out += [float(lam[row] * nu[row]) for _, _, _, row in self.eq.DRIVERS]
+        return np.array(out)
+
+    # -- time stepping ----------------------------------------------------------------
+    def start(self, first_step: float | None = None) -> None:
+        """(Re)start the integrator at self.t from the consistent state in self.q, self.qd."""
+        self._dense = None
+        qdd, _ = self.solve(self.q, self.qd, self.t)
+        self._base = (self.t, self.q, self.qd, qdd.tolist())
+        kwargs = {} if first_step is None else {"first_step": first_step}
+        y0 = [self.q[i] for i in self.independent] + [self.qd[i] for i in self.independent] + list(self.work)
+        self._solver = INTEGRATORS[self.method](self._rhs, self.t, np.array(y0, dtype=float), self.t_bound,
+                                                rtol=self.rtol, atol=self.atol, **kwargs)
+        self.starts += 1
+
+    def advance(self, t_end: float) -> None:
+        """Integrate to ``t_end`` (s) and store the consistent state in ``q``, ``qd``.
+
+        The integrator keeps its own step size; communication points inside an accepted step
+        are read from its dense output (the points of a regular grid that fall inside the
+        current step are interpolated together in one vectorised call and cached).
+        """
+        solver = self._solver
+        eps = 1e-12 * max(1.0, abs(t_end))      # a step ending within round-off reaches t_end
+        try:
+            while solver.t < t_end - eps:
+                message = solver.step()
+                self._dense = None
+                if solver.status == "failed":
+                    raise IntegrationError(f"{self.method} failed at t = {solver.t:.9g} s: {message}")
+            y = solver.y.tolist() if abs(solver.t - t_end) <= eps else self._interpolate(t_end)
+            if not all(math.isfinite(v) for v in y):
+                raise IntegrationError(f"{self.method} produced a non-finite state before t = {t_end:.9g} s")
+            q, qd = self._state(t_end, y)
+        except AssemblyError as exc:
+            raise IntegrationError(f"at t = {t_end:.9g} s {exc}") from None
+        self._last_step = t_end - self.t
+        self.t, self.q, self.qd = float(t_end), q, qd
+        k = len(self.independent)
+        self.work = y[2 * k:]
+        self._check_partition()
+
+    def _check_partition(self) -> None:
+        """Re-choose the independent coordinates when the dependent block is ill-conditioned
+        (_Jp holds Phi_q at the current state)."""
+        if not self.independent:
+            return
+        lu, piv, info = lapack.dgetrf(self._Jp[:, :self.m])
+        if info == 0 and _pivot_ratio(lu) >= REPARTITION_REVIEW:
+            return
+        J = self.eq.jacobian(self.q, self.p)
+        independent = choose_partition(J, len(self.independent))
+        if independent == self.independent:
+            return
+        now = np.linalg.cond(J[:, list(self.dependent)])
+        new = np.linalg.cond(J[:, [i for i in range(self.n) if i not in independent]])
+        if not new * REPARTITION_GAIN < now:
+            return
+        self._set_partition(independent)
+        self._kinematics(self.q, self.t)
+        self.repartitions += 1
+        self.start(first_step=getattr(self._solver, "h_abs", None) or None)
+
+    def _interpolate(self, t_end: float) -> list:
+        """y at t_end inside the last accepted step, from the dense output."""
+        if self._dense is None:
+            dense = self._solver.dense_output()
+            table = {}
+            dt = getattr(self, "_last_step", 0.0)
+            if dt > 0.0:
+                n = int((self._solver.t - t_end) / dt) + 1
+                # Predicted grid, snapped like the master's times are (whole nanoseconds).
+                grid = snap_time(t_end + dt * np.arange(n))
+                keys = np.round(grid * _TICKS).astype(np.int64).tolist()
+                table = dict(zip(keys, dense(grid).T.tolist()))
+            self._dense = (dense, table)
+        dense, table = self._dense
+        y = table.get(round(t_end * _TICKS))
+        return dense(t_end).tolist() if y is None else y
+
+    def change_parameters(self, p) -> None:
+        """Apply new parameters at the current time: re-assembly keeping the independent
+        coordinates and their rates; a driver's speed change continues from where it is.
+
+        Raises AssemblyError (state unchanged) when the new parameters cannot be assembled.
+        """
+        old = (self.p, self.d, self.q, self.qd, self.t)
+        new_p = tuple(float(v) for v in p)
+        d = []
+        for k, (_, _, speed, _) in enumerate(self.eq.DRIVERS):
+            s_ref, t_ref, v = self.d[3 * k:3 * k + 3]
+            d += [s_ref + v * (self.t - t_ref), self.t, new_p[speed]]
+        self.p, self.d, self._minv = new_p, d, None
+        try:
+            q = self.positions(self.q, self.t)
+            qd = self.velocities([self.qd[i] for i in self.independent], self.t)
+        except AssemblyError:
+            self.p, self.d, self.q, self.qd, self.t = old
+            self._minv = None
+            raise
+        self.q, self.qd = q, qd
+        self.start(first_step=getattr(self._solver, "h_abs", None) or None)
+
+    # -- derived outputs --------------------------------------------------------------
+    def energy(self) -> float:
+        """T + V (J) of the current state."""
+        T, V = self.eq.energy(self.q, self.qd, self.p)
+        return T + V
+
+    def constraint_residual(self) -> float:
+        """max(|Phi|, |Phi_q qd - nu|) of the current state (m, rad, m/s, rad/s)."""
+        return self._residual(self._kinematics(self.q, self.t))
+
+    def _residual(self, phi) -> float:
+        """The constraint residual from Phi at the current q (_Jp at q)."""
+        velocity = self._Jp @ np.array(self.qd)[self._order]
+        if self.eq.DRIVERS:
+            velocity -= np.array(self.eq.nu(self.t, self.p, self.d))
+        return max(max(map(abs, phi)), float(np.max(np.abs(velocity))))
+
+    def outputs(self) -> list[float]:
+        """Every output of the FMU, in output order."""
+        eq = self.eq
+        phi = self._kinematics(self.q, self.t)
+        residual = self._residual(phi)
+        _, lam = self._solve_permuted(self.q, self.qd, self.t)
+        values = iter(eq.outputs(self.q, self.qd, lam.tolist(), self.t, self.p, self.d))
+        works = iter(eq.OUTPUT_WORKS)
+        out = []
+        for kind in eq.OUTPUT_KINDS:
+            if kind == "expression":
+                out.append(float(next(values)))
+            elif kind == "work":
+                out.append(float(self.work[next(works)]))
+            else:
+                out.append(residual)
+        return out

@@ -1,0 +1,136 @@
+"""Any described mechanism as an FMI 2.0 co-simulation slave (pythonfmu).
+
+A built FMU's script defines a subclass named after the mechanism (``FourBar``,
+``SliderCrank``...); everything else is here and in the generated ``equations`` module.
+
+Fault injection: the tunable parameters (lengths, masses, g, a driver's speed) may change
+between steps.  ``fmi2SetReal`` only assigns the attribute (pythonfmu); ``do_step`` compares
+the parameters with the ones in use and, when they differ, re-assembles the mechanism keeping
+its independent coordinates and their rates before integrating.  Outputs are updated only at
+the end of ``do_step``, so the outputs read at a communication point always show the state
+before a change made at that point.
+"""
+import math
+
+from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability
+from pythonfmu.enums import Fmi2Status
+from pythonfmu.variables import Real, String
+
+from . import equations
+from .dae import INTEGRATORS, AssemblyError, IntegrationError, MechanismDAE, snap_time
+from .variables import POSITIVE
+
+__all__ = ["MechanismSlave"]
+
+_CAUSALITY = {"parameter": Fmi2Causality.parameter, "output": Fmi2Causality.output}
+_VARIABILITY = {"tunable": Fmi2Variability.tunable, "fixed": Fmi2Variability.fixed,
+                "continuous": Fmi2Variability.continuous}
+_OUTPUTS = tuple(v.name for v in equations.VARIABLES if v.causality == "output")
+_REAL_PARAMETERS = tuple(v for v in equations.VARIABLES if v.causality == "parameter" and v.type == "Real")
+
+
+def _problem(var, value) -> str | None:
+    """What is wrong with a parameter value (a message naming it), or None."""
+    unit = f" {var.unit}" if var.unit not in (None, "1") else ""
+    if var.minimum == POSITIVE and not (math.isfinite(value) and value > 0.0):
+        return f"{var.name} = {value!r}{unit}: must be a finite positive number"
+    if not math.isfinite(value):
+        return f"{var.name} = {value!r}: must be finite"
+    low = var.minimum if var.minimum not in (None, POSITIVE) else None
+    if (low is not None and value < low) or (var.maximum is not None and value > var.maximum):
+        return (f"{var.name} = {value!r}{unit}: must be within [{low if low is not None else '-inf'}, "
+                f"{var.maximum if var.maximum is not None else 'inf'}]")
+    return None
+
+
+class MechanismSlave(Fmi2Slave):
+    author = "fourbar-cosim developers"
+    license = "MIT"
+    version = "0.2.0"
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=100.0, step_size=0.01, tolerance=1e-9)
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        # Registered in the table's order: pythonfmu numbers the value references as registered.
+        for var in equations.VARIABLES:
+            setattr(self, var.name, 0.0 if var.start is None else var.start)
+            kind = Real if var.type == "Real" else String
+            self.register_variable(kind(var.name, causality=_CAUSALITY[var.causality],
+                                        variability=_VARIABILITY[var.variability],
+                                        description=var.description))
+        self._stop_time = math.inf
+        self._dae = None
+
+    # -- helpers -------------------------------------------------------------------
+    def _parameters(self) -> tuple:
+        return tuple(float(getattr(self, name)) for name in equations.PARAMETERS)
+
+    def _check_parameters(self) -> list:
+        """Every problem with the current parameter values, as messages."""
+        problems = [_problem(var, getattr(self, var.name)) for var in _REAL_PARAMETERS]
+        problems = [p for p in problems if p]
+        if self.integrator not in INTEGRATORS:
+            problems.append(f"integrator = {self.integrator!r}: must be one of {', '.join(INTEGRATORS)}")
+        return problems
+
+    def _fail(self, message: str) -> bool:
+        self.log(f"{type(self).__name__} '{self.instance_name}': {message}", Fmi2Status.error)
+        return False
+
+    def _publish(self) -> None:
+        for name, value in zip(_OUTPUTS, self._dae.outputs()):
+            setattr(self, name, value)
+
+    # -- FMI -----------------------------------------------------------------------
+    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        self._start_time = float(start_time)
+        if stop_time is not None:
+            self._stop_time = float(stop_time)
+
+    def exit_initialization_mode(self):
+        problems = self._check_parameters()
+        if problems:
+            raise ValueError("invalid parameters: " + "; ".join(problems))
+        start = snap_time(getattr(self, "_start_time", 0.0))
+        # Let the integrator step a little past the stop time: a master may end on it by round-off.
+        bound = self._stop_time + 1.0 if math.isfinite(self._stop_time) else math.inf
+        dae = MechanismDAE(equations, self._parameters(), method=self.integrator, rtol=self.rtol,
+                           atol=self.atol, t_bound=bound)
+        guess, rates = list(equations.GUESS), [0.0] * equations.N_COORDINATES
+        for i, (position, rate) in zip(equations.INDEPENDENT, equations.START_PARAMETERS):
+            guess[i], rates[i] = float(getattr(self, position)), float(getattr(self, rate))
+        try:
+            dae.assemble(start, guess, rates)
+        except AssemblyError as exc:
+            given = ", ".join(f"{position} = {getattr(self, position)!r}" for position, _ in
+                              equations.START_PARAMETERS) or "the drivers' start values"
+            raise ValueError(f"initial assembly with {given} failed: {exc}") from None
+        dae.start()
+        self._dae = dae
+        self._publish()
+
+    def do_step(self, current_time, step_size):
+        dae = self._dae
+        if dae is None:
+            return self._fail("do_step called before initialization")
+        if abs(snap_time(current_time) - dae.t) > 1e-9 * max(1.0, abs(dae.t)):
+            return self._fail(f"do_step at t = {current_time!r} s, but the model is at t = {dae.t!r} s")
+        p = self._parameters()
+        if p != dae.p:
+            problems = self._check_parameters()
+            if problems:
+                return self._fail(f"at t = {current_time:.9g} s: " + "; ".join(problems))
+            changed = ", ".join(f"{n} {a:g} -> {b:g}" for n, a, b in zip(equations.PARAMETERS, dae.p, p) if a != b)
+            try:
+                dae.change_parameters(p)
+            except AssemblyError as exc:
+                return self._fail(f"cannot apply {changed} at t = {current_time:.9g} s: {exc}")
+            self.log(f"applied {changed} at t = {current_time:.9g} s (re-assembled keeping "
+                     f"{', '.join(equations.COORDINATES[i] for i in dae.independent) or 'the drivers'})",
+                     Fmi2Status.ok)
+        try:
+            dae.advance(snap_time(current_time + step_size))
+            self._publish()
+        except (IntegrationError, AssemblyError, ArithmeticError) as exc:
+            return self._fail(str(exc))
+        return True
