@@ -215,10 +215,6 @@ def test_motor_torque_matches_the_power_balance():
     np.testing.assert_allclose(torque, expected, rtol=0, atol=TORQUE_ATOL)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "fmu_src/mechanism_model/dae.py, MechanismDAE._rhs integrates a driver's work rate as "
-    "+lambda*nu; the torque output is -lambda (derivation.py), so the rate is -lambda*nu: "
-    "motor_work comes out as -(energy - energy(0)).  With the sign fixed this passes (1.9e-10 J)"))
 def test_energy_minus_motor_work_is_constant():
     run = project_run("fourbar_driven", *LONG)
     balance = run.output("energy") - run.output("motor_work")

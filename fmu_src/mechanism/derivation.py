@@ -9,7 +9,8 @@ From a :class:`~fmu_src.mechanism.description.Mechanism`:
   (eq. 2/10), so that ``M`` is diagonal (centroidal coordinates);
 - the holonomic constraints ``Phi(q, t) = 0``, two rows per revolute joint (the two points
   coincide), two per prismatic joint (the point stays on the line; the relative angle is
-  fixed, if the sliding body rotates, else one row), one per driver (the joint coordinate
+  fixed at zero, so the slider's frame turns with the guide's, if the sliding body rotates,
+else one row), one per driver (the joint coordinate
   equals ``s_ref + v (t - t_ref)``);
 - eq. (11)::
 
@@ -21,8 +22,8 @@ From a :class:`~fmu_src.mechanism.description.Mechanism`:
 Sign convention, stated once for the whole project: ``M qdd + Phi_q^T lambda = Q``, so the
 constraint forces on the bodies are ``-Phi_q^T lambda``.  A joint's reaction output
 ``<joint>_Fx, <joint>_Fy`` is the force (N, global axes) that the joint applies to the body of
-its *second* point (when that is the ground, the force the ground applies through the joint,
-i.e. minus the force on the first body).  A prismatic joint whose slider rotates adds
+its *second* point (when that is the ground: the force on the ground, i.e. minus the force on
+the first body).  A prismatic joint whose slider rotates adds
 ``<joint>_M``, the moment (N.m) it applies to the second body about the sliding point.  A
 driver's ``<driver>_torque`` (revolute) or ``<driver>_force`` (prismatic) is what the motor
 applies to the second body, ``<driver>_work`` the work it has done since the start (J), so that
@@ -250,7 +251,7 @@ def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy):
         body = frames.bodies[(joint.second if on_second else joint.first).body]
         sign = 1 if on_second else -1
         fx, fy = (sign * forces[index[f"{c}{body.label}"]] for c in ("x", "y"))
-        whom = f"the {body.name}" if on_second else "the ground (minus the force on the " + body.name + ")"
+        whom = f"the {body.name}" if on_second else f"the ground (minus the force on the {body.name})"
         offered[f"{joint.name}_Fx"] = OutputSpec(f"{joint.name}_Fx", "N", f"x-force of joint {joint.name} on "
                                                  f"{whom} [N]", sp.simplify(fx))
         offered[f"{joint.name}_Fy"] = OutputSpec(f"{joint.name}_Fy", "N", f"y-force of joint {joint.name} on "

@@ -90,7 +90,8 @@ class Body:
 @dataclass(frozen=True)
 class Joint:
     """A revolute joint (two points coincide) or a prismatic one (the second point stays on
-    a line through the first, fixed in the first body; their relative angle is fixed)."""
+    a line through the first, fixed in the first body; if the second body rotates, its angle
+    equals the first body's: the slider's frame turns with the guide's)."""
 
     name: str
     type: str                      # "revolute" or "prismatic"

@@ -279,7 +279,8 @@ class MechanismDAE:
         out = yl[k:2 * k] + qdd_p[self.m:].tolist()
         if self.eq.DRIVERS:
             nu = self.eq.nu(t, self.p, self.d)
-            out += [float(lam[row] * nu[row]) for _, _, _, row in self.eq.DRIVERS]
+            # The driver's power: its constraint force -Phi_q^T lambda times qd, i.e. -lambda nu (row d).
+            out += [-float(lam[row] * nu[row]) for _, _, _, row in self.eq.DRIVERS]
         return np.array(out)
 
     # -- time stepping ----------------------------------------------------------------
