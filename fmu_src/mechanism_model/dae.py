@@ -60,6 +60,9 @@ REPARTITION_REVIEW = 0.1
 #: block at least this many times better conditioned (hysteresis: no flip-flop between two
 #: choices of similar quality).
 REPARTITION_GAIN = 4.0
+#: Restarts with other independent coordinates allowed within one communication step, when a
+#: Runge-Kutta step fails because the dependent block went singular inside it.
+RESCUES = 2
 
 
 def snap_time(t):
@@ -304,11 +307,24 @@ class MechanismDAE:
         """
         solver = self._solver
         eps = 1e-12 * max(1.0, abs(t_end))      # a step ending within round-off reaches t_end
+        rescues = 0
         try:
             while solver.t < t_end - eps:
-                message = solver.step()
+                t_ok, y_ok = solver.t, solver.y.tolist()
+                try:
+                    message = solver.step()
+                    failed = solver.status == "failed"
+                except AssemblyError as exc:
+                    message, failed = str(exc), True
                 self._dense = None
-                if solver.status == "failed":
+                if failed:
+                    # The dependent block went singular inside a step (a dead point between two
+                    # communication points): once or twice per step, restart from the last
+                    # accepted state with the independent coordinates the QR factorization picks.
+                    if rescues < RESCUES and self._repartition_at(t_ok, y_ok):
+                        rescues += 1
+                        solver = self._solver
+                        continue
                     raise IntegrationError(f"{self.method} failed at t = {solver.t:.9g} s: {message}")
             y = solver.y.tolist() if abs(solver.t - t_end) <= eps else self._interpolate(t_end)
             if not all(math.isfinite(v) for v in y):
@@ -321,6 +337,23 @@ class MechanismDAE:
         k = len(self.independent)
         self.work = y[2 * k:]
         self._check_partition()
+
+    def _repartition_at(self, t: float, y: list) -> bool:
+        """Restart at an accepted state (t, y) with the QR's independent coordinates, when they
+        differ from the current ones; False when they do not (nothing to try)."""
+        try:
+            q, qd = self._state(t, y)
+        except AssemblyError:
+            return False
+        independent = choose_partition(self.eq.jacobian(q, self.p), len(self.independent))
+        if not self.independent or independent == self.independent:
+            return False
+        k = len(self.independent)
+        self.t, self.q, self.qd, self.work = t, q, qd, y[2 * k:]
+        self._set_partition(independent)
+        self.repartitions += 1
+        self.start(first_step=getattr(self._solver, "h_abs", None) or None)
+        return True
 
     def _check_partition(self) -> None:
         """Re-choose the independent coordinates when the dependent block is ill-conditioned
