@@ -19,8 +19,8 @@ driver's work); the dependent coordinates are recovered from ``Phi(q, t) = 0`` b
 Newton-Raphson, started from the last accepted state moved along its velocity (so the assembly
 branch is kept by continuity), and their rates from ``Phi_q qd = nu``.  Every reported state
 satisfies both to round-off.  Newton-Raphson starts from the second-order Taylor predictor of the
-latest state computed (a right-hand-side evaluation or a reported state): it converges in one
-to three iterations, and on the branch the motion is on.  When the dependent block of ``Phi_q``
+last accepted Runge-Kutta state: it converges in one to three iterations, and on the branch the
+motion is on (a stage of a rejected step never becomes a base).  When the dependent block of ``Phi_q``
 becomes ill-conditioned (reviewed at every communication point) the independent coordinates are
 chosen again, from a column-pivoted QR factorization of ``Phi_q``, and the integrator restarts.  A driven mechanism with no degree of freedom integrates only
 its drivers' work: its positions come from the constraints alone.
@@ -58,8 +58,8 @@ NEWTON_ITERATIONS = 25
 REPARTITION_REVIEW = 0.1
 #: ... and the independent coordinates change when the column-pivoted QR's choice has a dependent
 #: block at least this many times better conditioned (hysteresis: no flip-flop between two
-#: choices of similar quality).
-REPARTITION_GAIN = 4.0
+#: choices of similar quality; 4 let a five-bar reach a second dead point before switching).
+REPARTITION_GAIN = 2.0
 #: Restarts with other independent coordinates allowed within one communication step, when a
 #: Runge-Kutta step fails because the dependent block went singular inside it.
 RESCUES = 2
@@ -277,7 +277,7 @@ class MechanismDAE:
         qdd = [0.0] * self.n
         for i, v in zip(self._order, qdd_p.tolist()):
             qdd[i] = v
-        self._base = (t, q, qd, qdd)      # the next predictor's base: the latest state on the manifold
+        self._last_eval = (t, q, qd, qdd)
         k = len(self.independent)
         out = yl[k:2 * k] + qdd_p[self.m:].tolist()
         if self.eq.DRIVERS:
@@ -291,7 +291,7 @@ class MechanismDAE:
         """(Re)start the integrator at self.t from the consistent state in self.q, self.qd."""
         self._dense = None
         qdd, _ = self.solve(self.q, self.qd, self.t)
-        self._base = (self.t, self.q, self.qd, qdd.tolist())
+        self._base = self._last_eval = (self.t, self.q, self.qd, qdd.tolist())
         kwargs = {} if first_step is None else {"first_step": first_step}
         y0 = [self.q[i] for i in self.independent] + [self.qd[i] for i in self.independent] + list(self.work)
         self._solver = INTEGRATORS[self.method](self._rhs, self.t, np.array(y0, dtype=float), self.t_bound,
@@ -310,18 +310,23 @@ class MechanismDAE:
         rescues = 0
         try:
             while solver.t < t_end - eps:
-                t_ok, y_ok = solver.t, solver.y.tolist()
                 try:
                     message = solver.step()
                     failed = solver.status == "failed"
                 except AssemblyError as exc:
                     message, failed = str(exc), True
                 self._dense = None
+                if not failed and self._last_eval[0] == solver.t:
+                    # scipy evaluates f at the end of every attempted step before its error
+                    # test: after an accepted step that is the accepted state, the base of the
+                    # next predictions.  Stages of rejected attempts never become a base: near a
+                    # dead point one of them may have landed on the other assembly branch.
+                    self._base = self._last_eval
                 if failed:
                     # The dependent block went singular inside a step (a dead point between two
                     # communication points): once or twice per step, restart from the last
-                    # accepted state with the independent coordinates the QR factorization picks.
-                    if rescues < RESCUES and self._repartition_at(t_ok, y_ok):
+                    # reported state with the independent coordinates the QR factorization picks.
+                    if rescues < RESCUES and self._repartition():
                         rescues += 1
                         solver = self._solver
                         continue
@@ -338,18 +343,14 @@ class MechanismDAE:
         self.work = y[2 * k:]
         self._check_partition()
 
-    def _repartition_at(self, t: float, y: list) -> bool:
-        """Restart at an accepted state (t, y) with the QR's independent coordinates, when they
-        differ from the current ones; False when they do not (nothing to try)."""
-        try:
-            q, qd = self._state(t, y)
-        except AssemblyError:
-            return False
-        independent = choose_partition(self.eq.jacobian(q, self.p), len(self.independent))
+    def _repartition(self) -> bool:
+        """Restart at the last reported state with the QR's independent coordinates, when they
+        differ from the current ones; False when they do not (nothing to try).  Not from the
+        last accepted Runge-Kutta state: that one may be right at the dead point, where the old
+        independent rates no longer determine the motion."""
+        independent = choose_partition(self.eq.jacobian(self.q, self.p), len(self.independent))
         if not self.independent or independent == self.independent:
             return False
-        k = len(self.independent)
-        self.t, self.q, self.qd, self.work = t, q, qd, y[2 * k:]
         self._set_partition(independent)
         self.repartitions += 1
         self.start(first_step=getattr(self._solver, "h_abs", None) or None)
