@@ -184,7 +184,7 @@ def test_fmu_ships_no_sympy_and_lists_requirements(fourbar_fmu):
         names = z.namelist()
         sources = {n: z.read(n).decode() for n in names if n.startswith("resources/") and n.endswith(".py")}
         requirements = z.read("resources/requirements.txt").decode().split()
-    assert "resources/mechanism_model/equations.py" in names
+    assert "resources/fourbar_model/equations.py" in names
     assert not any("sympy" in line for src in sources.values() for line in src.splitlines()
                    if line.strip().startswith(("import", "from"))), "the FMU must not import sympy"
     assert {r.split(">")[0].split("=")[0] for r in requirements} == {"numpy", "scipy"}
