@@ -15,12 +15,18 @@
 4. The two FMUs' difference at Table 1's tolerances and at 1e-12 (reported, not asserted:
    at atol = 1e-6 either FMU is only ~1e-3 m accurate, and their difference is of that order).
 5. ``fourbar-sweep sweeps/l2_step.toml`` on each FMU (``--sweep`` to run it; a few minutes).
+6. Every shipped mechanism's native FMU (fmu_src/mechanisms/, built here from the working tree;
+   the four-bar's is ``--native``) against a floor FMU of its own variables: 100 s, step 0.01 s,
+   one output recorded (the first, x2), at the FMU's default tolerances (rtol = atol = 1e-10)
+   and at Table 1's.  Target (issue 24): native <= 1.5x the floor.  And the C model in-process
+   per mechanism (benchmarks/native/inprocess.c, Case 1).
 
 ``--quick`` is the smoke setting (tests/test_benchmarks_smoke.py): every table above but the
-sweep, from one round, with the FMPy runs cut to 20 s (Case 2's step at 10 s included) and
-the tolerance search to 1e-8 and 1e-9.  Its figures are not the benchmark's.
+sweep, from one round, with the FMPy runs cut to 20 s (Case 2's step at 10 s included), the
+tolerance search to 1e-8 and 1e-9, and table 6 to the four-bar.  Its figures are not the
+benchmark's.
 
-Usage: python benchmarks/native_fmu.py [--repeat 5] [--sweep] [--quick]
+Usage: python benchmarks/native_fmu.py [--repeat 5] [--sweep] [--quick] [--mechanisms fourbar,slider_crank]
 """
 from __future__ import annotations
 
@@ -73,9 +79,11 @@ def timed(fmu: Path, fault: bool, stop: float = STOP, **start_values) -> float:
     return time.perf_counter() - t0
 
 
-def build_floor(directory: Path) -> Path:
+def build_floor(directory: Path, mechanism: str = "fourbar") -> Path:
+    """The floor FMU of a mechanism: its native FMU's FMI layer and variables, a doStep that only
+    copies a number (benchmarks/native/floor_model.c in place of model.c)."""
     from fmu_src.native_build import build_native_fmu
-    result = build_native_fmu(directory / "Floor.fmu", validate=False,
+    result = build_native_fmu(directory / f"Floor_{mechanism}.fmu", mechanism=mechanism, validate=False,
                               replace={"model.c": (HERE / "native" / "floor_model.c").read_bytes()})
     return result.path
 
@@ -102,7 +110,9 @@ def speed(native: Path, python: Path, floor: Path, repeat: int, stop: float = ST
     return lines
 
 
-def in_process(native: Path, repeat: int, tolerances=(0.0, 2e-10)) -> list[str]:
+def run_in_process(native: Path, repeat: int, tolerances) -> list[tuple[float, str]]:
+    """benchmarks/native/inprocess.c linked with the FMU's shipped sources, run at each rtol =
+    atol of ``tolerances`` (0: Table 1's): [(tolerance, its output lines)]."""
     from fmu_src.native_build import find_compiler
     compiler = find_compiler()
     with tempfile.TemporaryDirectory() as tmp:
@@ -114,8 +124,12 @@ def in_process(native: Path, repeat: int, tolerances=(0.0, 2e-10)) -> list[str]:
         subprocess.run([compiler, "-std=c99", "-O2", "-I", str(src), "-o", str(exe),
                         str(HERE / "native" / "inprocess.c"), str(src / "fmi2Functions.c"), *sources, "-lm"],
                        check=True, capture_output=True)
-        outputs = [(tol, subprocess.run([str(exe), str(repeat), repr(tol)], check=True, capture_output=True,
-                                        text=True).stdout) for tol in tolerances]
+        return [(tol, subprocess.run([str(exe), str(repeat), repr(tol)], check=True, capture_output=True,
+                                     text=True).stdout) for tol in tolerances]
+
+
+def in_process(native: Path, repeat: int, tolerances=(0.0, 2e-10)) -> list[str]:
+    outputs = run_in_process(native, repeat, tolerances)
     lines = ["| run (100 s) | rtol, atol | total ms | RHS evaluations | integrator starts "
              "| µs per RHS evaluation (all work / evaluations) |", "|---|---|---|---|---|---|"]
     for tol, out in outputs:
@@ -165,6 +179,57 @@ def accuracy(native: Path, python: Path, repeat: int, stop: float = STOP, search
     return lines
 
 
+#: The FMU's default rtol = atol (fmu_src/mechanism/table.py's DEFAULT_TOLERANCE), and Table 1's.
+MECHANISM_TOLERANCES = (("1e-10, 1e-10 (default)", {}, 1e-10), ("1e-9, 1e-6 (Table 1)", TABLE1_TOLERANCES, 0.0))
+#: Issue 24: every mechanism's native FMU within this factor of FMPy's floor.
+FLOOR_TARGET = 1.5
+
+
+def record_one(fmu: Path, output: str, stop: float, **start_values) -> float:
+    """Wall time of a simulate_fmu run recording one output."""
+    from fmpy import simulate_fmu
+    t0 = time.perf_counter()
+    simulate_fmu(str(fmu), stop_time=stop, output_interval=0.01, start_values=start_values, output=[output])
+    return time.perf_counter() - t0
+
+
+def mechanisms_against_floor(names: list[str], fourbar_native: Path, repeat: int, stop: float,
+                             directory: Path) -> list[str]:
+    """Table 6: each mechanism's native FMU against its floor, and its C model in-process."""
+    from fmpy import read_model_description
+    from fmu_src.native_build import build_native_fmu
+    lines = [f"| mechanism | rtol, atol | native s | floor s | native / floor (target <= {FLOOR_TARGET:g}x) "
+             f"| RHS evaluations (in-process, 100 s) | µs per RHS evaluation (in-process) |",
+             "|---|---|---|---|---|---|---|"]
+    for name in names:
+        native = fourbar_native if name == "fourbar" else \
+            build_native_fmu(directory / f"{name}.fmu", mechanism=name, validate=False).path
+        floor = directory / f"Floor_{name}.fmu"
+        floor = floor if floor.exists() else build_floor(directory, name)
+        output = next(v.name for v in read_model_description(str(native)).modelVariables if v.causality == "output")
+        record_one(native, output, stop)                                   # warm-up: first load
+        record_one(floor, output, stop)
+        model = {tol: out for tol, out in run_in_process(native, repeat, [t for _, _, t in MECHANISM_TOLERANCES])}
+        for label, start_values, tol in MECHANISM_TOLERANCES:
+            rounds = [(record_one(native, output, stop, **start_values), record_one(floor, output, stop))
+                      for _ in range(repeat)]
+            med = statistics.median
+            n, f = med(r[0] for r in rounds), med(r[1] for r in rounds)
+            ratio = med(r[0] / r[1] for r in rounds)
+            case1 = next(line.split() for line in model[tol].splitlines() if line.startswith("case1"))
+            ms, evals = float(case1[1]), int(case1[2])
+            verdict = "met" if ratio <= FLOOR_TARGET else "**not met**"
+            lines.append(f"| {name} | {label} | {n:.3f} | {f:.3f} | {ratio:.2f}x ({verdict}) | {evals:,} "
+                         f"| {1e3 * ms / evals:.2f} |")
+    lines += ["", f"simulate_fmu for {stop:g} s on the 0.01 s grid recording one output (the first: x2 for "
+                  "the shipped mechanisms); "
+                  f"median of {repeat} rounds, native and floor alternating, the ratio the median of the "
+                  "per-round ratios.  The floor FMU has the mechanism's FMI layer and variables and a "
+                  "doStep that copies a number.  In-process: benchmarks/native/inprocess.c, Case 1, 100 s, "
+                  "best of the rounds; its time includes stepping, dense output and output updates."]
+    return lines
+
+
 def sweeps(native: Path) -> list[str]:
     lines = ["| FMU | scenarios | wall s | scenarios / min |", "|---|---|---|---|"]
     source = (REPO / "sweeps" / "l2_step.toml").read_text()
@@ -195,6 +260,9 @@ def main(argv=None) -> int:
     parser.add_argument("--repeat", type=int, default=None,
                         help="rounds per timing, median (best of, in-process) reported (default 5; 1 with --quick)")
     parser.add_argument("--sweep", action="store_true", help="also time fourbar-sweep sweeps/l2_step.toml on both")
+    parser.add_argument("--mechanisms", default=None,
+                        help="comma-separated shipped mechanisms for the every-mechanism table (default: all; "
+                             "fourbar with --quick)")
     parser.add_argument("--quick", action="store_true",
                         help=f"smoke setting, not the benchmark: one round, FMPy runs of {QUICK_STOP:g} s, tolerance "
                              f"search over {', '.join(f'{t:g}' for t in QUICK_SEARCH)} only (every table but the "
@@ -208,6 +276,12 @@ def main(argv=None) -> int:
     if not native.exists() or not python.exists():
         print("build both FMUs first: python build_fmu.py", file=sys.stderr)
         return 2
+    from fmu_src.mechanism.description import shipped_mechanisms
+    shipped = shipped_mechanisms()
+    mechanisms = args.mechanisms.split(",") if args.mechanisms else (["fourbar"] if args.quick else list(shipped))
+    unknown = [m for m in mechanisms if m not in shipped]
+    if unknown:
+        parser.error(f"--mechanisms: {', '.join(unknown)} not shipped (the shipped ones: {', '.join(shipped)})")
     print(f"Machine: {platform.processor() or platform.machine()}, CPython {platform.python_version()}, "
           f"{os.cpu_count()} cores.")
     print()
@@ -215,7 +289,9 @@ def main(argv=None) -> int:
         floor = build_floor(Path(tmp))
         out = ["### Through FMPy (simulate_fmu)", "", *speed(native, python, floor, repeat, stop), "",
                "### The C model in-process", "", *in_process(native, repeat), "",
-               "### Accuracy per wall second", "", *accuracy(native, python, repeat, stop, search)]
+               "### Accuracy per wall second", "", *accuracy(native, python, repeat, stop, search), "",
+               "### Every mechanism: the native FMU against FMPy's floor", "",
+               *mechanisms_against_floor(mechanisms, native, repeat, stop, Path(tmp))]
     if args.sweep:
         out += ["", "### fourbar-sweep sweeps/l2_step.toml", "", *sweeps(native)]
     print("\n".join(out))

@@ -1,14 +1,18 @@
-"""Build ``FourBarNative.fmu``: the same derivation compiled to C, an FMU that needs no Python.
+"""Build ``<Name>Native.fmu``: a mechanism's derivation compiled to C, an FMU that needs no Python.
 
-Steps: print the equations, tableaus and variable table as C (``c_codegen``), put them next
-to the hand-written FMI layer and Runge-Kutta driver (``fmu_src/native/``), write the model
-description from the variable table the pythonfmu FMU also uses, compile a shared library
-with the system's C compiler (C standard library and libm only), and zip the lot with its
-sources (``sources/`` and ``<SourceFiles>``), so that a user on another platform can compile
-it with ``fmpy compile``.  A mingw-w64 cross-compiler, when installed, adds ``binaries/win64``.
+Steps: derive and check the mechanism (``mechanism.check.prepare_mechanism``, as the pythonfmu
+build does), print its equations, tables, variables and the Runge-Kutta tableaus as C
+(``c_codegen``), put them next to the hand-written, mechanism-agnostic C (``fmu_src/native/``:
+the FMI layer, the DAE algorithm, the Runge-Kutta driver, small linear algebra), write the
+model description from the variable table the pythonfmu FMU also uses, compile a shared
+library with the system's C compiler (C standard library and libm only), and zip the lot with
+its sources (``sources/`` and ``<SourceFiles>``), so that a user on another platform can
+compile it with ``fmpy compile``.  A mingw-w64 cross-compiler, when installed, adds
+``binaries/win64``.
 
-The GUID is a hash of everything that goes into the binary: rebuilding unchanged sources
-gives the same FMU identity, any change gives a new one.
+The model identifier is ``<Name>Native`` (``FourBarNative`` for fmu_src/mechanisms/fourbar.toml).
+The GUID is a hash of everything that goes into the binary: rebuilding unchanged sources gives
+the same FMU identity, any change (of the mechanism or of the C) gives a new one.
 """
 from __future__ import annotations
 
@@ -29,25 +33,34 @@ from xml.etree import ElementTree as ET
 from fourbar_common import replace_atomically
 
 from .build import unit_definitions
-from .c_codegen import generate_c_sources
-from .codegen import write_if_changed
-from .fourbar_model.variables import VARIABLES
+from .c_codegen import GENERATED_FILES, generate_c_sources
+from .mechanism.check import prepare_mechanism
+from .mechanism.derivation import MechanismEquations
+from .mechanism.description import Mechanism
+from .mechanism.table import variable_table
 
-__all__ = ["NativeBuildResult", "CompilerNotFound", "build_native_fmu", "find_compiler", "MODEL_IDENTIFIER"]
+__all__ = ["NativeBuildResult", "CompilerNotFound", "build_native_fmu", "find_compiler", "model_identifier",
+           "native_sources", "MODEL_IDENTIFIER", "HAND_WRITTEN", "GENERATED"]
 
 HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+#: The four-bar's model identifier (the default mechanism's); any mechanism's is model_identifier().
 MODEL_IDENTIFIER = "FourBarNative"
-#: The hand-written C: FMI layer, model behind it, Runge-Kutta driver, and the header that
-#: pins glibc symbol versions for binaries/linux64 (force-included there only).
-HAND_WRITTEN = ("fmi2Functions.c", "model.c", "model.h", "rk.c", "rk.h", "glibc_compat.h")
+#: The hand-written C: FMI layer, the slave behind it, the DAE algorithm, the Runge-Kutta driver,
+#: linear algebra, and the header that pins glibc symbol versions for binaries/linux64
+#: (force-included there only).  None of it knows a mechanism.
+HAND_WRITTEN = ("fmi2Functions.c", "model.c", "model.h", "dae.c", "dae.h", "linalg.h", "rk.c", "rk.h",
+                "glibc_compat.h")
 #: Force-included in the linux64 build: libm symbols bound to versions glibc 2.17 has.
 GLIBC_COMPAT = "glibc_compat.h"
-#: The generated C (``c_codegen``); also written to fmu_src/native/ (gitignored).
-GENERATED = ("fourbar_equations.c", "fourbar_equations.h", "rk_tableaus.c", "fourbar_variables.h")
+#: The generated C (``c_codegen``), per mechanism.
+GENERATED = GENERATED_FILES
 #: The standard FMI 2.0 headers (2-clause BSD), as FMPy ships them.
 FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
 _C_FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra")
 _WIN64_COMPILER = "x86_64-w64-mingw32-gcc"
+#: Copies of the generated C for editors (model.c includes equations.h): build/ is gitignored.
+EDITOR_COPIES = REPO / "build" / "generated"
 
 
 class CompilerNotFound(RuntimeError):
@@ -62,6 +75,7 @@ class NativeBuildResult:
     guid: str
     platforms: tuple[str, ...]
     problems: tuple[str, ...]
+    model_identifier: str = MODEL_IDENTIFIER
 
 
 def find_compiler() -> str | None:
@@ -74,15 +88,20 @@ def find_compiler() -> str | None:
     return None
 
 
+def model_identifier(eqs: MechanismEquations) -> str:
+    """``<Name>Native``: the native FMU's model identifier (and its library's name)."""
+    return f"{eqs.mechanism.name}Native"
+
+
 def _fmi_header_dir() -> Path:
     import fmpy
 
     return Path(fmpy.__file__).resolve().parent / "c-code"
 
 
-def _sources(guid: str, replace: Mapping[str, bytes] | None = None) -> dict[str, bytes]:
-    """Every file of ``sources/``: generated, hand-written and the FMI headers."""
-    files = {name: text.encode() for name, text in generate_c_sources(guid, MODEL_IDENTIFIER).items()}
+def native_sources(eqs: MechanismEquations, guid: str, replace: Mapping[str, bytes] | None = None) -> dict[str, bytes]:
+    """Every file of the FMU's ``sources/``: generated, hand-written and the FMI headers."""
+    files = {name: text.encode() for name, text in generate_c_sources(eqs, guid, model_identifier(eqs)).items()}
     for name in HAND_WRITTEN:
         files[name] = (HERE / "native" / name).read_bytes()
     headers = _fmi_header_dir()
@@ -92,27 +111,29 @@ def _sources(guid: str, replace: Mapping[str, bytes] | None = None) -> dict[str,
     return files
 
 
-def _guid(replace: Mapping[str, bytes] | None = None) -> str:
+def _guid(eqs: MechanismEquations, replace: Mapping[str, bytes] | None = None) -> str:
     """A stable GUID: a hash of the sources (with a placeholder GUID) and the variable table."""
     digest = hashlib.sha256()
-    for name, data in sorted(_sources("GUID", replace).items()):
+    for name, data in sorted(native_sources(eqs, "GUID", replace).items()):
         digest.update(name.encode() + b"\0" + data + b"\0")
-    digest.update(repr(VARIABLES).encode())
+    digest.update(repr(variable_table(eqs)).encode())
     return str(uuid.UUID(bytes=digest.digest()[:16], version=5))
 
 
-def model_description(guid: str, source_files) -> bytes:
-    """The native FMU's modelDescription.xml, from the shared variable table."""
+def model_description(eqs: MechanismEquations, guid: str, source_files) -> bytes:
+    """The native FMU's modelDescription.xml, from the mechanism's variable table."""
+    mech = eqs.mechanism
+    identifier = model_identifier(eqs)
     root = ET.Element("fmiModelDescription", {
-        "fmiVersion": "2.0", "modelName": MODEL_IDENTIFIER, "guid": guid,
-        "description": "Planar four-bar linkage (Table 1 of Park's integrated engineering education model): "
-                       "Lagrange-multiplier DAE derived with sympy and printed as C, DOP853/RK45 in C, "
-                       "lengths and masses tunable for fault injection; needs no Python",
-        "author": "fourbar-cosim developers", "license": "MIT", "version": "0.1.0",
+        "fmiVersion": "2.0", "modelName": identifier, "guid": guid,
+        "description": f"{mech.description}: Lagrange-multiplier DAE derived with sympy and printed as C, "
+                       f"coordinate partitioning, DOP853/RK45 in C, parameters tunable for fault injection; "
+                       f"needs no Python",
+        "author": "fourbar-cosim developers", "license": "MIT", "version": "0.2.0",
         "generationTool": "fourbar-cosim build_fmu.py (sympy C printer)",
         "variableNamingConvention": "structured", "numberOfEventIndicators": "0"})
     cs = ET.SubElement(root, "CoSimulation", {
-        "modelIdentifier": MODEL_IDENTIFIER, "needsExecutionTool": "false",
+        "modelIdentifier": identifier, "needsExecutionTool": "false",
         "canHandleVariableCommunicationStepSize": "true", "canInterpolateInputs": "false",
         "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
         "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
@@ -133,7 +154,7 @@ def model_description(guid: str, source_files) -> bytes:
                                               "tolerance": "1e-09"})
     variables = ET.SubElement(root, "ModelVariables")
     outputs = []
-    for vr, var in enumerate(VARIABLES):
+    for vr, var in enumerate(variable_table(eqs)):
         sv = ET.SubElement(variables, "ScalarVariable", {
             "name": var.name, "valueReference": str(vr), "description": var.description,
             "causality": var.causality, "variability": var.variability})
@@ -144,6 +165,8 @@ def model_description(guid: str, source_files) -> bytes:
             attrs["unit"] = var.unit
         if var.minimum is not None:
             attrs["min"] = repr(var.minimum)
+        if var.maximum is not None:
+            attrs["max"] = repr(var.maximum)
         if var.display_unit:
             attrs["displayUnit"] = var.display_unit
         ET.SubElement(sv, var.type, attrs)
@@ -177,14 +200,32 @@ def _platform() -> tuple[str, str]:
     raise RuntimeError(f"no FMI 2.0 platform folder for {sys.platform}")
 
 
-def build_native_fmu(dest: str | Path = "build/FourBarNative.fmu", validate: bool = True,
-                     compiler: str | None = None, replace: Mapping[str, bytes] | None = None) -> NativeBuildResult:
-    """Generate, compile and package the native FMU at ``dest``; validate it with FMPy.
+def _write_editor_copies(identifier: str, files: Mapping[str, bytes]) -> None:
+    """The generated C in build/generated/<ModelIdentifier>/, so that an editor opening
+    fmu_src/native/ with that folder on its include path resolves the includes.  Best effort: a
+    folder that cannot be written is skipped (the FMU does not need the copies)."""
+    folder = EDITOR_COPIES / identifier
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        for name in GENERATED:
+            path = folder / name
+            if not path.exists() or path.read_bytes() != files[name]:
+                replace_atomically(path, lambda tmp, data=files[name]: tmp.write_bytes(data))
+    except OSError:
+        pass
 
-    ``replace`` swaps source files by name (the benchmarks' floor FMU replaces ``model.c``).
-    Raises :class:`CompilerNotFound` when no C compiler can be found, RuntimeError when
-    compiling fails, OSError when ``dest`` cannot be written (``dest`` is then as it was,
-    and no temporary file is left).
+
+def build_native_fmu(dest: str | Path | None = None, mechanism: str | Path | Mechanism | None = "fourbar",
+                     validate: bool = True, compiler: str | None = None,
+                     replace: Mapping[str, bytes] | None = None) -> NativeBuildResult:
+    """Generate, compile and package a mechanism's native FMU at ``dest``; validate it with FMPy.
+
+    ``mechanism`` is a shipped name (fmu_src/mechanisms/NAME.toml), a path or a Mechanism
+    (default: the four-bar); ``dest`` defaults to build/<Name>Native.fmu.  ``replace`` swaps
+    source files by name (the benchmarks' floor FMU replaces ``model.c``).  Raises
+    MechanismError for a description with a mistake, :class:`CompilerNotFound` when no C
+    compiler can be found, RuntimeError when compiling fails, OSError when ``dest`` cannot be
+    written (``dest`` is then as it was, and no temporary file is left).
     """
     compiler = compiler or find_compiler()
     if not compiler:
@@ -193,14 +234,13 @@ def build_native_fmu(dest: str | Path = "build/FourBarNative.fmu", validate: boo
                                    f"command on PATH; set CC to an installed C compiler, or unset it to use "
                                    f"cc, gcc or clang")
         raise CompilerNotFound("no C compiler found (set CC, or install gcc or clang)")
-    dest = Path(dest).resolve()
-    guid = _guid(replace)
-    files = _sources(guid, replace)
+    eqs = prepare_mechanism(mechanism if mechanism is not None else "fourbar").equations
+    identifier = model_identifier(eqs)
+    dest = Path(dest if dest is not None else Path("build") / f"{identifier}.fmu").resolve()
+    guid = _guid(eqs, replace)
+    files = native_sources(eqs, guid, replace)
     if not replace:
-        # The generated C also goes beside the hand-written C (gitignored), so that editors
-        # resolve model.c's #include "fourbar_equations.h".
-        for name in GENERATED:
-            write_if_changed(HERE / "native" / name, files[name].decode())
+        _write_editor_copies(identifier, files)
     c_files = sorted(name for name in files if name.endswith(".c"))
     platforms = []
     with tempfile.TemporaryDirectory(prefix="fourbar_native_") as tmp:
@@ -210,21 +250,21 @@ def build_native_fmu(dest: str | Path = "build/FourBarNative.fmu", validate: boo
         for name, data in files.items():
             (src / name).write_bytes(data)
         folder, suffix = _platform()
-        library = stage / (MODEL_IDENTIFIER + suffix)
+        library = stage / (identifier + suffix)
         pin_glibc = folder == "linux64" and platform.libc_ver()[0] == "glibc"
         _compile(compiler, src, c_files, library, extra=("-include", str(src / GLIBC_COMPAT)) if pin_glibc else ())
-        binaries = [(f"binaries/{folder}/{MODEL_IDENTIFIER}{suffix}", library)]
+        binaries = [(f"binaries/{folder}/{identifier}{suffix}", library)]
         platforms.append(folder)
         cross = shutil.which(_WIN64_COMPILER)
         if cross and folder != "win64":
-            dll = stage / (MODEL_IDENTIFIER + ".dll")
+            dll = stage / (identifier + ".dll")
             _compile(cross, src, c_files, dll, extra=("-static-libgcc",))
-            binaries.append((f"binaries/win64/{MODEL_IDENTIFIER}.dll", dll))
+            binaries.append((f"binaries/win64/{identifier}.dll", dll))
             platforms.append("win64")
 
         def write(tmp_dest: Path) -> None:
             with zipfile.ZipFile(tmp_dest, "w", zipfile.ZIP_DEFLATED) as z:
-                z.writestr("modelDescription.xml", model_description(guid, c_files))
+                z.writestr("modelDescription.xml", model_description(eqs, guid, c_files))
                 for arcname, path in binaries:
                     z.write(path, arcname)
                 for name in sorted(files):
@@ -238,4 +278,5 @@ def build_native_fmu(dest: str | Path = "build/FourBarNative.fmu", validate: boo
     if validate:
         from fmpy.validation import validate_fmu
         problems = tuple(validate_fmu(str(dest)))
-    return NativeBuildResult(path=dest, guid=guid, platforms=tuple(platforms), problems=problems)
+    return NativeBuildResult(path=dest, guid=guid, platforms=tuple(platforms), problems=problems,
+                             model_identifier=identifier)

@@ -1,19 +1,29 @@
-"""The native FMU (build/FourBarNative.fmu): generated C, no Python at run time.
+"""The native FMUs (<Name>Native.fmu): any mechanism's derivation compiled to C, no Python at run time.
 
-Checked here: validity, agreement with the pythonfmu FMU and the physics at tight
-tolerances, independent instances, FMU state save/restore and serialization, fmi2Reset,
-errors that leave the host alive, recompiling from the shipped sources, and clean exits of
-fresh processes.  The physics tests of test_fmu_physics.py run for both FMUs too.
+Checked here:
+- the four-bar's (build/FourBarNative.fmu, or FOURBAR_NATIVE_FMU): validity; today's variables
+  (names, value references, start values, units of the FMU built before mechanisms became
+  data, commit TODAY, from its own sources); agreement with that FMU at tight tolerances over
+  100 s, Cases 1 and 2; physics against an independent formulation; instances, FMU state
+  save/restore and serialization, fmi2Reset, errors that leave the host alive, messages as
+  the pythonfmu slave writes them, recompiling from the shipped sources, fresh processes;
+- every shipped mechanism's: agreement with the in-process MechanismDAE (the pythonfmu FMU's
+  run-time) at tight tolerances, a driven mechanism whose speed changes mid-run, a five-bar
+  that must change its independent coordinates twice to pass a dead point, and a slider-crank
+  whose declared independent coordinate (the slider) stops fixing the motion every half turn.
+The physics tests of test_fmu_physics.py run for the four-bar's FMU too.
 """
 from __future__ import annotations
 
 import math
 import os
+import re
 import shutil
 import subprocess
 import sys
 import zipfile
 from ctypes import byref
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,28 +34,39 @@ from fmpy.fmi2 import (FMU2Slave, calloc, fmi2CallbackAllocateMemoryTYPE, fmi2Ca
 from fmpy.logging import addLoggerProxy
 from fmpy.validation import validate_fmu
 
+from native_host.references import ReferenceUnavailable, build_today_native_fmu, python_run
 from reference_theta2 import simulate as reference
 
-pytestmark = pytest.mark.slow    # whole 100 s runs; `make check` leaves them out
+pytestmark = pytest.mark.slow    # whole 100 s runs and FMU builds; `make check` leaves them out
 
 CENTRES = ["x2", "y2", "x3", "y3", "x4", "y4"]
 TIGHT = {"rtol": 1e-12, "atol": 1e-12}
 THETA2_0 = math.radians(30.0)
 TABLE1 = dict(L1=3.0, L2=1.0, L3=4.0, L4=2.5, m2=1.0, m3=1.0, m4=1.0, g=9.81)
+#: Positions (m) and angles (rad) of the native FMU against a reference that integrates the same
+#: equations with the same method at rtol = atol = 1e-12: the issue's bound.  They differ only by
+#: the order of floating-point operations (C loops, numpy, sympy's printing), measured 6e-13 m
+#: against commit TODAY's FMU over 100 s and 2e-13 (five-bar, chaotic: 2e-10) against
+#: MechanismDAE over 5 s.
+AGREEMENT = 1e-9
 
 
-def simulate(fmu, stop=100.0, start_values=None, l2_step=None, output=None):
-    """simulate_fmu on the 0.01 s grid; ``l2_step=(t, value)`` as an FMI input signal."""
+def simulate(fmu, stop=100.0, start_values=None, step=None, output=None):
+    """simulate_fmu on the 0.01 s grid; ``step=(t, name, before, after)`` as an FMI input signal."""
     signal = None
-    if l2_step is not None:
-        t, value = l2_step
-        signal = np.array([(0.0, 1.0), (t, 1.0), (t, value)], dtype=[("time", float), ("L2", float)])
+    if step is not None:
+        t, name, before, after = step
+        signal = np.array([(0.0, before), (t, before), (t, after)], dtype=[("time", float), (name, float)])
     return simulate_fmu(str(fmu), stop_time=stop, output_interval=0.01, start_values=start_values or {},
                         input=signal, output=output)
 
 
 def centres(result) -> np.ndarray:
     return np.column_stack([np.asarray(result[n], dtype=float) for n in CENTRES])
+
+
+def positions(result, names) -> np.ndarray:
+    return np.column_stack([np.asarray(result[n], dtype=float) for n in names])
 
 
 # -- a slave driven by hand ---------------------------------------------------------------
@@ -85,14 +106,14 @@ class Slave:
     def get(self, names=CENTRES):
         return self.fmu.getReal([self.vr[n] for n in names])
 
-    def step(self, n=1):
+    def step(self, n=1, names=CENTRES):
         """n steps of 0.01 s on FMPy's grid (t_k = k * 0.01); the rows after each step."""
         rows = []
         for _ in range(n):
             t = self.k * 0.01
             self.fmu.doStep(t, (self.k + 1) * 0.01 - t)
             self.k += 1
-            rows.append(self.get())
+            rows.append(self.get(names))
         return np.array(rows)
 
     def free(self):
@@ -105,6 +126,42 @@ def native(native_fmu):
     unzipdir = extract(str(native_fmu))
     yield unzipdir, md
     shutil.rmtree(unzipdir, ignore_errors=True)
+
+
+# -- FMUs of other mechanisms, built once per module --------------------------------------
+class MechanismFMUs:
+    """``get(mechanism)``: the native FMU of a shipped name or a file, built on first use."""
+
+    def __init__(self, folder: Path):
+        self.folder = folder
+        self.built: dict[str, Path] = {}
+
+    def get(self, mechanism: str | Path) -> Path:
+        key = str(mechanism)
+        if key not in self.built:
+            from fmu_src.native_build import build_native_fmu, find_compiler
+            if find_compiler() is None:
+                pytest.skip("no C compiler: the native FMUs cannot be built here")
+            dest = self.folder / f"{Path(key).stem}.fmu"
+            self.built[key] = build_native_fmu(dest, mechanism=mechanism, validate=False).path
+        return self.built[key]
+
+
+@pytest.fixture(scope="module")
+def mechanism_fmus(tmp_path_factory) -> MechanismFMUs:
+    return MechanismFMUs(tmp_path_factory.mktemp("mechanisms"))
+
+
+def _variant(tmp_path_factory, name: str, shipped: str, replacements) -> Path:
+    """A shipped mechanism file with text replaced (each replacement must apply)."""
+    from fmu_src.mechanism.description import MECHANISM_DIR
+    text = (MECHANISM_DIR / f"{shipped}.toml").read_text(encoding="utf-8")
+    for old, new in replacements:
+        assert old in text, f"{shipped}.toml no longer has {old!r}"
+        text = text.replace(old, new)
+    path = tmp_path_factory.mktemp("variants") / f"{name}.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
 
 
 # -- validity and identity ---------------------------------------------------------------
@@ -122,40 +179,74 @@ def test_same_variables_as_the_pythonfmu_fmu(native_fmu, fourbar_fmu):
 
 
 def test_ships_its_sources_and_needs_no_python(native_fmu):
+    from fmu_src.native_build import GENERATED, HAND_WRITTEN
     with zipfile.ZipFile(native_fmu) as z:
         names = z.namelist()
         md = read_model_description(str(native_fmu))
     listed = md.buildConfigurations[0].sourceFileSets[0].sourceFiles
     assert listed and all(f"sources/{name}" in names for name in listed)
-    assert "sources/fourbar_equations.c" in names and "sources/fmi2Functions.h" in names
+    assert all(f"sources/{name}" in names for name in GENERATED + HAND_WRITTEN)
+    assert "sources/fmi2Functions.h" in names
     assert not any(n.startswith("resources/") and n.endswith(".py") for n in names)
+    assert md.coSimulation.modelIdentifier == "FourBarNative"
     assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
     assert not md.coSimulation.needsExecutionTool
 
 
-# -- agreement and physics at tight tolerances --------------------------------------------
+def test_the_hand_written_c_names_no_mechanism():
+    """The equations and tables are generated per mechanism; fmu_src/native/ knows none of them."""
+    from fmu_src.native_build import HAND_WRITTEN, HERE
+    words = re.compile(r"\b(theta\d|omega\d|[xy][2-9]|L[1-9]|m[2-9]|crank|coupler|rocker|slider|four_?bar|FB_BRANCH)\b", re.I)
+    for name in HAND_WRITTEN:
+        code = re.sub(r"/\*.*?\*/|//[^\n]*", " ", (HERE / "native" / name).read_text(), flags=re.S)
+        found = sorted({m.group(0) for m in words.finditer(code)})
+        assert not found, f"fmu_src/native/{name} mentions {found} outside its comments"
+    generated = [p.name for p in (HERE / "native").iterdir() if p.suffix in (".c", ".h")]
+    assert sorted(generated) == sorted(n for n in HAND_WRITTEN if n.endswith((".c", ".h")))
+
+
+# -- today's four-bar ---------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def tight_pairs(native_fmu, fourbar_fmu):
-    """{case: (native result, pythonfmu result)} at rtol = atol = 1e-12, Cases 1 and 2."""
-    cases = {"case1": None, "case2": (10.0, 1.1)}
-    return {name: (simulate(native_fmu, start_values=TIGHT, l2_step=step),
-                   simulate(fourbar_fmu, start_values=TIGHT, l2_step=step)) for name, step in cases.items()}
+def today_fmu(tmp_path_factory) -> Path:
+    """The four-bar's native FMU of commit TODAY, built from that commit's sources."""
+    try:
+        return build_today_native_fmu(tmp_path_factory.mktemp("today"))
+    except ReferenceUnavailable as exc:
+        pytest.skip(f"today's native FMU cannot be built here: {exc}")
+
+
+def test_keeps_todays_variables(native_fmu, today_fmu):
+    def table(path):
+        md = read_model_description(str(path))
+        return [(v.name, v.valueReference, v.type, v.causality, v.variability, v.start, v.unit, v.displayUnit,
+                 v.min) for v in md.modelVariables]
+    now, today = table(native_fmu), table(today_fmu)
+    # today's 27 variables exactly; the joint reactions the mechanism file adds come after them
+    assert now[:len(today)] == today
+    assert [v[0] for v in now[len(today):]] == ["O2_Fx", "O2_Fy", "A_Fx", "A_Fy", "B_Fx", "B_Fy", "O4_Fx", "O4_Fy"]
+
+
+@pytest.fixture(scope="module")
+def tight_pairs(native_fmu, today_fmu):
+    """{case: (this native FMU, today's)} at rtol = atol = 1e-12 over 100 s, Cases 1 and 2."""
+    cases = {"case1": None, "case2": (10.0, "L2", 1.0, 1.1)}
+    output = CENTRES + ["constraint_residual"]
+    return {name: (simulate(native_fmu, start_values=TIGHT, step=step, output=output),
+                   simulate(today_fmu, start_values=TIGHT, step=step, output=output)) for name, step in cases.items()}
 
 
 @pytest.mark.parametrize("case", ["case1", "case2"])
-def test_native_agrees_with_pythonfmu(tight_pairs, case):
-    native, python = tight_pairs[case]
-    err = np.abs(centres(native) - centres(python)).max()
-    # Same derivation, same DOP853 tableau and step control; only the floating-point
-    # summation order differs (C loops vs numpy).  Measured 4e-12 m; the issue's bound 1e-9 m.
-    assert err <= 1e-9, f"max |native - pythonfmu| = {err:.3g} m ({case})"
+def test_agrees_with_todays_native_fmu(tight_pairs, case):
+    now, today = tight_pairs[case]
+    err = np.abs(centres(now) - centres(today)).max()
+    assert err <= AGREEMENT, f"max |generic - today's| = {err:.3g} m ({case})"
 
 
 @pytest.mark.parametrize("case", ["case1", "case2"])
 def test_native_constraint_residual(tight_pairs, case):
     native, _ = tight_pairs[case]
-    # Coordinate partitioning puts every reported state on Phi = 0, Phi_q qd = 0 up to
-    # round-off (measured 2.2e-15); 1e-12 is the issue's bound.
+    # Coordinate partitioning puts every reported state on Phi = 0, Phi_q qd = nu up to
+    # round-off (measured 1.3e-15); 1e-12 is the issue's bound.
     assert native["constraint_residual"].max() <= 1e-12
 
 
@@ -166,6 +257,104 @@ def test_native_case2_against_independent_formulation(tight_pairs):
     # Two formulations each integrated at 1e-12: they differ by the independent model's
     # finite-difference derivatives (~1e-8 m measured); 1e-6 m is the accuracy target.
     assert np.abs(centres(native) - ref).max() <= 1e-6
+
+
+# -- every mechanism against MechanismDAE ----------------------------------------------------
+def _coordinates(fmu) -> list[str]:
+    """The outputs that are coordinates of the bodies' centres and angles (m, rad)."""
+    md = read_model_description(str(fmu))
+    return [v.name for v in md.modelVariables if v.causality == "output" and re.fullmatch(r"(x|y|theta)\w+", v.name)]
+
+
+def _shipped():
+    from fmu_src.mechanism.description import shipped_mechanisms
+    return shipped_mechanisms()
+
+
+@pytest.mark.parametrize("mechanism", _shipped())
+def test_every_shipped_mechanism_agrees_with_mechanism_dae(mechanism_fmus, native_fmu, mechanism):
+    fmu = native_fmu if mechanism == "fourbar" else mechanism_fmus.get(mechanism)
+    names = _coordinates(fmu)
+    native = simulate(fmu, stop=5.0, start_values=TIGHT, output=names + ["constraint_residual"])
+    python = python_run(mechanism, 5.0, TIGHT["rtol"])
+    err = np.abs(positions(native, names) - positions(python, names)).max()
+    assert err <= AGREEMENT, f"{mechanism}: max |native - MechanismDAE| = {err:.3g} over 5 s"
+    assert native["constraint_residual"].max() <= 1e-12          # round-off, as above
+
+
+def test_a_drivers_speed_change_continues_from_where_it_is(mechanism_fmus):
+    """The driven four-bar's motor speeds up at 1 s: its angle continues from where it is (the
+    reference's s_ref, t_ref re-anchored), its work keeps adding up; both as MechanismDAE."""
+    fmu = mechanism_fmus.get("fourbar_driven")
+    md = read_model_description(str(fmu))
+    speed = next(v for v in md.modelVariables if v.name == "omega_drive")
+    change = (1.0, "omega_drive", 2.0 * float(speed.start))
+    names = _coordinates(fmu) + ["motor_work"]
+    native = simulate(fmu, stop=3.0, start_values=TIGHT, output=names,
+                      step=(change[0], change[1], float(speed.start), change[2]))
+    python = python_run("fourbar_driven", 3.0, TIGHT["rtol"], change=change)
+    err = np.abs(positions(native, names) - positions(python, names)).max()
+    # positions (m, rad) and the work (J, ~10 J): the same equations at 1e-12, measured 3e-11
+    assert err <= AGREEMENT, f"max |native - MechanismDAE| = {err:.3g}"
+    theta2 = np.asarray(native["theta2"])
+    assert np.diff(theta2)[150] == pytest.approx(2.0 * np.diff(theta2)[50], rel=1e-9)   # twice as fast
+
+
+@pytest.fixture(scope="module")
+def fivebar_fold(tmp_path_factory) -> Path:
+    # The shipped five-bar's couplers cannot line up (L3 = L4); with L4 = 2.5 m they do near
+    # t = 3.03 s, and the first choice after that, y3, has its own dead point at 3.16 s
+    # (tests/test_mechanisms_physics.py, test_partitioning_passes_a_dead_point_on_the_physical_path).
+    return _variant(tmp_path_factory, "fivebar_fold", "fivebar", (
+        ("L4 = { value = 4.0", "L4 = { value = 2.5"), ("angle = 85 ", "angle = 55 "), ("angle = 125 ", "angle = 95 ")))
+
+
+def test_passes_dead_points_by_changing_its_independent_coordinates(mechanism_fmus, fivebar_fold):
+    from mechanism_reference import read_model
+    fmu = mechanism_fmus.get(fivebar_fold)
+    model = read_model(fivebar_fold)
+    times = np.arange(351) * 0.01
+    native = simulate(fmu, stop=3.5, start_values={"rtol": 1e-10, "atol": 1e-10},
+                      output=list(model.coordinates) + ["constraint_residual"])
+    python = python_run(fivebar_fold, 3.5, 1e-10)
+    assert python.repartitions >= 2
+    mine = positions(native, model.coordinates)
+    # The independent formulation (absolute coordinates, no partitioning): a run on another
+    # path than the physical one is off by 1e-3 m within 0.01 s of the dead point; rtol = atol =
+    # 1e-10 leaves ~1e-9 m, amplified ~10x by this chaotic linkage (measured 1.05e-8 m, as
+    # MechanismDAE's own): the bound of test_mechanisms_physics.py, 1e-7 m.
+    assert np.abs(mine - model.simulate(times).q).max() <= 1e-7
+    # MechanismDAE with the same partitions at the same times: measured 1.3e-10 m
+    assert np.abs(mine - positions(python, model.coordinates)).max() <= AGREEMENT
+    assert native["constraint_residual"].max() <= 1e-12
+
+
+def test_a_slider_as_independent_coordinate_hands_over_at_the_dead_points(mechanism_fmus, tmp_path_factory):
+    """The slider-crank with the slider's x4 as its independent coordinate: at every dead point of
+    the crank x4 stops fixing the motion and the run-time must choose theta2 (or back)."""
+    path = _variant(tmp_path_factory, "slider_first", "slider_crank", (
+        ('name = "SliderCrank"', 'name = "SliderFirst"'),
+        ('theta2 = { value = 30, unit = "deg", description = "Initial crank angle from +x, counter-clockwise [rad]" }',
+         'x4 = { value = 4.8, unit = "m", description = "Initial slider position [m]" }'),
+        ('omega2 = { value = 0, unit = "rad/s", description = "Initial crank angular velocity [rad/s]" }',
+         'vx4 = { value = 0.0, unit = "m/s", description = "Initial slider velocity [m/s]" }')))
+    fmu = mechanism_fmus.get(path)
+    names = _coordinates(fmu)
+    native = simulate(fmu, stop=5.0, start_values=TIGHT, output=names + ["constraint_residual"])
+    python = python_run(path, 5.0, TIGHT["rtol"])
+    assert python.repartitions >= 1
+    # the same partitions at the same communication points; a restart's first step is chosen
+    # anew, so the two runs part by more than round-off after one (measured 1.5e-10 m over 10 s)
+    assert np.abs(positions(native, names) - positions(python, names)).max() <= AGREEMENT
+    assert native["constraint_residual"].max() <= 1e-12
+
+
+def test_model_identifier_and_guid_follow_the_mechanism(mechanism_fmus, native_fmu):
+    slider = read_model_description(str(mechanism_fmus.get("slider_crank")))
+    fourbar = read_model_description(str(native_fmu))
+    assert slider.coSimulation.modelIdentifier == "SliderCrankNative"
+    assert slider.guid != fourbar.guid
+    assert [v.name for v in slider.modelVariables][:7] == ["L2", "L3", "e", "m2", "m3", "m4", "g"]
 
 
 # -- instances, state, reset -------------------------------------------------------------
@@ -201,30 +390,50 @@ def test_two_instances_in_one_process_are_independent(native):
 def test_get_and_set_fmu_state_reproduce_a_run_bit_for_bit(native):
     unzipdir, md = native
     s = Slave(unzipdir, md)
+    names = CENTRES + ["O2_Fx", "B_Fy"]          # forces too: computed when read, from the state
     try:
         s.initialize()
-        s.step(300)
+        s.step(300, names)
         state = s.fmu.getFMUstate()
         k0 = s.k
         s.set(L2=1.1)                               # a fault in the branch, pending parameters too
-        first = s.step(400)
+        first = s.step(400, names)
         s.fmu.setFMUstate(state)
         s.k = k0
         s.set(L2=1.1)
-        second = s.step(400)
+        second = s.step(400, names)
         # Serialized and read back: the same again.
         blob = s.fmu.serializeFMUstate(state)
         restored = s.fmu.deSerializeFMUstate(blob)
         s.fmu.setFMUstate(restored)
         s.k = k0
         s.set(L2=1.1)
-        third = s.step(400)
+        third = s.step(400, names)
         s.fmu.freeFMUstate(state)
         s.fmu.freeFMUstate(restored)
     finally:
         s.free()
     assert np.array_equal(first, second) and np.array_equal(first, third)
     assert np.hypot(*first[-1, :2]) == pytest.approx(0.55, abs=1e-12)   # the branch did apply L2
+
+
+def test_forces_read_late_are_those_of_the_current_state(native):
+    """Joint reactions are computed when first read after a step: reading them every step or
+    only at the end gives the same numbers."""
+    unzipdir, md = native
+    every, once = Slave(unzipdir, md, "every"), Slave(unzipdir, md, "once")
+    forces = ["O2_Fx", "O2_Fy", "A_Fx", "A_Fy", "B_Fx", "B_Fy", "O4_Fx", "O4_Fy"]
+    try:
+        every.initialize(stop=2.0)
+        once.initialize(stop=2.0)
+        rows = every.step(150, forces)
+        once.step(150, ["x2"])
+        late = np.array(once.get(forces))
+    finally:
+        every.free()
+        once.free()
+    assert np.array_equal(rows[-1], late)
+    assert np.abs(late).max() > 1.0               # real forces (N), not a stale zero
 
 
 def test_set_fmu_state_rejects_a_foreign_blob(native):
@@ -258,7 +467,7 @@ def test_reset_then_rerun_gives_the_same_result(native):
     assert np.array_equal(first, second)
 
 
-# -- errors ---------------------------------------------------------------------------------
+# -- errors and their messages (mechanism_model/slave.py's) -----------------------------------
 def test_bad_mass_mid_run_is_an_error_and_the_host_goes_on(native):
     unzipdir, md = native
     s = Slave(unzipdir, md)
@@ -270,13 +479,87 @@ def test_bad_mass_mid_run_is_an_error_and_the_host_goes_on(native):
         with pytest.raises(FMICallException) as info:
             s.step()
         assert info.value.status == 3                # fmi2Error, not fatal
-        assert any("m3 = -1.0 kg: must be a finite positive number" in m and "at t = 1 s" in m for m in LOG), LOG
+        assert any("FourBar 'fourbar': at t = 1 s: m3 = -1.0 kg: must be a finite positive number" in m
+                   for m in LOG), LOG
         # The instance can be reset and reused in the same process.
         s.fmu.reset()
         s.initialize(stop=2.0)
         assert s.step(10).shape == (10, 6)
     finally:
         s.free()
+
+
+#: dae.py's message when Newton-Raphson cannot close the loop (the residual and the joint depend
+#: on the iterations, which the two implementations take differently).
+NO_CLOSURE = (r"Phi = 0 has no solution near the previous configuration \(Newton-Raphson left a residual of "
+              r"\S+ in joint \w+\): the loop cannot be closed")
+
+
+def test_an_impossible_change_is_refused_as_the_slave_refuses_it(native):
+    from fmu_src.mechanism.check import prepare_mechanism, start_state
+    from fmu_src.mechanism_model.dae import AssemblyError, MechanismDAE
+    unzipdir, md = native
+    s = Slave(unzipdir, md)
+    try:
+        s.initialize(stop=2.0)
+        s.step(100)
+        s.set(L2=10.0)
+        LOG.clear()
+        with pytest.raises(FMICallException):
+            s.step()
+    finally:
+        s.free()
+    native_message = next(m for m in LOG if "cannot apply" in m)
+    assert re.search(r"FourBar 'fourbar': cannot apply L2 1 -> 10 at t = 1 s: " + NO_CLOSURE, native_message), LOG
+    # dae.py says the same (the pythonfmu slave prefixes "cannot apply L2 1 -> 10 at t = 1 s: ")
+    eq = prepare_mechanism("fourbar").module
+    guess, rates, p = start_state(eq)
+    dae = MechanismDAE(eq, p)
+    dae.assemble(0.0, guess, rates)
+    dae.start()
+    dae.advance(1.0)
+    with pytest.raises(AssemblyError) as info:
+        dae.change_parameters([10.0 if n == "L2" else v for n, v in zip(eq.PARAMETERS, p)])
+    assert re.fullmatch(NO_CLOSURE, str(info.value)), str(info.value)
+
+
+def test_start_values_that_cannot_be_assembled_fail_initialization_with_the_reason(native):
+    unzipdir, md = native
+    s = Slave(unzipdir, md)
+    try:
+        s.fmu.setupExperiment(startTime=0.0, stopTime=1.0)
+        s.set(L1=10.0)                              # the rocker's pivot out of reach
+        s.fmu.enterInitializationMode()
+        LOG.clear()
+        with pytest.raises(FMICallException) as info:
+            s.fmu.exitInitializationMode()
+        assert info.value.status == 3
+    finally:
+        s.free()
+    assert any(re.search(r"FourBar 'fourbar': initial assembly with theta2_start = 0\.5235987755982988 failed: "
+                         + NO_CLOSURE, m) for m in LOG), LOG
+
+
+def test_a_value_outside_a_declared_range_is_refused_with_the_range(mechanism_fmus, tmp_path_factory):
+    path = _variant(tmp_path_factory, "fourbar_bounded", "fourbar", (
+        ('name = "FourBar"', 'name = "FourBarBounded"'),
+        ('g = { value = 9.81, unit = "m/s2",', 'g = { value = 9.81, unit = "m/s2", min = 0.0, max = 20.0,'),))
+    fmu = mechanism_fmus.get(path)
+    md = read_model_description(str(fmu))
+    unzipdir = extract(str(fmu))
+    s = Slave(unzipdir, md, "bounded")
+    try:
+        s.initialize(stop=1.0)
+        s.step(10)
+        s.set(g=25.0)
+        LOG.clear()
+        with pytest.raises(FMICallException):
+            s.step()
+    finally:
+        s.free()
+        shutil.rmtree(unzipdir, ignore_errors=True)
+    assert any("FourBarBounded 'bounded': at t = 0.1 s: g = 25.0 m/s2: must be within [0.0, 20.0]" in m
+               for m in LOG), LOG
 
 
 def test_fixed_parameter_cannot_change_mid_run(native):
@@ -300,7 +583,7 @@ def test_unknown_integrator_is_rejected_with_the_choices(native_fmu):
         LOG.clear()
         with pytest.raises(FMICallException):
             s.fmu.setString([s.vr["integrator"]], ["Euler"])
-        assert any("integrator = 'Euler': must be one of DOP853, RK45" in m for m in LOG), LOG
+        assert any("FourBar 'fourbar': integrator = 'Euler': must be one of DOP853, RK45" in m for m in LOG), LOG
     finally:
         s.free()
         shutil.rmtree(unzipdir, ignore_errors=True)
@@ -322,10 +605,10 @@ def test_recompiled_from_shipped_sources_reproduces_the_outputs(native_fmu, tmp_
     rebuilt = simulate_fmu(str(unzipdir), model_description=md, stop_time=20.0, output_interval=0.01,
                            input=np.array([(0.0, 1.0), (10.0, 1.0), (10.0, 1.1)],
                                           dtype=[("time", float), ("L2", float)]))
-    original = simulate(native_fmu, stop=20.0, l2_step=(10.0, 1.1))
+    original = simulate(native_fmu, stop=20.0, step=(10.0, "L2", 1.0, 1.1))
     # The same C compiled by CMake (its own flags) instead of build_fmu.py: strict IEEE C99
     # either way, so the same numbers are expected; 1e-9 m is the two-FMU agreement bound.
-    assert np.abs(centres(rebuilt) - centres(original)).max() <= 1e-9
+    assert np.abs(centres(rebuilt) - centres(original)).max() <= AGREEMENT
 
 
 # -- fresh processes ----------------------------------------------------------------------

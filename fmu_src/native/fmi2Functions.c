@@ -1,4 +1,4 @@
-/* FMI 2.0 co-simulation interface of the native FourBar FMU.
+/* FMI 2.0 co-simulation interface of a mechanism's native FMU (any mechanism: model.h).
  *
  * A thin layer over model.h: it checks each call, maps value references to the model's
  * variables, and implements the FMU state functions as copies of the instance's pointer-free
@@ -28,6 +28,7 @@
 static const int KINDS[FB_N_VARIABLES] = FB_VARIABLE_KINDS;
 static const char *const NAMES[FB_N_VARIABLES] = FB_VARIABLE_NAMES;
 static const char *const INTEGRATORS[FB_N_INTEGRATORS] = FB_INTEGRATOR_NAMES;
+static const int READ_COMPUTED[FB_N_VARIABLES] = FB_READ_COMPUTED;
 enum { KIND_TUNABLE = 0, KIND_FIXED = 1, KIND_STRING = 2, KIND_OUTPUT = 3 };
 static const char *const KIND_TEXT[] = {"a tunable Real parameter", "a fixed Real parameter", "a String parameter",
                                         "a Real output"};
@@ -306,6 +307,14 @@ fmi2Status fmi2Reset(fmi2Component c)
 
 /* -- variables ----------------------------------------------------------------------- */
 
+/* 1 when one of vr[] is an output computed on first read (model_preview_outputs). */
+static int reads_forces(const fmi2ValueReference vr[], size_t nvr)
+{
+    for (size_t i = 0; i < nvr; i++)
+        if (READ_COMPUTED[vr[i]]) return 1;
+    return 0;
+}
+
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
 {
     ENTER(READABLE);
@@ -313,7 +322,10 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     REQUIRE_ARRAY(value, nvr);
     if (!check_refs(m, __func__, vr, nvr, KIND(KIND_TUNABLE) | KIND(KIND_FIXED) | KIND(KIND_OUTPUT), "a Real"))
         return fmi2Error;
-    if (m->state.mode == MODE_INITIALIZATION && nvr > 0) model_preview_outputs(m);
+    if (nvr > 0 && (m->state.mode == MODE_INITIALIZATION || (m->state.forces_pending && reads_forces(vr, nvr)))) {
+        model_preview_outputs(m);
+        if (m->state.mode != MODE_INITIALIZATION && m->state.forces_pending) return fmi2Error;   /* logged why */
+    }
     for (size_t i = 0; i < nvr; i++) value[i] = m->state.values[vr[i]];
     return fmi2OK;
 }
@@ -356,8 +368,8 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
         return fmi2Error;
     for (size_t i = 0; i < nvr; i++)
         if (integrator_index(value[i]) < 0) {
-            model_log(m, fmi2Error, "logStatusError", "fmi2SetString: FourBar '%s': integrator = '%s': must be one "
-                      "of %s, %s", m->instance_name, value[i] ? value[i] : "(null)", INTEGRATORS[0], INTEGRATORS[1]);
+            model_log(m, fmi2Error, "logStatusError", "fmi2SetString: %s '%s': integrator = '%s': must be one "
+                      "of %s, %s", MECH_NAME, m->instance_name, value[i] ? value[i] : "(null)", INTEGRATORS[0], INTEGRATORS[1]);
             return fmi2Error;
         }
     for (size_t i = 0; i < nvr; i++) m->state.integrator = integrator_index(value[i]);

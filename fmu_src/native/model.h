@@ -1,38 +1,59 @@
-/* The four-bar model behind the generic FMI 2.0 layer (fmi2Functions.c).
+/* A mechanism's model behind the generic FMI 2.0 layer (fmi2Functions.c).
  *
  * Everything an instance owns lives in one ModelInstance; everything that changes while it
  * runs lives in its ModelState, a plain struct without pointers, so fmi2GetFMUstate and
  * fmi2SetFMUstate are copies and serialization is the bytes of that struct.  No globals.
+ * The sizes come from the generated equations.h (the mechanism) and variables.h (the FMU's
+ * variables); the numerics that fill the DAE part are in dae.c.
  */
 #ifndef MODEL_H
 #define MODEL_H
 
 #include <stddef.h>
 #include "fmi2Functions.h"
-#include "fourbar_equations.h"
-#include "fourbar_variables.h"
+#include "equations.h"
+#include "variables.h"
 #include "rk.h"
+
+#define MODEL_MESSAGE 512   /* longest message of one failure */
 
 typedef enum {
     MODE_INSTANTIATED = 1, MODE_INITIALIZATION = 2, MODE_STEP_COMPLETE = 4,
     MODE_STEP_FAILED = 8, MODE_TERMINATED = 16, MODE_ERROR = 32
 } ModelMode;
 
+/* One consistent state of the mechanism and its accelerations: a Newton-Raphson predictor's base. */
+typedef struct {
+    double t;
+    double q[MECH_N], qd[MECH_N], qdd[MECH_N];
+} DaePoint;
+
 typedef struct {
     ModelMode mode;
     double values[FB_N_VARIABLES];     /* Real variables by value reference: set values and outputs */
     int integrator;                    /* index of FB_INTEGRATOR_NAMES */
+    int forces_pending;                /* the outputs FB_READ_COMPUTED are not yet the current state's */
     double start_time, stop_time;      /* stop_time = INFINITY when not defined */
-    /* The DAE (valid from fmi2ExitInitializationMode on). */
-    double p[FB_N_PARAMETERS];         /* parameters in use: (L1, L2, L3, L4, m2, m3, m4, g) */
-    double branch;                     /* assembly branch, +1 or -1 */
-    double t;                          /* model time, on the 1 ns grid */
-    double q[FB_N_COORDINATES], qd[FB_N_COORDINATES];
+    /* The DAE (valid from fmi2ExitInitializationMode on; dae.c). */
+    double p[MECH_ALLOC(MECH_N_PARAMETERS)];    /* parameters in use, in equations.h's order */
+    double d[MECH_ALLOC(3 * MECH_N_DRIVERS)];   /* per driver (s_ref, t_ref, v) */
+    int independent[MECH_ALLOC(MECH_K)];        /* the partition of q, each in increasing order */
+    int dependent[MECH_ALLOC(MECH_M)];
+    double t;                                   /* model time, on the 1 ns grid */
+    double q[MECH_N], qd[MECH_N];               /* consistent: Phi(q, t) = 0, Phi_q qd = nu */
+    double work[MECH_ALLOC(MECH_N_DRIVERS)];    /* each driver's work since the start, J */
+    double minv[MECH_N];                        /* 1 / diagonal of M for p (MECH_MASS_IS_CONSTANT) */
+    DaePoint base;                              /* the predictor's base: the last accepted step's end */
+    DaePoint before;                            /* the accepted step's start (t NaN after a (re)start) */
+    DaePoint last;                              /* the last right-hand-side evaluation */
+    double last_step;                           /* the last communication step, s */
     RKSolver solver;
     unsigned long rhs_evaluations;
-    unsigned long starts;
-    int rhs_failed;                    /* set by the right-hand side, with message below */
-    char rhs_message[512];
+    unsigned long starts;                       /* integrator (re)starts */
+    unsigned long repartitions;
+    unsigned long newton_iterations;
+    int rhs_failed;                             /* DAE_ASSEMBLY or DAE_INTEGRATION (dae.h), with: */
+    char rhs_message[MODEL_MESSAGE];
 } ModelState;
 
 typedef struct {
@@ -49,6 +70,10 @@ void model_log(ModelInstance *m, fmi2Status status, const char *category, const 
 void model_reset(ModelInstance *m);                       /* start values, mode instantiated */
 fmi2Status model_initialize(ModelInstance *m);            /* check, assemble, start (exit init mode) */
 fmi2Status model_do_step(ModelInstance *m, double current_time, double step);
-void model_preview_outputs(ModelInstance *m);             /* outputs from the start values (init mode) */
+/* Outputs into values[] before fmi2GetReal reads them: in initialization mode those the start
+   values give; afterwards the ones that need the multipliers (forces), when forces_pending says
+   they are not yet the current state's (each fmi2DoStep publishes the others; a failure is
+   logged and leaves forces_pending set). */
+void model_preview_outputs(ModelInstance *m);
 
 #endif

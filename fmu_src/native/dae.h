@@ -1,0 +1,58 @@
+/* The DAE of any mechanism (equations.h), integrated one communication step at a time: the C
+ * twin of fmu_src/mechanism_model/dae.py's MechanismDAE (same algorithm, same tolerances, the
+ * same messages).  Every function works on the DAE part of a ModelState (model.h).
+ *
+ * Results: 0, or DAE_ASSEMBLY (dae.py's AssemblyError: the constraints cannot be solved there)
+ * or DAE_INTEGRATION (dae.py's IntegrationError), with the message in s->rhs_message.
+ */
+#ifndef MECHANISM_DAE_H
+#define MECHANISM_DAE_H
+
+#include "model.h"
+
+enum { DAE_OK = 0, DAE_ASSEMBLY = 1, DAE_INTEGRATION = 2 };
+
+/* Newton-Raphson stops once every correction is at most NEWTON_STEP (1 + |q_i|) (dae.py). */
+#define DAE_NEWTON_STEP 1e-8
+#define DAE_NEWTON_ITERATIONS 25
+/* The partition is reviewed when min|U_ii| / max|U_ii| of the dependent block's LU factorisation
+   falls below this (at every communication point) ... */
+#define DAE_REPARTITION_REVIEW 0.1
+/* ... and changes to the column-pivoted QR's choice when that choice's dependent block is at least
+   this many times better conditioned (2-norm). */
+#define DAE_REPARTITION_GAIN 2.0
+/* Restarts with the QR's independent coordinates allowed within one communication step when a
+   Runge-Kutta step fails because the dependent block went singular inside it. */
+#define DAE_RESCUES 2
+
+/* Communication times on the 1 ns grid (dae.py's snap_time; round half to even). */
+double dae_snap_time(double t);
+
+/* The drivers' (s_ref, t_ref, v) for a start at time t with parameters p. */
+void dae_drive_at(const double *p, double t, double *d);
+
+/* The consistent state at time t with parameters s->p: q[independent] and qd[independent] from
+   `guess` and `rates` (n values each), the dependent coordinates by Newton-Raphson from `guess`.
+   Sets s->t, s->d, s->q, s->qd, the initial partition and the cached M^-1. */
+int dae_assemble(ModelState *s, double t, const double *guess, const double *rates);
+
+/* (Re)start the integrator at s->t from the consistent state (first_step <= 0: scipy's choice). */
+int dae_start(ModelState *s, double first_step);
+
+/* Integrate to t_end (s) and store the consistent state; may re-partition (and restart). */
+int dae_advance(ModelState *s, double t_end);
+
+/* Apply new parameters at s->t: re-assembly keeping the independent coordinates and their rates,
+   the drivers continuing from where they are; on DAE_ASSEMBLY the state is unchanged.  Does
+   not restart the integrator (dae_start). */
+int dae_change_parameters(ModelState *s, const double *p);
+
+/* The outputs of a consistent state with parameters p and drivers d, into out (MECH_N_OUTPUTS,
+   in output order): those of kinds STATE, WORK and RESIDUAL; then those of kind FORCE (they need
+   the multipliers: DAE_INTEGRATION with a message when eq. (11) cannot be solved there). */
+void dae_outputs_state(const double *p, const double *d, double t, const double *q, const double *qd,
+                       const double *work, double *out);
+int dae_outputs_force(const double *p, const double *d, double t, const double *q, const double *qd, double *out,
+                      char *message);
+
+#endif

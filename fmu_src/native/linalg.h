@@ -1,0 +1,250 @@
+/* Small dense linear algebra for the mechanism DAE (dae.c): C99 and libm only, no allocation.
+ *
+ * Matrices are row-major arrays of doubles; sizes are a few dozen at most, so the textbook
+ * algorithms are used, written out:
+ * - LU factorisation with partial pivoting (LAPACK dgetrf's choice of pivot: the first entry of
+ *   largest magnitude in the column), for Newton-Raphson and the velocity equations;
+ * - Cholesky factorisation of a symmetric positive definite matrix (LAPACK dposv's role), for the
+ *   range-space solve of eq. (11);
+ * - the column order of a Householder QR factorisation with column pivoting (LAPACK dgeqp3's
+ *   choice: the remaining column of largest norm, the first on ties), for choosing the
+ *   independent coordinates, and a 2-norm condition number (one-sided Jacobi singular values)
+ *   to compare two choices.
+ *
+ * The functions are static and dae.c calls them with compile-time sizes.  For small sizes the
+ * includer defines LINALG_UNROLL as a request to unroll the next loop completely (measured on a
+ * four-bar's 8 x 8 blocks: a Cholesky factorisation 1086 -> 279 instructions, the loops'
+ * bookkeeping was most of the work); a compiler that does not know the request ignores it.
+ */
+#ifndef MECHANISM_LINALG_H
+#define MECHANISM_LINALG_H
+
+#include <math.h>
+
+#ifndef LINALG_UNROLL
+#define LINALG_UNROLL
+#endif
+
+/* LU = P A of the n x n matrix `a`, in place (unit lower L below the diagonal, U on and above),
+   and inv_diag[k] = 1 / U[k][k].  piv[k] is the row exchanged with row k at step k.  Returns
+   0, or k + 1 for the first k at which U[k][k] is exactly zero (dgetrf's info): then `a` is
+   singular and must not be solved with.  Rows whose multiplier is zero are skipped. */
+static int lu_factor(int n, double *a, int *piv, double *inv_diag)
+{
+    int info = 0;
+    LINALG_UNROLL
+    for (int k = 0; k < n; k++) {
+        int p = k;
+        double big = fabs(a[k * n + k]);
+        LINALG_UNROLL
+        for (int i = k + 1; i < n; i++) {
+            const double v = fabs(a[i * n + k]);
+            if (v > big) { big = v; p = i; }
+        }
+        piv[k] = p;
+        if (p != k) {
+            LINALG_UNROLL
+            for (int j = 0; j < n; j++) {
+                const double tmp = a[k * n + j];
+                a[k * n + j] = a[p * n + j];
+                a[p * n + j] = tmp;
+            }
+        }
+        const double pivot = a[k * n + k];
+        if (pivot == 0.0) {
+            if (!info) info = k + 1;
+            inv_diag[k] = 0.0;
+            continue;
+        }
+        const double inverse = 1.0 / pivot;
+        inv_diag[k] = inverse;
+        LINALG_UNROLL
+        for (int i = k + 1; i < n; i++) {
+            double *row_i = a + i * n;
+            if (row_i[k] == 0.0) continue;
+            const double l = row_i[k] * inverse;
+            row_i[k] = l;
+            LINALG_UNROLL
+            for (int j = k + 1; j < n; j++) row_i[j] -= l * a[k * n + j];
+        }
+    }
+    return info;
+}
+
+/* x = A^-1 b with lu_factor's result (b and x may be the same array).  Column by column: the
+   updates that one solved entry makes are independent of each other, so the chain of dependent
+   operations is n long rather than n^2 / 2. */
+static void lu_solve(int n, const double *lu, const int *piv, const double *inv_diag, const double *b, double *x)
+{
+    if (x != b) {
+        LINALG_UNROLL
+        for (int i = 0; i < n; i++) x[i] = b[i];
+    }
+    LINALG_UNROLL
+    for (int k = 0; k < n; k++) {
+        const double tmp = x[k];
+        x[k] = x[piv[k]];
+        x[piv[k]] = tmp;
+    }
+    LINALG_UNROLL
+    for (int j = 0; j < n; j++) {
+        const double xj = x[j];
+        LINALG_UNROLL
+        for (int i = j + 1; i < n; i++) x[i] -= lu[i * n + j] * xj;
+    }
+    LINALG_UNROLL
+    for (int j = n - 1; j >= 0; j--) {
+        const double xj = x[j] * inv_diag[j];
+        x[j] = xj;
+        LINALG_UNROLL
+        for (int i = 0; i < j; i++) x[i] -= lu[i * n + j] * xj;
+    }
+}
+
+/* min |U[i][i]| / max |U[i][i]| of lu_factor's result (0 when U is zero, 1 when n = 0): how
+   well the block is conditioned, as dae.py's _pivot_ratio measures it. */
+static double lu_pivot_ratio(int n, const double *lu)
+{
+    double lo = INFINITY, hi = 0.0;
+    if (n == 0) return 1.0;
+    for (int i = 0; i < n; i++) {
+        const double v = fabs(lu[i * n + i]);
+        if (v < lo) lo = v;
+        if (v > hi) hi = v;
+    }
+    return hi > 0.0 ? lo / hi : 0.0;
+}
+
+/* Cholesky factor L of the symmetric positive definite n x n matrix `a` (its lower triangle is
+   read, the upper is not), in place, with 1 / L[j][j] stored on the diagonal.  Returns 0, or
+   k + 1 when the leading minor of order k + 1 is not positive (dposv's info). */
+static int cholesky_factor(int n, double *a)
+{
+    LINALG_UNROLL
+    for (int j = 0; j < n; j++) {
+        double *row_j = a + j * n;
+        double d = row_j[j];
+        LINALG_UNROLL
+        for (int k = 0; k < j; k++) d -= row_j[k] * row_j[k];
+        if (!(d > 0.0)) return j + 1;
+        const double inverse = 1.0 / sqrt(d);
+        row_j[j] = inverse;
+        LINALG_UNROLL
+        for (int i = j + 1; i < n; i++) {
+            double *row_i = a + i * n;
+            double sum = row_i[j];
+            LINALG_UNROLL
+            for (int k = 0; k < j; k++) sum -= row_i[k] * row_j[k];
+            row_i[j] = sum * inverse;
+        }
+    }
+    return 0;
+}
+
+/* Solve L L^T x = b with cholesky_factor's result; b is overwritten with x.  Column by column,
+   as lu_solve. */
+static void cholesky_solve(int n, const double *l, double *b)
+{
+    LINALG_UNROLL
+    for (int j = 0; j < n; j++) {
+        const double xj = b[j] * l[j * n + j];
+        b[j] = xj;
+        LINALG_UNROLL
+        for (int i = j + 1; i < n; i++) b[i] -= l[i * n + j] * xj;
+    }
+    LINALG_UNROLL
+    for (int i = n - 1; i >= 0; i--) {
+        double sum = b[i];
+        LINALG_UNROLL
+        for (int k = i + 1; k < n; k++) sum -= l[k * n + i] * b[k];
+        b[i] = sum * l[i * n + i];
+    }
+}
+
+/* The 2-norm condition number sigma_max / sigma_min of the n x n matrix `a` (overwritten), as
+   numpy.linalg.cond computes it: the singular values come from one-sided Jacobi rotations
+   (Hestenes), which orthogonalise the columns pairwise until no pair has a cosine above 1e-15;
+   they are then the columns' norms.  INFINITY for a singular matrix.  (Used rarely: not unrolled.) */
+static double condition_number(int n, double *a)
+{
+    for (int sweep = 0; sweep < 60; sweep++) {
+        int rotated = 0;
+        for (int p = 0; p < n - 1; p++)
+            for (int q = p + 1; q < n; q++) {
+                double alpha = 0.0, beta = 0.0, gamma = 0.0;
+                for (int i = 0; i < n; i++) {
+                    const double x = a[i * n + p], y = a[i * n + q];
+                    alpha += x * x;
+                    beta += y * y;
+                    gamma += x * y;
+                }
+                if (!(fabs(gamma) > 1e-15 * sqrt(alpha * beta))) continue;
+                rotated = 1;
+                const double zeta = (beta - alpha) / (2.0 * gamma);
+                const double t = (zeta >= 0.0 ? 1.0 : -1.0) / (fabs(zeta) + sqrt(1.0 + zeta * zeta));
+                const double c = 1.0 / sqrt(1.0 + t * t), s = c * t;
+                for (int i = 0; i < n; i++) {
+                    const double x = a[i * n + p], y = a[i * n + q];
+                    a[i * n + p] = c * x - s * y;
+                    a[i * n + q] = s * x + c * y;
+                }
+            }
+        if (!rotated) break;
+    }
+    double lo = INFINITY, hi = 0.0;
+    for (int j = 0; j < n; j++) {
+        double norm = 0.0;
+        for (int i = 0; i < n; i++) norm += a[i * n + j] * a[i * n + j];
+        norm = sqrt(norm);
+        if (norm < lo) lo = norm;
+        if (norm > hi) hi = norm;
+    }
+    return lo > 0.0 ? hi / lo : INFINITY;
+}
+
+/* perm (n entries): the column order a Householder QR factorisation with column pivoting of the
+   m x n matrix `a` chooses (overwritten): at step k the column of largest remaining norm (rows
+   k..m-1 of the transformed matrix), the first on ties.  Columns beyond min(m, n) keep their
+   order after the chosen ones.  (Used rarely: not unrolled.) */
+static void qr_pivot_order(int m, int n, double *a, int *perm)
+{
+    for (int j = 0; j < n; j++) perm[j] = j;
+    const int steps = m < n ? m : n;
+    for (int k = 0; k < steps; k++) {
+        int best = k;
+        double best_norm = -1.0;
+        for (int j = k; j < n; j++) {
+            double norm = 0.0;
+            for (int i = k; i < m; i++) norm += a[i * n + j] * a[i * n + j];
+            if (norm > best_norm) { best_norm = norm; best = j; }
+        }
+        if (best != k) {
+            for (int i = 0; i < m; i++) {
+                const double tmp = a[i * n + k];
+                a[i * n + k] = a[i * n + best];
+                a[i * n + best] = tmp;
+            }
+            const int tmp = perm[k];
+            perm[k] = perm[best];
+            perm[best] = tmp;
+        }
+        /* The Householder reflection H = I - 2 v v^T / (v^T v) that zeroes column k below row k. */
+        double alpha = sqrt(best_norm > 0.0 ? best_norm : 0.0);
+        if (alpha == 0.0) continue;
+        if (a[k * n + k] > 0.0) alpha = -alpha;
+        double vv = 0.0;
+        a[k * n + k] -= alpha;                       /* v = column k, rows k..m-1, minus alpha e_k */
+        for (int i = k; i < m; i++) vv += a[i * n + k] * a[i * n + k];
+        if (vv > 0.0)
+            for (int j = k + 1; j < n; j++) {
+                double dot = 0.0;
+                for (int i = k; i < m; i++) dot += a[i * n + k] * a[i * n + j];
+                const double f = 2.0 * dot / vv;
+                for (int i = k; i < m; i++) a[i * n + j] -= f * a[i * n + k];
+            }
+        a[k * n + k] = alpha;
+        for (int i = k + 1; i < m; i++) a[i * n + k] = 0.0;
+    }
+}
+
+#endif
