@@ -109,7 +109,7 @@ def _main(argv: list[str] | None) -> int:
             return 2
     from fourbar_common.signals import deferred, exit_code, signal_of, stop_reason
 
-    from .diagnosis import DiagnoseOptions, diagnose_inputs
+    from .diagnosis import DiagnoseOptions, change_text, diagnose_inputs
     from .errors import DiagnoseError, NoAlarm
     from .inputs import read_inputs
     from .outputs import OutputError, prepare_out_dir, remove_empty, write_outputs
@@ -126,6 +126,12 @@ def _main(argv: list[str] | None) -> int:
             inputs = read_inputs(args.run_dir, summary=args.summary, fmu=args.fmu, columns=columns,
                                  use_run_fmu=args.use_run_fmu)
             created = prepare_out_dir(out, plot=not args.no_plot)      # before the long part
+            if inputs.resimulates and not args.use_run_fmu:
+                print(f"fourbar-diagnose: note: {inputs.run_fmu.name} cannot save its state and no FMU of the same "
+                      f"model beside it can, so every branch re-simulates the run from its start (minutes); with "
+                      f"the native FMU of the same mechanism beside it, it takes seconds (python build_fmu.py "
+                      f"--mechanism NAME builds both into one folder)", file=sys.stderr,
+                      flush=True)
             d = diagnose_inputs(inputs, options)
         except (NoAlarm, DiagnoseError) as exc:
             failure = exc
@@ -150,8 +156,9 @@ def _main(argv: list[str] | None) -> int:
         print(f"  fitted {', '.join(d.columns)} over t = {d.window[0]:.2f}..{d.window[1]:.2f} s "
               f"(first alarm {d.alarm_time:.2f} s); noise {', '.join(f'{k} {v:.2g}' for k, v in d.noise.items())}")
         print(f"  {'hypothesis':<10} {'new value':>14} {'change':>9} {'at t [s]':>9} {'residual RMS':>13}")
-        for f in d.ranking:
-            print(f"  {f.parameter:<10} {f.value:>14.6g} {f.relative_change:>+9.3%} {f.change_time:>9.2f} {f.rms:>13.3g}")
+        for f in d.ranking:       # relative changes; absolute (with the unit) where the healthy value is 0
+            change = change_text(f, d.units.get(f.parameter, ""), 3)
+            print(f"  {f.parameter:<10} {f.value:>14.6g} {change:>9} {f.change_time:>9.2f} {f.rms:>13.3g}")
         print(f"  {d.branches} branches on {d.simulator} in {d.seconds:.1f} s", flush=True)
     written: list[Path] = []
     try:

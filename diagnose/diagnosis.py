@@ -34,14 +34,15 @@ import numpy as np
 
 from .changepoint import noise_levels, onset
 from .errors import DiagnoseError
-from .fit import Fit, Problem, StepSearch, fit_ramp
+from .fit import Fit, Problem, StepSearch, change_scales, fit_ramp
 from .inputs import RunInputs, read_inputs
 from .simulator import BranchFailed, Simulator
 
-__all__ = ["Diagnosis", "DiagnoseOptions", "diagnose", "diagnose_inputs"]
+__all__ = ["Diagnosis", "DiagnoseOptions", "change_text", "diagnose", "diagnose_inputs"]
 
-#: m: the smallest noise level assumed for a column.  Exact (noise-free) data still differ from
-#: a replay by the integrator's own error, below Table 1's absolute tolerance of 1e-6.
+#: The smallest noise level assumed for a column, in the column's unit.  Exact (noise-free)
+#: data still differ from a replay by the integrator's own error, below Table 1's absolute
+#: tolerance of 1e-6 (m for the four-bar's positions).
 NOISE_FLOOR = 1e-6
 
 
@@ -122,14 +123,17 @@ class Diagnosis:
         return _runner_up(self.ranking, self.best)
 
     def to_json(self) -> dict:
+        """diagnosis.json's content: plain JSON types, every non-finite number (an infinite
+        standard error, say) as null, a relative change null where the healthy value is 0."""
         def fit(f: Fit | None):
             if f is None:
                 return None
             d = asdict(f)
+            d["change"] = f.change
             d["relative_change"] = f.relative_change
             return d
 
-        return {
+        return _finite({
             "schema": 1, "case": self.case, "run_id": self.run_id, "verdict": self.verdict,
             "message": self.message, "best": fit(self.best), "ramp": fit(self.ramp),
             "ranking": [fit(f) for f in self.ranking], "alarm_time": self.alarm_time,
@@ -137,7 +141,29 @@ class Diagnosis:
             "columns": list(self.columns), "units": self.units, "noise": self.noise,
             "healthy_chi2": self.healthy_chi2, "reduced_chi2": self.reduced_chi2, "simulator": self.simulator,
             "branches": self.branches, "seconds": self.seconds,
-        }
+        })
+
+
+def _finite(value: Any) -> Any:
+    """``value`` with every NaN or infinite float (numpy's included) replaced by None, recursively."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
+
+
+def change_text(fit: Fit, unit: str = "", digits: int = 1) -> str:
+    """A fit's change: relative (``+10.0%``, ``digits`` decimals) when its healthy value is not
+    zero, else absolute in the parameter's unit, three significant digits (``+0.0123 m``)."""
+    relative = fit.relative_change
+    if relative is not None:
+        return f"{relative:+.{digits}%}"
+    return f"{fit.change:+.3g}{f' {unit}' if unit else ''}"
 
 
 def _runner_up(ranking, best: Fit | None) -> Fit | None:
@@ -186,7 +212,7 @@ def _message(verdict: str, best: Fit, runner: Fit | None, units: dict[str, str],
     unit = units.get(best.parameter, "")
     if verdict == "no_change":
         return (f"no change found: after the alarm the data agree with the healthy model within the noise "
-                f"(the best single change, {best.parameter} {best.relative_change:+.2%}, gains only "
+                f"(the best single change, {best.parameter} {change_text(best, unit, 2)}, gains only "
                 f"{healthy - best.chi2:.1f} in chi-square)")
     text = _describe(best, unit)
     if verdict == "unexplained":
@@ -194,7 +220,7 @@ def _message(verdict: str, best: Fit, runner: Fit | None, units: dict[str, str],
                 f"{math.sqrt(reduced):.1f}x the noise (RMS {best.rms:.2g})")
     if runner is not None:
         ratio = math.sqrt(max(runner.chi2, floor_chi2) / max(best.chi2, floor_chi2))
-        text += (f"; next best explanation: {runner.parameter} {runner.relative_change:+.1%} "
+        text += (f"; next best explanation: {runner.parameter} {change_text(runner, units.get(runner.parameter, ''))} "
                  f"(residual {ratio:.3g}x larger)")
         gap = (runner.chi2 - best.chi2) / max(reduced, 1.0)
         if gap < distinct_gain:
@@ -258,8 +284,10 @@ def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOption
         found = onset(residual[k_fit:] / np.maximum(sigma, ONSET_SHARE * size))
         c0 = fit_from + found if found is not None else a
         latest = min(a, last - 1)
+        units = {n: v.unit or "" for n in inputs.hypotheses for v in [fmu.variables[n]]}
         problem = Problem(sim=sim, data=data, sigma=sigma, fit_from=fit_from, latest=latest,
-                          base=inputs.parameters)
+                          base=inputs.parameters,
+                          scales=change_scales({n: float(inputs.parameters[n]) for n in inputs.hypotheses}, units))
         healthy_chi2 = problem.healthy_chi2()
         fits = _step_fits(problem, inputs.hypotheses, c0, options)
         best = fits[0]
@@ -276,7 +304,6 @@ def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOption
             verdict = "unexplained"
         else:
             verdict = "explained"
-        units = {n: v.unit or "" for n in inputs.hypotheses for v in [fmu.variables[n]]}
         try:
             model = np.vstack((sim.healthy[:fit_from - first + 1], problem.model_of(best)))
         except BranchFailed:        # only when every hypothesis was refused somewhere: nothing to draw

@@ -7,10 +7,13 @@ scored by one branch, the best are scored again finer, and the last few are fitt
 hypotheses and all ``c`` are scored on the same rows (the healthy model before ``c``,
 the branch after), so their chi-squares compare directly.
 
-The new value is fitted as the relative change ``u = v / v0 - 1``; its standard error
-comes from the Jacobian at the optimum, scaled by the fit's own residual variance
-(``s^2 (J'J)^-1``), so it stays honest when the noise estimate is off, widened by how
-far the value moves over the change times the data cannot tell apart.
+The new value is fitted as a change ``u`` in units of the parameter's scale
+(:func:`change_scales`): the relative change ``u = v / v0 - 1`` when the healthy value
+``v0`` is not zero, else ``v = u * scale`` (a parameter whose healthy value is 0, e.g. a
+slider's line offset, cannot be moved by a relative change).  Its standard error comes
+from the Jacobian at the optimum, scaled by the fit's own residual variance
+(``s^2 (J'J)^-1``), so it stays honest when the noise estimate is off, widened by how far
+the value moves over the change times the data cannot tell apart.
 
 A ramp is fitted as ``(rate, t_start, duration)``: the value moves linearly from ``v0``
 over ``[t_start, t_start + duration]``, set at each grid point as the orchestrator sets
@@ -19,25 +22,64 @@ a ramp; the residual is continuous in both times, so least squares handles them.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
+from typing import Mapping
 
 import numpy as np
 from scipy.optimize import least_squares
 
 from .simulator import BranchFailed, Simulator
 
-__all__ = ["Fit", "Problem", "ScanPoint", "StepSearch", "fit_ramp"]
+__all__ = ["Fit", "Problem", "ScanPoint", "StepSearch", "change_of", "change_scales", "fit_ramp", "value_at"]
 
-#: Relative finite-difference step for the value: large enough that the output change
-#: (about 1e-5 m for a unit sensitivity) stands far above the integrator's 1e-9 noise.
+#: Finite-difference step for the change ``u`` (module docstring: relative to the value, or to
+#: its scale when the value is 0): large enough that the output change (about 1e-5 m for a
+#: unit sensitivity) stands far above the integrator's 1e-9 noise.
 _DIFF_STEP = 1e-4
 #: Scaled residual given to each row when the FMU refuses a value (e.g. a linkage that
 #: cannot close): far worse than any real fit, so least squares steps back.
 _REFUSED = 1e3
-#: Relative change of the first branch that measures a hypothesis' effect (see StepSearch.scan).
+#: Change ``u`` (module docstring) of the first branch that measures a hypothesis' effect (see StepSearch.scan).
 _PROBE = 0.01
-#: A scan point whose probe is this close to its estimate (relative change) is settled.
+#: A scan point whose probe is this close to its estimate (change u, see the module docstring) is settled.
 _SETTLED = 1e-3
+#: Bounds of a fitted step's change ``u``: a non-zero value stays of its sign within a factor
+#: 10 (``v / v0`` in [0.1, 10]); a zero one moves up to 10 scales either way.
+_BOUNDS_RELATIVE = (-0.9, 9.0)
+_BOUNDS_ABSOLUTE = (-10.0, 10.0)
+
+
+def change_scales(values: Mapping[str, float], units: Mapping[str, str]) -> dict[str, float]:
+    """The size of a unit change ``u`` of each parameter, in the parameter's unit (positive).
+
+    ``|v0|`` when the healthy value ``v0`` is not zero (``u`` is then the relative change);
+    for a zero one, the typical size of the other parameters of the same unit among
+    ``values`` (the geometric mean of their non-zero magnitudes: a slider's offset in m is
+    scaled like the links' lengths); without one, 1 (one unit).
+    """
+    sizes: dict[str, list[float]] = {}
+    for name, v in values.items():
+        unit = units.get(name) or ""
+        if unit and math.isfinite(v) and v != 0:
+            sizes.setdefault(unit, []).append(abs(float(v)))
+    scales = {}
+    for name, v in values.items():
+        if math.isfinite(v) and v != 0:
+            scales[name] = abs(float(v))
+        else:
+            same = sizes.get(units.get(name) or "")
+            scales[name] = float(math.exp(np.mean(np.log(same)))) if same else 1.0
+    return scales
+
+
+def value_at(v0: float, scale: float, u: float) -> float:
+    """The value after a change ``u`` of ``v0`` (module docstring): ``v0 (1 + u)``, or ``scale u`` when ``v0`` is 0."""
+    return v0 * (1.0 + u) if v0 != 0 else scale * u
+
+
+def change_of(v0: float, scale: float, value: float) -> float:
+    """The change ``u`` that gives ``value`` (the inverse of :func:`value_at`)."""
+    return value / v0 - 1.0 if v0 != 0 else value / scale
 
 
 @dataclass(frozen=True)
@@ -65,8 +107,14 @@ class Fit:
         return (self.value - self.before) / span if span > 0 else 0.0
 
     @property
-    def relative_change(self) -> float:
-        return self.value / self.before - 1.0 if self.before else math.nan
+    def change(self) -> float:
+        """The change of the value (end of a ramp), in the parameter's unit."""
+        return self.value - self.before
+
+    @property
+    def relative_change(self) -> float | None:
+        """``value / before - 1``; None when the healthy value is 0 (see :attr:`change`)."""
+        return self.value / self.before - 1.0 if self.before else None
 
 
 @dataclass
@@ -85,6 +133,7 @@ class Problem:
     latest: int
     base: dict
     last: int | None = None
+    scales: dict = field(default_factory=dict)   # per parameter: the size of a unit change (change_scales)
 
     def __post_init__(self):
         if self.last is None:
@@ -94,6 +143,13 @@ class Problem:
         self._data = self.data[i0:i1]
         self._healthy = self.sim.healthy[i0:i1]
         self.rows = self._data.shape[0]
+
+    def scale(self, name: str) -> float:
+        """The size of a unit change of ``name`` (:func:`change_scales`; ``|v0|`` or 1 when not given)."""
+        if name in self.scales:
+            return float(self.scales[name])
+        v0 = float(self.base[name])
+        return abs(v0) if v0 != 0 else 1.0
 
     def until(self, last: int) -> "Problem":
         """The same problem fitted only up to grid point ``last``."""
@@ -145,11 +201,12 @@ def _stderr(result, scale: float, dof: int, index: int = 0) -> float:
 
 
 class _StepObjective:
-    """Scaled residuals of "``name`` became ``v0 (1 + u)`` at grid point ``c``", counting calls."""
+    """Scaled residuals of "``name`` became ``value_at(v0, scale, u)`` at grid point ``c``", counting calls."""
 
     def __init__(self, problem: Problem, name: str):
         self.problem, self.name = problem, name
         self.v0 = float(problem.base[name])
+        self.scale = problem.scale(name)
         self.calls = 0
         self.refused: str | None = None     # the FMU's last refusal
         self.last_refused = False           # whether the last call was refused
@@ -158,19 +215,23 @@ class _StepObjective:
         self.calls += 1
         self.last_refused = False
         try:
-            return self.problem.scaled(self.problem.model(self.name, [self.v0 * (1.0 + float(u[0]))], c))
+            return self.problem.scaled(self.problem.model(self.name, [self.value(float(u[0]))], c))
         except BranchFailed as exc:
             self.refused, self.last_refused = str(exc), True
             return np.full(self.problem.rows * self.problem.sigma.size, _REFUSED)
 
+    def value(self, u: float) -> float:
+        return value_at(self.v0, self.scale, u)
+
     def solve(self, c: int, u0: float, max_nfev: int):
-        return least_squares(self, [u0], args=(c,), diff_step=_DIFF_STEP, x_scale=[0.01], bounds=([-0.9], [9.0]),
+        lo, hi = _BOUNDS_RELATIVE if self.v0 != 0 else _BOUNDS_ABSOLUTE
+        return least_squares(self, [u0], args=(c,), diff_step=_DIFF_STEP, x_scale=[0.01], bounds=([lo], [hi]),
                              method="trf", xtol=1e-9, ftol=1e-10, gtol=1e-10, max_nfev=max_nfev)
 
 
 @dataclass(frozen=True)
 class ScanPoint:
-    """A step at grid point ``start``, scored by one branch with the relative change
+    """A step at grid point ``start``, scored by one branch with the change
     ``probe``: the change and chi-square of the secant through it (see ``StepSearch._score``)."""
 
     start: int
@@ -216,7 +277,7 @@ class StepSearch:
         return sorted(self._points.values(), key=lambda p: p.chi2)[:n]
 
     def _score(self, c: int, probe: float) -> ScanPoint:
-        """Score a step at grid point ``c`` by the branch with the relative change ``probe``.
+        """Score a step at grid point ``c`` by the branch with the change ``probe`` (``u``, module docstring).
 
         The residual is taken as linear in the change along the line through this branch's
         residual ``r`` and the previous one at ``c`` (the healthy residual, change 0, the
@@ -326,7 +387,7 @@ class StepSearch:
         if not best or not math.isfinite(best[0].chi2) or own is None:
             return 0.0
         return max((abs(p.change - own.change) for p in self._points.values() if p.chi2 <= best[0].chi2 + s2),
-                   default=0.0) * abs(fit.before)
+                   default=0.0) * self.problem.scale(self.name)
 
     def solve(self, c: int, u0: float, max_nfev: int) -> Fit:
         """The value fitted by least squares for a step at grid point ``c``, from ``u0``."""
@@ -337,8 +398,8 @@ class StepSearch:
         t_c = problem.sim.grid.time(c)
         scaled = result.fun
         refused = objective.refused if float(np.max(np.abs(scaled))) >= _REFUSED else None
-        return Fit(parameter=self.name, kind="step", before=objective.v0, value=objective.v0 * (1.0 + u),
-                   stderr=_stderr(result, objective.v0, scaled.size - 2), change_time=t_c, end_time=t_c,
+        return Fit(parameter=self.name, kind="step", before=objective.v0, value=objective.value(u),
+                   stderr=_stderr(result, objective.scale, scaled.size - 2), change_time=t_c, end_time=t_c,
                    chi2=float(scaled @ scaled), rows=problem.rows, rms=problem.rms(scaled),
                    evaluations=objective.calls, refused=refused)
 
@@ -353,13 +414,16 @@ def _probe_near(change: float) -> float:
 def fit_ramp(problem: Problem, step: Fit, duration0: float = 2.0) -> Fit:
     """Best linear ramp of ``step.parameter``, started from that step's fit.
 
-    Fitted as ``(rate, t_start, duration)`` with the rate relative to the healthy value per
-    second (its standard error is the ramp's ``stderr``, in the parameter's unit per second).
+    Fitted as ``(rate, t_start, duration)`` with the rate in changes ``u`` per second (relative
+    to the healthy value, or in units of the parameter's scale when that is 0; module
+    docstring); its standard error is the ramp's ``stderr``, in the parameter's unit per second.
     A ramp whose end is within two steps of the window's end is ``open``: still changing
     when the data end, so its end and final value are lower bounds.
     """
     grid = problem.sim.grid
     v0 = step.before
+    scale = problem.scale(step.parameter)
+    per_u = v0 if v0 != 0 else scale        # the value's change per unit change u
     t_lo, t_hi = grid.time(problem.fit_from), grid.time(problem.last)
     calls = 0
     refused: list[str] = []
@@ -369,19 +433,19 @@ def fit_ramp(problem: Problem, step: Fit, duration0: float = 2.0) -> Fit:
         calls += 1
         rate, t_s, d = float(x[0]), float(x[1]), max(float(x[2]), 0.0)
         try:
-            return problem.scaled(problem.ramp_model(step.parameter, v0, v0 * rate, t_s, d))
+            return problem.scaled(problem.ramp_model(step.parameter, v0, per_u * rate, t_s, d))
         except BranchFailed as exc:
             refused.append(str(exc))
             return np.full(problem.rows * problem.sigma.size, _REFUSED)
 
     t0 = min(max(step.change_time - duration0 / 2.0, t_lo), t_hi - grid.step)
-    x0 = [step.relative_change / duration0, t0, duration0]
+    x0 = [change_of(v0, scale, step.value) / duration0, t0, duration0]
     lower, upper = [-100.0, t_lo, 0.0], [100.0, t_hi, t_hi - t_lo]
     result = least_squares(residuals, x0, bounds=(lower, upper), x_scale=[0.01, 0.1, 0.1],
                            diff_step=[1e-3, 1e-5, 1e-3], method="trf", max_nfev=120)
     rate, t_s, d = (float(v) for v in result.x)
     scaled = result.fun
-    return replace(step, kind="ramp", value=v0 * (1.0 + rate * d), stderr=_stderr(result, v0, scaled.size - 4),
+    return replace(step, kind="ramp", value=value_at(v0, scale, rate * d), stderr=_stderr(result, scale, scaled.size - 4),
                    change_time=t_s, end_time=t_s + d, chi2=float(scaled @ scaled), rms=problem.rms(scaled),
                    evaluations=calls, refused=refused[-1] if refused else None,
                    open_end=t_s + d > t_hi - 2 * grid.step)

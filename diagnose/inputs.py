@@ -16,9 +16,10 @@ FMU carries the run's GUID, so they are the run's).
 The FMU.  run.json names the FMU the run used and its GUID; that file must still carry
 that GUID (otherwise it was rebuilt, and its model may not be the one that made the data).
 The branches are simulated by an FMU that can save its state (``canGetAndSetFMUstate``):
-the run's own FMU when it can, else one beside it in the same folder with the same
-parameters and outputs (``python build_fmu.py`` builds the native FMU next to the pythonfmu
-one from the same derivation).  Without one, the run's FMU re-simulates from the start for
+the run's own FMU when it can, else one beside it in the same folder that declares the same
+parameters and the monitored outputs (``python build_fmu.py [--mechanism NAME]`` builds the
+native FMU next to the pythonfmu one from the same derivation, as ``<Name>Native.fmu``,
+which is tried first).  Without one, the run's FMU re-simulates from the start for
 every branch: the same answer, much slower.
 """
 from __future__ import annotations
@@ -58,6 +59,12 @@ class RunInputs:
     run_id: str | None
     events: tuple[Event, ...]   # the injected truth, for scoring only
     record: RunRecord | None = None     # run.json as read (schema 1: completed with the FMU's defaults)
+
+    @property
+    def resimulates(self) -> bool:
+        """True when the simulating FMU cannot save its state: every branch then re-simulates
+        the run from its start (the same answer, minutes instead of seconds)."""
+        return not _can_save_state(self.simulator_fmu)
 
 
 def _load_json(path: Path, what: str, fix: str) -> dict:
@@ -102,12 +109,27 @@ def _can_save_state(description) -> bool:
     return bool(getattr(description.model.coSimulation, "canGetAndSetFMUstate", False))
 
 
+def _parameters(description) -> list[tuple]:
+    """Every parameter's name, variability and type, in order: two builds of one model (the
+    pythonfmu and the native FMU of one mechanism) declare the same list."""
+    return [(v.name, v.variability, v.type) for v in description.model.modelVariables if v.causality == "parameter"]
+
+
 def _pick_simulator(run_description, needed: set[str], prefer_run_fmu: bool):
     """The FMU that simulates the branches (module docstring); ``needed``: the variables it must
-    have, with the run FMU's types (the monitored columns and every recorded parameter)."""
+    have, with the run FMU's types (the monitored columns and every recorded parameter).
+
+    A candidate beside the run's FMU must declare the same parameters (names, variabilities,
+    types, in order) and the needed outputs, so another mechanism built into the same folder
+    is not taken for this one; ``<stem>Native.fmu`` (what ``build_fmu.py`` names the native
+    FMU) is tried first.  Outputs may differ otherwise (a build with more outputs serves).
+    """
     if prefer_run_fmu or _can_save_state(run_description):
         return run_description
-    for path in sorted(run_description.path.parent.glob("*.fmu")):
+    folder = run_description.path.parent
+    own = folder / f"{run_description.path.stem}Native.fmu"
+    parameters = _parameters(run_description)
+    for path in sorted(folder.glob("*.fmu"), key=lambda p: (p != own, p.name)):
         if path == run_description.path:
             continue
         try:
@@ -117,7 +139,7 @@ def _pick_simulator(run_description, needed: set[str], prefer_run_fmu: bool):
         types = {v.name: v.type for v in other.model.modelVariables}
         same_types = all(n in types and types[n] == run_description.variables[n].type for n in needed)
         if (_can_save_state(other) and other.model.coSimulation is not None and same_types
-                and _tunable(other) == _tunable(run_description)):
+                and _tunable(other) == _tunable(run_description) and _parameters(other) == parameters):
             return other
     return run_description
 
