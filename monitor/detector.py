@@ -205,7 +205,10 @@ class Detector(ABC):
     def _model_text(event: Event) -> str:
         """The fitted period and model of a ``trained`` event that carries the built-ins' keys."""
         d = event.data
-        return (f"period {d['period_s']:.6g} s (FFT {d['period_fft_s']:.4g} s); {d['model']} order {d['order']} "
+        # the FFT's highest peak can be a harmonic of the period (monitor.spectrum, step 3)
+        harmonic = round(d["period_s"] / d["period_fft_s"]) if d["period_fft_s"] > 0 else 1
+        of = f": harmonic {harmonic}" if harmonic > 1 else ""
+        return (f"period {d['period_s']:.6g} s (FFT {d['period_fft_s']:.4g} s{of}); {d['model']} order {d['order']} "
                 f"fitted in {d['fit_seconds']:.2f} s")
 
     @classmethod

@@ -302,9 +302,13 @@ class ExchangeReader:
                                    else tuple(n for n in names if n != TIME_COLUMN))
         missing = [c for c in wanted if c not in names]
         if missing:
+            # the file's own columns are the answer (any mechanism's); the four-bar's header is
+            # only an example of the format, for a file without a time column
+            hint = (" (expected a header like 'time,x2,y2,x3,y3,x4,y4')" if TIME_COLUMN in missing
+                    else "; choose the column(s) to read among them")
             raise ExchangeFormatError(
                 f"{self.path}: header has no column {', '.join(map(repr, missing))}; "
-                f"columns are {', '.join(names)} (expected a header like 'time,x2,y2,x3,y3,x4,y4')")
+                f"columns are {', '.join(names)}{hint}")
         self.header = names
         self._ncols = len(names)
         self._index = tuple(names.index(c) for c in wanted)

@@ -184,13 +184,18 @@ def test_a_ramp_is_identified_as_a_ramp(tmp_path, native_fmu):
 
 @pytest.mark.slow
 def test_a_false_alarm_is_found_to_be_noise_only(tmp_path, native_fmu):
-    """A healthy run under 5 mm noise, monitored with a detector designed for 100 false
-    alarms per hour so that it alarms on noise: no single change beats the healthy model by
-    the 5-sigma gain, so the verdict is no_change and the exit 1."""
-    run = _monitored(tmp_path, native_fmu, "noise", stop=17.0, extra=_noise(0.005, ALL, 3), false_alarm_rate=100.0)
+    """A healthy run under 5 mm noise, monitored by the paper's MAE rule on x2 with a threshold
+    (3 mm) below the noise's own mean absolute error (sigma * sqrt(2/pi) = 4.0 mm, +- 0.4 mm
+    over a 0.5 s window), so that it alarms on noise; the diagnosis fits all six columns: no
+    single change beats the healthy model by the 5-sigma gain, so the verdict is no_change
+    and the exit 1.  (The CUSUM designed for 100 false alarms per hour, used before, alarmed
+    here only while the monitor took the y columns' second harmonic for their period; with
+    their period it expects 0.2 false alarms in these 8 s.)"""
+    run = _monitored(tmp_path, native_fmu, "noise", stop=17.0, extra=_noise(0.005, ALL, 3), signal="x2",
+                     detector="mae", threshold=0.003)
     alarm = json.loads((run / "monitor" / "summary.json").read_text())["first_alarm_time"]
     assert alarm is not None and alarm < 14.0, "the test needs the monitor to alarm on noise"
-    proc, d = _diagnose_cli(run)
+    proc, d = _diagnose_cli(run, "--columns", ALL)
     assert proc.returncode == 1, proc.stdout + proc.stderr
     assert d["verdict"] == "no_change" and proc.stdout.startswith("diagnosis: no change found")
     assert d["healthy_chi2"] - d["best"]["chi2"] < 25.0
