@@ -432,6 +432,17 @@ class _Validator(ProblemReporter):
         variables = self.fault_variables(table.get("variable"), case)
         ok = variables is not None
         unit = variables[0].unit if variables else ""
+        for v in variables or ():
+            if v.base_value == 0:
+                # a relative change cannot move 0, and every size the sweep reports is a relative one
+                unit_text = f" {v.unit}" if v.unit else ""
+                self.problems.append(
+                    f"fault.variable: {v.name} is 0{unit_text} in the base case; a sweep's fault sizes are relative "
+                    f"changes (fault.relative, and its report bins every fault by |relative change|), which a zero "
+                    f"value does not have: set a non-zero {v.name} in the base case's [parameters], or run its "
+                    f"faults as cases (fourbar-run with a [[events]] step; fourbar-diagnose reports its change in "
+                    f"{v.unit or 'its unit'})")
+                ok = False
 
         def kind_check(key, item):
             if item not in _KINDS:
