@@ -6,13 +6,17 @@ gives both FMUs:
 
 - ``equations.c/.h``: the mechanism's functions of eq. (10)-(11) -- the diagonal of ``M``, the
   forces ``Q``, the constraints ``Phi`` (alone and together with their Jacobian), the full
-  Jacobian ``Phi_q`` (row-major), ``nu = -Phi_t``, ``gamma``, the energies and the outputs --
-  printed by sympy's C99 printer after common-subexpression elimination (``sympy.cse``), small
-  integer powers written as products.  The sines and cosines of the angle coordinates are
-  computed once per configuration (``eq_trig``) and passed to every function.  The header holds
-  the sizes and tables the generic C needs: coordinates, the independent coordinates and their
-  start-value parameters, where assembly starts, the drivers, which joint each constraint row
-  belongs to (for messages), the outputs' kinds.  No equation is transcribed by hand.
+  Jacobian ``Phi_q`` (row-major), ``nu = -Phi_t``, ``gamma``, the energies and the outputs
+  (those of the state, and the forces, which need the multipliers) -- printed by sympy's C99
+  printer after common-subexpression elimination (``sympy.cse``), small integer powers written
+  as products.  The products of the range-space solve, ``Phi_q v``, ``Phi_q M^-1 Phi_q^T``,
+  ``Phi_q M^-1 Q - gamma`` and ``M^-1 (Q - Phi_q^T lambda)``, are printed over the entries of
+  ``Phi_q`` that are not identically zero (constant ones as constants).  The sines and cosines
+  of the angle coordinates are computed once per configuration (``eq_trig``) and passed to every
+  function.  The header holds the sizes and tables the generic C needs: coordinates, angles,
+  the independent coordinates and their start-value parameters, where assembly starts, the
+  drivers, which joint each constraint row belongs to (for messages), the outputs' kinds.  No
+  equation is transcribed by hand.
 - ``variables.h``: value references, kinds, start values, names, limits and units of the
   FMU's variables, from ``mechanism.table.variable_table`` (the table the pythonfmu FMU
   registers from).
@@ -39,6 +43,7 @@ from sympy.printing.c import C99CodePrinter
 
 from .mechanism.derivation import MechanismEquations
 from .mechanism.description import MechanismError
+from .mechanism.python_code import _guess   # the pythonfmu FMU's GUESS: one home
 from .mechanism.table import variable_table
 from .mechanism_model.variables import INTEGRATOR_NAMES, POSITIVE
 
@@ -182,9 +187,9 @@ def _check_partition_sizes(eqs: MechanismEquations) -> None:
     if eqs.n - k != eqs.m:
         mech = eqs.mechanism
         raise MechanismError(f"{mech.source}: {eqs.n} coordinates and {eqs.m} constraint rows leave "
-                         f"{eqs.n - eqs.m} degree(s) of freedom, but [start] gives {k} independent "
-                         f"coordinate(s) ({', '.join(mech.independent) or 'none'}): give one start value per "
-                         f"degree of freedom")
+                             f"{eqs.n - eqs.m} degree(s) of freedom, but [start] gives {k} independent "
+                             f"coordinate(s) ({', '.join(mech.independent) or 'none'}): give one start value per "
+                             f"degree of freedom")
 
 
 def _needs_multipliers(eqs: MechanismEquations, output) -> bool:
@@ -200,14 +205,6 @@ def _source_label(eqs: MechanismEquations) -> str:
         return path.resolve().relative_to(_REPO).as_posix()
     except (ValueError, OSError):
         return path.name
-
-
-def _guess(eqs: MechanismEquations) -> list[float]:
-    values = {}
-    for body in eqs.mechanism.bodies:
-        x, y, angle = body.guess
-        values.update({f"x{body.label}": x, f"y{body.label}": y, f"theta{body.label}": angle})
-    return [float(values[c]) for c in eqs.coordinates]
 
 
 def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
@@ -269,6 +266,7 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
          - sym.c(eqs.gamma[i]) for i in range(m)]
     qdd = [sym.minv[k] * (sym.Q[k] - sum((Jp[i, k] * sym.lam[i] for i in range(m) if Jp[i, k] != 0), sp.Integer(0)))
            for k in range(n)]
+    envelope = [next(j for j in range(i + 1) if S_lower[i * m + j] != 0 or j == i) for i in range(m)]
     v = sym.vector
     functions += [
         ("void eq_jacobian_product(const double *J, const double *v, double *out)",
@@ -340,6 +338,9 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
         "/* The angle coordinates (indices in q), in the order of their (cos, sin) pairs in eq_trig's tr. */",
         f"#define MECH_ANGLES {ints(_padded([str(i) for i in sym.angles], '-1'))}",
         f"#define MECH_N_ANGLES {len(sym.angles)}",
+        "/* Per row of S = Phi_q M^-1 Phi_q^T, the first column that is not identically zero (eq_range_matrix's",
+        "   envelope: its Cholesky factor has the same). */",
+        f"#define MECH_RANGE_ENVELOPE {ints(envelope)}",
         "/* The independent coordinates whose start values are parameters (indices in q), and per",
         "   independent coordinate the value references of its start position and rate. */",
         f"#define MECH_INDEPENDENT {ints(_padded([str(i) for i in eqs.independent], '-1'))}",

@@ -79,6 +79,7 @@ enum {
 
 static const int INDEPENDENT[KA] = MECH_INDEPENDENT;
 static const int ANGLES[MECH_ALLOC(MECH_N_ANGLES)] = MECH_ANGLES;
+static const int S_ENVELOPE[MA] = MECH_RANGE_ENVELOPE;
 static const int DRIVERS[MECH_ALLOC(MECH_N_DRIVERS)][3] = MECH_DRIVERS;
 static const char *const ROW_NAMES[MA] = MECH_ROW_NAMES;
 static const int OUTPUT_KINDS[MECH_N_OUTPUTS] = MECH_OUTPUT_KINDS;
@@ -149,6 +150,10 @@ typedef struct {
     int piv[MA];
     double inv_diag[MA];
     double moved;               /* how far q is from where block was factorised, relative */
+    int S_wanted;               /* state_at factorises S = Phi_q M^-1 Phi_q^T at q (Cholesky) too */
+    int S_singular;             /* ... and it was not positive definite */
+    double S[MA * MA];
+    double minv[N];             /* 1 / diag(M) at q, when M depends on q */
 } Configuration;
 
 /* c->q[dependent] with Phi(c->q, t) = 0, by Newton-Raphson from c->q (c->q[independent] fixed);
@@ -208,21 +213,17 @@ static int positions(const double *p, const double *d, const int *dependent, dou
     return DAE_ASSEMBLY;
 }
 
-/* c->J and c->nu at c->q (c->tr set), and c->qd[dependent] from Phi_q qd = nu with
-   c->qd[independent] given, by iterative refinement from c->qd[dependent] (a guess) with the
+/* c->qd[dependent] from Phi_q qd = nu (c->J, c->nu at c->q) with c->qd[independent] given, by iterative refinement from c->qd[dependent] (a guess) with the
    factors in c->block.  Each correction leaves an error of about its size times the rate rho at
    which the refinement converges: c->moved (the factors were computed that far from q) for the
    first, the ratio of successive corrections after.  Accepted once that is at most
    NEWTON_STEP^2 of the rates (and the correction at most NEWTON_STEP of them), as Newton-Raphson
    is; after REFINEMENTS corrections, or at once when the factors are from farther than
    REFACTOR_BEYOND, the block is factorised at q and one solve gives the rates. */
-static int velocities(const double *p, const double *d, double t, const int *dependent, Configuration *c,
-                      char *message)
+static int velocities(const int *dependent, Configuration *c, char *message)
 {
     double r[MA], dx[MA];
     double previous = INFINITY;
-    eq_jacobian(c->q, c->tr, p, c->J);
-    eq_nu(t, p, d, c->nu);
     /* factors from too far away would take more refinements than a factorisation costs */
     for (int refinement = c->moved > REFACTOR_BEYOND ? REFINEMENTS : 0;; refinement++) {
         if (refinement == REFINEMENTS) {           /* slow: factorise at q itself */
@@ -253,6 +254,13 @@ static int velocities(const double *p, const double *d, double t, const int *dep
         previous = change;
     }
     return DAE_OK;
+}
+
+/* c->J and c->nu at c->q (c->tr set). */
+static void jacobian_at(const double *p, const double *d, double t, Configuration *c)
+{
+    eq_jacobian(c->q, c->tr, p, c->J);
+    eq_nu(t, p, d, c->nu);
 }
 
 /* -- the predictor ------------------------------------------------------------------------- */
@@ -300,23 +308,35 @@ static int state_at(ModelState *s, double t, const double *y, Configuration *c)
     }
     int r = positions(s->p, s->d, s->dependent, t, c, &s->newton_iterations, s->rhs_message);
     if (r) return r;
-    return velocities(s->p, s->d, t, s->dependent, c, s->rhs_message);
+    jacobian_at(s->p, s->d, t, c);
+    /* Phi_q M^-1 Phi_q^T depends on q only: factorised before the rates are solved for, so that
+       the two chains of dependent operations can overlap in the processor. */
+    if (c->S_wanted) {
+        if (!MECH_MASS_IS_CONSTANT) mass_inverse(s->p, c->q, c->tr, c->minv);
+        eq_range_matrix(c->J, MECH_MASS_IS_CONSTANT ? s->minv : c->minv, c->S);
+        c->S_singular = cholesky_factor(M, c->S, S_ENVELOPE) != 0;
+    }
+    return velocities(s->dependent, c, s->rhs_message);
 }
 
 /* -- dynamics ------------------------------------------------------------------------------ */
 
-/* (qdd, lambda) of eq. (11) at a consistent configuration by the range-space solve. */
-static int solve(const double *p, const double *d, const double *minv, double t, const Configuration *c,
-                 double *qdd, double *lam, char *message)
+/* (qdd, lambda) of eq. (11) at a consistent configuration by the range-space solve (S factorised
+   here, unless state_at did: c->S_wanted). */
+static int solve(const double *p, const double *d, const double *minv, double t, Configuration *c, double *qdd,
+                 double *lam, char *message)
 {
-    double Q[N], S[MA * MA];
-    eq_range_rhs(c->q, c->tr, c->qd, t, p, d, c->J, minv, Q, lam);
-    eq_range_matrix(c->J, minv, S);
-    if (cholesky_factor(M, S)) {
+    double Q[N];
+    if (!c->S_wanted) {
+        eq_range_matrix(c->J, minv, c->S);
+        c->S_singular = cholesky_factor(M, c->S, S_ENVELOPE) != 0;
+    }
+    if (c->S_singular) {
         snprintf(message, MODEL_MESSAGE, "Phi_q M^-1 Phi_q^T is singular: a toggle (dead-point) configuration");
         return DAE_INTEGRATION;
     }
-    cholesky_solve(M, S, lam);
+    eq_range_rhs(c->q, c->tr, c->qd, t, p, d, c->J, minv, Q, lam);
+    cholesky_solve(M, c->S, S_ENVELOPE, lam);
     eq_accelerations(c->J, minv, Q, lam, qdd);
     return DAE_OK;
 }
@@ -327,15 +347,11 @@ static int rhs(void *context, double t, const double *y, double *f)
     ModelState *s = (ModelState *)context;
     Configuration c;
     DaePoint e;
-    double lam[MA], minv_here[N];
-    const double *minv = s->minv;
+    double lam[MA];
     s->rhs_evaluations++;
+    c.S_wanted = 1;
     int r = state_at(s, t, y, &c);
-    if (!r && !MECH_MASS_IS_CONSTANT) {
-        mass_inverse(s->p, c.q, c.tr, minv_here);
-        minv = minv_here;
-    }
-    if (!r) r = solve(s->p, s->d, minv, t, &c, e.qdd, lam, s->rhs_message);
+    if (!r) r = solve(s->p, s->d, MECH_MASS_IS_CONSTANT ? s->minv : c.minv, t, &c, e.qdd, lam, s->rhs_message);
     if (r) {
         s->rhs_failed = r;
         return 1;
@@ -377,7 +393,8 @@ int dae_assemble(ModelState *s, double t, const double *guess, const double *rat
     if (r) return r;
     memset(c.qd, 0, sizeof c.qd);              /* the rates' first guess: at rest */
     for (int j = 0; j < K; j++) c.qd[s->independent[j]] = rates[s->independent[j]];
-    r = velocities(s->p, s->d, t, s->dependent, &c, s->rhs_message);
+    jacobian_at(s->p, s->d, t, &c);
+    r = velocities(s->dependent, &c, s->rhs_message);
     if (r) return r;
     mass_inverse(s->p, c.q, c.tr, s->minv);
     s->t = t;
@@ -428,7 +445,10 @@ int dae_change_parameters(ModelState *s, const double *p)
     memcpy(c.q, s->q, sizeof c.q);
     memcpy(c.qd, s->qd, sizeof c.qd);
     int r = positions(p, d, s->dependent, s->t, &c, &s->newton_iterations, s->rhs_message);
-    if (!r) r = velocities(p, d, s->t, s->dependent, &c, s->rhs_message);
+    if (!r) {
+        jacobian_at(p, d, s->t, &c);
+        r = velocities(s->dependent, &c, s->rhs_message);
+    }
     if (r) return r;                                    /* nothing changed */
     memcpy(s->p, p, sizeof s->p);
     memcpy(s->d, d, sizeof s->d);
@@ -565,6 +585,7 @@ int dae_advance(ModelState *s, double t_end)
             snprintf(s->rhs_message, MODEL_MESSAGE, "%s produced a non-finite state before t = %.9g s", method, t_end);
             return DAE_INTEGRATION;
         }
+    c.S_wanted = 0;
     int r = state_at(s, t_end, y, &c);
     if (r) {
         s->rhs_failed = r;
@@ -618,6 +639,7 @@ int dae_outputs_force(const double *p, const double *d, double t, const double *
     eq_trig(c.q, c.tr);
     eq_jacobian(c.q, c.tr, p, c.J);
     mass_inverse(p, c.q, c.tr, minv);
+    c.S_wanted = 0;
     int r = solve(p, d, minv, t, &c, qdd, lam, message);
     if (r) return r;
     eq_outputs_force(c.q, c.tr, c.qd, lam, t, p, d, values);

@@ -116,47 +116,53 @@ static double lu_pivot_ratio(int n, const double *lu)
 }
 
 /* Cholesky factor L of the symmetric positive definite n x n matrix `a` (its lower triangle is
-   read, the upper is not), in place, with 1 / L[j][j] stored on the diagonal.  Returns 0, or
-   k + 1 when the leading minor of order k + 1 is not positive (dposv's info). */
-static int cholesky_factor(int n, double *a)
+   read, the upper is not), in place, with 1 / L[j][j] stored on the diagonal.  first[i] is the
+   column of the first entry of row i that may be nonzero (the envelope; 0 for a dense matrix):
+   L has no nonzero before it either, so the products start there -- the same arithmetic as
+   the dense factorisation without its products of zeros.  Returns 0, or k + 1 when the leading
+   minor of order k + 1 is not positive (dposv's info). */
+static int cholesky_factor(int n, double *a, const int *first)
 {
     LINALG_UNROLL
     for (int j = 0; j < n; j++) {
         double *row_j = a + j * n;
         double d = row_j[j];
         LINALG_UNROLL
-        for (int k = 0; k < j; k++) d -= row_j[k] * row_j[k];
+        for (int k = first[j]; k < j; k++) d -= row_j[k] * row_j[k];
         if (!(d > 0.0)) return j + 1;
         const double inverse = 1.0 / sqrt(d);
         row_j[j] = inverse;
         LINALG_UNROLL
         for (int i = j + 1; i < n; i++) {
+            if (first[i] > j) continue;
             double *row_i = a + i * n;
             double sum = row_i[j];
             LINALG_UNROLL
-            for (int k = 0; k < j; k++) sum -= row_i[k] * row_j[k];
+            for (int k = first[i] > first[j] ? first[i] : first[j]; k < j; k++) sum -= row_i[k] * row_j[k];
             row_i[j] = sum * inverse;
         }
     }
     return 0;
 }
 
-/* Solve L L^T x = b with cholesky_factor's result; b is overwritten with x.  Column by column,
-   as lu_solve. */
-static void cholesky_solve(int n, const double *l, double *b)
+/* Solve L L^T x = b with cholesky_factor's result (and its envelope); b is overwritten with x.
+   Column by column, as lu_solve. */
+static void cholesky_solve(int n, const double *l, const int *first, double *b)
 {
     LINALG_UNROLL
     for (int j = 0; j < n; j++) {
         const double xj = b[j] * l[j * n + j];
         b[j] = xj;
         LINALG_UNROLL
-        for (int i = j + 1; i < n; i++) b[i] -= l[i * n + j] * xj;
+        for (int i = j + 1; i < n; i++)
+            if (first[i] <= j) b[i] -= l[i * n + j] * xj;
     }
     LINALG_UNROLL
     for (int i = n - 1; i >= 0; i--) {
         double sum = b[i];
         LINALG_UNROLL
-        for (int k = i + 1; k < n; k++) sum -= l[k * n + i] * b[k];
+        for (int k = i + 1; k < n; k++)
+            if (first[k] <= i) sum -= l[k * n + i] * b[k];
         b[i] = sum * l[i * n + i];
     }
 }
