@@ -12,7 +12,10 @@ valgrind is not installed by default; without it this prints how to install it a
 (nothing measured).  Exit status: 0 when everything holds or valgrind is absent, 1 when a
 check or valgrind failed, 2 when the FMU or a C compiler is missing.
 
-Usage: python benchmarks/native_valgrind.py [--fmu build/FourBarNative.fmu]
+``--mechanism NAME`` checks that shipped mechanism's native FMU instead (built here into a
+temporary folder; the host drives its L2, x2 and integrator, which every shipped one has).
+
+Usage: python benchmarks/native_valgrind.py [--fmu build/FourBarNative.fmu | --mechanism slider_crank]
 """
 from __future__ import annotations
 
@@ -25,6 +28,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))          # the host and its runner live with the tests
+sys.path.insert(0, str(REPO))
 
 from native_host.strict_host import compile_host, find_cc, run_host, unpack  # noqa: E402
 
@@ -33,22 +37,40 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fmu", type=Path, default=REPO / "build" / "FourBarNative.fmu",
                         help="the native FMU (default: build/FourBarNative.fmu)")
+    parser.add_argument("--mechanism", help="a shipped mechanism whose native FMU is built and checked instead")
     args = parser.parse_args(argv)
     valgrind = shutil.which("valgrind")
     if valgrind is None:
         print("valgrind not found: apt-get install valgrind")
         print("skipped: the native FMU's FMI layer was not checked under valgrind")
         return 0
-    if not args.fmu.is_file():
-        print(f"error: {args.fmu}: no such FMU (build it with: python build_fmu.py)", file=sys.stderr)
-        return 2
     compiler = find_cc()
     if compiler is None:
         print("error: no C compiler (cc, gcc or clang) to build the strict host", file=sys.stderr)
         return 2
     with tempfile.TemporaryDirectory(prefix="native_valgrind_") as tmp:
+        if args.mechanism:
+            from fmu_src.mechanism.description import MechanismError, shipped_mechanisms
+            if args.mechanism not in shipped_mechanisms():
+                print(f"error: --mechanism {args.mechanism!r}: not shipped (the shipped ones: "
+                      f"{', '.join(shipped_mechanisms())})", file=sys.stderr)
+                return 2
+            from fmu_src.native_build import build_native_fmu
+            try:
+                args.fmu = build_native_fmu(Path(tmp) / "native.fmu", mechanism=args.mechanism, validate=False).path
+            except (MechanismError, RuntimeError) as exc:
+                print(f"error: the native FMU of {args.mechanism} cannot be built: {exc}", file=sys.stderr)
+                return 2
+        if not args.fmu.is_file():
+            print(f"error: {args.fmu}: no such FMU (build it with: python build_fmu.py)", file=sys.stderr)
+            return 2
         exe = compile_host(Path(tmp), compiler)
-        target = unpack(args.fmu, Path(tmp) / "fmu")
+        try:
+            target = unpack(args.fmu, Path(tmp) / "fmu")
+        except KeyError as exc:
+            print(f"error: {args.fmu}: the strict host drives variables L2, x2 and integrator; it has no {exc}",
+                  file=sys.stderr)
+            return 2
         t0 = time.perf_counter()
         isolated = run_host(exe, target)
         t1 = time.perf_counter()

@@ -59,7 +59,8 @@ GENERATED = GENERATED_FILES
 FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
 _C_FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra")
 _WIN64_COMPILER = "x86_64-w64-mingw32-gcc"
-#: Copies of the generated C for editors (model.c includes equations.h): build/ is gitignored.
+#: Copies of the generated C for editors (model.c includes equations.h), written by builds whose
+#: FMU goes into the repository (build_fmu.py's): build/ is gitignored.
 EDITOR_COPIES = REPO / "build" / "generated"
 
 
@@ -239,7 +240,7 @@ def build_native_fmu(dest: str | Path | None = None, mechanism: str | Path | Mec
     dest = Path(dest if dest is not None else Path("build") / f"{identifier}.fmu").resolve()
     guid = _guid(eqs, replace)
     files = native_sources(eqs, guid, replace)
-    if not replace:
+    if not replace and dest.is_relative_to(REPO):       # a build for the repository, not a test's
         _write_editor_copies(identifier, files)
     c_files = sorted(name for name in files if name.endswith(".c"))
     platforms = []
