@@ -60,6 +60,9 @@ REPARTITION_REVIEW = 0.1
 #: block at least this many times better conditioned (hysteresis: no flip-flop between two
 #: choices of similar quality; 4 let a five-bar reach a second dead point before switching).
 REPARTITION_GAIN = 2.0
+#: Sub-steps tried, in turn, to follow the branch from the last accepted state to a trial stage
+#: the Taylor predictor does not reach (Newton-Raphson diverging from it).
+CONTINUATION_STEPS = (2, 4, 8, 32)
 #: Restarts with other independent coordinates allowed within one communication step, when a
 #: Runge-Kutta step fails because the dependent block went singular inside it.
 RESCUES = 2
@@ -84,6 +87,15 @@ def _pivot_ratio(lu: np.ndarray) -> float:
     """min |U_ii| / max |U_ii| of an LU factorization (1 for an empty one)."""
     d = np.abs(np.diag(lu))
     return float(d.min() / d.max()) if d.size and d.max() > 0.0 else (1.0 if not d.size else 0.0)
+
+
+def _det_sign(lu: np.ndarray, piv: np.ndarray) -> int:
+    """The sign of the determinant of an LU-factorized matrix (LAPACK's lu and 0-based piv)."""
+    flips = int(np.count_nonzero(lu.diagonal() < 0.0)) + int(np.count_nonzero(piv != _RANGE[:piv.size]))
+    return -1 if flips % 2 else 1
+
+
+_RANGE = np.arange(256)
 
 
 def choose_partition(J: np.ndarray, n_independent: int) -> tuple[int, ...]:
@@ -121,6 +133,7 @@ class MechanismDAE:
         self.eq, self.method, self.rtol, self.atol, self.t_bound = eq, method, rtol, atol, t_bound
         self.n, self.m = eq.N_COORDINATES, eq.N_CONSTRAINTS
         self.rhs_evaluations = 0
+        self.failed_evaluations = 0
         self.starts = 0
         self.repartitions = 0
         self._solver = None
@@ -198,6 +211,7 @@ class MechanismDAE:
             if info != 0:
                 raise AssemblyError("the constraint Jacobian is singular there (a toggle or dead-point "
                                     "configuration)")
+            self._sign = _det_sign(lu, piv)
             step = 0.0
             for i, dxi in zip(dependent, dx.tolist()):
                 qi = q[i] - dxi
@@ -260,24 +274,61 @@ class MechanismDAE:
         """(q, qd) for the integrated y at time t, the dependent part by Newton-Raphson from the
         second-order Taylor predictor of the last accepted state (_Jp then holds Phi_q at q)."""
         k = len(self.independent)
-        tb, qb, qdb, qddb = self._base
+        tb, qb, qdb, qddb, _ = self._base
         dt = t - tb
         half = 0.5 * dt * dt
         guess = [a + b * dt + c * half for a, b, c in zip(qb, qdb, qddb)]
         for j, i in enumerate(self.independent):
             guess[i] = y[j]
-        q = self.positions(guess, t)
+        try:
+            q = self.positions(guess, t)
+            if self._sign != self._base[4]:
+                raise AssemblyError("Newton-Raphson reached the other assembly branch")
+        except AssemblyError:
+            q = self._continuation(y[:k], t)
         return q, self.velocities(y[k:2 * k], t)
+
+    def _continuation(self, independent: list, t: float) -> list:
+        """q at (independent, t) by following the assembly branch from the last accepted state:
+        the independent coordinates and time moved there in 2, 4, ... 32 equal steps, each
+        solved from the previous one, on the branch of the last accepted state (the sign of the
+        dependent block's determinant: it changes only through a dead point).  For a trial step
+        too long for the predictor (the integrator may try one ten times its last); raises
+        AssemblyError when even 32 steps do not reach it (a dead point on the way)."""
+        tb, qb, _, _, sign = self._base
+        start = [qb[i] for i in self.independent]
+        for n in CONTINUATION_STEPS:
+            q = list(qb)
+            try:
+                for k in range(1, n + 1):
+                    s = k / n
+                    for i, a, b in zip(self.independent, start, independent):
+                        q[i] = a + s * (b - a)
+                    q = self.positions(q, tb + s * (t - tb))
+                    if self._sign != sign:
+                        raise AssemblyError("the other assembly branch")
+                return q
+            except AssemblyError:
+                continue
+        raise AssemblyError(f"Phi = 0 cannot be followed from t = {tb:.9g} s to {t:.9g} s: the loop cannot be "
+                            f"closed on the way (a dead point)")
 
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         self.rhs_evaluations += 1
         yl = y.tolist()
-        q, qd = self._state(t, yl)
+        try:
+            q, qd = self._state(t, yl)
+        except AssemblyError:
+            # A trial step too long for the predictor (Newton-Raphson diverges far from the last
+            # accepted state) or one that crosses a dead point: an infinite derivative makes the
+            # step's error infinite, so the integrator rejects it and tries a step 5x shorter.
+            self.failed_evaluations += 1
+            return np.full(y.shape, np.inf)
         qdd_p, lam = self._solve_permuted(q, qd, t)
         qdd = [0.0] * self.n
         for i, v in zip(self._order, qdd_p.tolist()):
             qdd[i] = v
-        self._last_eval = (t, q, qd, qdd)
+        self._last_eval = (t, q, qd, qdd, self._sign)
         k = len(self.independent)
         out = yl[k:2 * k] + qdd_p[self.m:].tolist()
         if self.eq.DRIVERS:
@@ -291,7 +342,9 @@ class MechanismDAE:
         """(Re)start the integrator at self.t from the consistent state in self.q, self.qd."""
         self._dense = None
         qdd, _ = self.solve(self.q, self.qd, self.t)
-        self._base = self._last_eval = (self.t, self.q, self.qd, qdd.tolist())
+        lu, piv, info = lapack.dgetrf(self._Jp[:, :self.m])       # _Jp at q (solve filled it)
+        self._sign = _det_sign(lu, piv)
+        self._base = self._last_eval = (self.t, self.q, self.qd, qdd.tolist(), self._sign)
         kwargs = {} if first_step is None else {"first_step": first_step}
         y0 = [self.q[i] for i in self.independent] + [self.qd[i] for i in self.independent] + list(self.work)
         self._solver = INTEGRATORS[self.method](self._rhs, self.t, np.array(y0, dtype=float), self.t_bound,
@@ -310,11 +363,9 @@ class MechanismDAE:
         rescues = 0
         try:
             while solver.t < t_end - eps:
-                try:
+                with np.errstate(invalid="ignore", over="ignore"):     # inf from a failed evaluation
                     message = solver.step()
-                    failed = solver.status == "failed"
-                except AssemblyError as exc:
-                    message, failed = str(exc), True
+                failed = solver.status == "failed"
                 self._dense = None
                 if not failed and self._last_eval[0] == solver.t:
                     # scipy evaluates f at the end of every attempted step before its error
@@ -323,9 +374,10 @@ class MechanismDAE:
                     # dead point one of them may have landed on the other assembly branch.
                     self._base = self._last_eval
                 if failed:
-                    # The dependent block went singular inside a step (a dead point between two
-                    # communication points): once or twice per step, restart from the last
-                    # reported state with the independent coordinates the QR factorization picks.
+                    # The step size collapsed: the dependent block goes singular ahead (a dead
+                    # point between two communication points).  Once or twice per step, restart
+                    # from the last reported state with the independent coordinates the QR
+                    # factorization picks.
                     if rescues < RESCUES and self._repartition():
                         rescues += 1
                         solver = self._solver
