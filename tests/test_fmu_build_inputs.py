@@ -136,7 +136,7 @@ def test_a_signal_during_a_build_leaves_no_partial_fmu(sig, code, said, tmp_path
 @pytest.mark.slow
 def test_pythonfmu_guid_is_a_hash_of_the_sources(tmp_path):
     """Three builds of the pythonfmu FMU (about 4 s each), from a copy of the build's sources:
-    the same sources give the same GUID; a changed comment in the slave gives another.  The rewritten GUID passes `fmpy validate` and the FMU still runs
+    the same sources give the same GUID; a changed comment in the run-time's slave gives another.  The rewritten GUID passes `fmpy validate` and the FMU still runs
     (pythonfmu's binary does not compare it at fmi2Instantiate)."""
     copy = tmp_path / "src"
     copy.mkdir()
@@ -152,7 +152,7 @@ def test_pythonfmu_guid_is_a_hash_of_the_sources(tmp_path):
     assert guid_of(first) == guid_of(second)
     assert re.fullmatch(r"[0-9a-f]{8}-[0-9a-f]{4}-5[0-9a-f]{3}-[89ab][0-9a-f]{3}-[0-9a-f]{12}", guid_of(first))
 
-    slave = copy / "fmu_src" / "fourbar_slave.py"
+    slave = copy / "fmu_src" / "mechanism_model" / "slave.py"
     slave.write_text(slave.read_text() + "\n# a changed source\n")
     changed = tmp_path / "c" / "FourBar.fmu"
     changed.parent.mkdir()
