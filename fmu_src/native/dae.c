@@ -20,8 +20,13 @@
  * the dependent block's LU pivots spread by more than 1 / DAE_REPARTITION_REVIEW, the
  * independent coordinates change to those a column-pivoted QR factorisation of Phi_q picks if
  * their dependent block is DAE_REPARTITION_GAIN times better conditioned, and the integrator
- * restarts.  A step that fails (the constraints cannot be solved inside it: a dead point
- * between two communication points) restarts from the last reported state with the QR's
+ * restarts.  A trial stage that Newton-Raphson from the prediction does not reach, or reaches
+ * on the other assembly branch (the sign of the dependent block's determinant, which changes
+ * only through a dead point), is reached by continuation from the base (DAE_CONTINUATION_STEPS
+ * sub-steps); where even that fails the evaluation fails and the Runge-Kutta step is rejected
+ * and retried 5x shorter (rk.h: RK_FUNCTION_REJECT; dae.py returns inf there, which scipy's step
+ * control rejects the same way).  Only a step size that collapses fails a step (a dead point
+ * between two communication points): it restarts from the last reported state with the QR's
  * choice, at most DAE_RESCUES times per communication step.
  *
  * The same algorithm, tolerances and decisions as dae.py, computed with less work.  Measured on
@@ -149,6 +154,7 @@ typedef struct {
     double block[MA * MA];      /* the dependent block of Phi_q at (or near) q, LU-factorised */
     int piv[MA];
     double inv_diag[MA];
+    int sign;                   /* sign of det(block) where positions() last factorised it: the branch */
     double moved;               /* how far q is from where block was factorised, relative */
     int S_wanted;               /* state_at factorises S = Phi_q M^-1 Phi_q^T at q (Cholesky) too */
     int S_singular;             /* ... and it was not positive definite */
@@ -157,7 +163,8 @@ typedef struct {
 } Configuration;
 
 /* c->q[dependent] with Phi(c->q, t) = 0, by Newton-Raphson from c->q (c->q[independent] fixed);
-   c->tr is set for the result, c->block and c->piv hold the last factorisation (module doc). */
+   c->tr is set for the result, c->block and c->piv hold the last factorisation (module doc), and
+   c->sign the sign of its determinant (dae.py's: of the last factorisation, near the solution). */
 static int positions(const double *p, const double *d, const int *dependent, double t, Configuration *c,
                      unsigned long *iterations, char *message)
 {
@@ -193,8 +200,10 @@ static int positions(const double *p, const double *d, const int *dependent, dou
         c->moved += step;
         trig_move(q_old, q, c->tr);
         if (fresh ? step <= DAE_NEWTON_STEP
-                  : step <= DAE_NEWTON_STEP && step * step <= DAE_NEWTON_STEP * DAE_NEWTON_STEP * previous)
+                  : step <= DAE_NEWTON_STEP && step * step <= DAE_NEWTON_STEP * DAE_NEWTON_STEP * previous) {
+            c->sign = lu_det_sign(M, c->piv, c->inv_diag);
             return DAE_OK;
+        }
         /* reuse the factors while the corrections shrink at least fourfold per iteration */
         fresh = !fresh && !(step <= 0.25 * previous);
         previous = step;
@@ -297,8 +306,42 @@ static void predict(const ModelState *s, double t, double *q, double *qd)
     }
 }
 
+/* c->q at (y's independent coordinates, t) by following the assembly branch from the base (dae.py's
+   _continuation): the independent coordinates and time moved there in 2, 4, 8, then 32 equal
+   steps, each solved by Newton-Raphson from the previous one and required to stay on the base's
+   branch (the sign of the dependent block's determinant changes only through a dead point).
+   For a trial stage the predictor does not reach (the integrator may try a step ten times its
+   last one); DAE_ASSEMBLY when even 32 steps do not reach it (a dead point on the way). */
+static int continuation(ModelState *s, double t, const double *y, Configuration *c)
+{
+    static const int STEPS[] = DAE_CONTINUATION_STEPS;
+    const DaePoint *b = &s->base;
+    s->continuations++;
+    for (size_t a = 0; a < sizeof STEPS / sizeof *STEPS; a++) {
+        const int n = STEPS[a];
+        int k = 1;
+        memcpy(c->q, b->q, sizeof c->q);
+        for (; k <= n; k++) {
+            const double f = (double)k / n;
+            for (int j = 0; j < K; j++) {
+                const int i = s->independent[j];
+                c->q[i] = b->q[i] + f * (y[j] - b->q[i]);
+            }
+            if (positions(s->p, s->d, s->dependent, b->t + f * (t - b->t), c, &s->newton_iterations,
+                          s->rhs_message) || c->sign != b->sign)
+                break;
+        }
+        if (k > n) return DAE_OK;
+    }
+    snprintf(s->rhs_message, MODEL_MESSAGE, "Phi = 0 cannot be followed from t = %.9g s to %.9g s: the loop cannot "
+             "be closed on the way (a dead point)", b->t, t);
+    return DAE_ASSEMBLY;
+}
+
 /* The consistent configuration for the integrated y at time t (dae.py's _state): the prediction,
-   q[independent] and qd[independent] from y, the rest from the constraints. */
+   q[independent] and qd[independent] from y, the rest from the constraints: by Newton-Raphson
+   from the prediction, else (it diverged, or reached the other assembly branch) by continuation
+   from the base. */
 static int state_at(ModelState *s, double t, const double *y, Configuration *c)
 {
     predict(s, t, c->q, c->qd);
@@ -307,6 +350,7 @@ static int state_at(ModelState *s, double t, const double *y, Configuration *c)
         c->qd[s->independent[j]] = y[K + j];
     }
     int r = positions(s->p, s->d, s->dependent, t, c, &s->newton_iterations, s->rhs_message);
+    if (r || c->sign != s->base.sign) r = continuation(s, t, y, c);
     if (r) return r;
     jacobian_at(s->p, s->d, t, c);
     /* Phi_q M^-1 Phi_q^T depends on q only: factorised before the rates are solved for, so that
@@ -352,11 +396,20 @@ static int rhs(void *context, double t, const double *y, double *f)
     c.S_wanted = 1;
     int r = state_at(s, t, y, &c);
     if (!r) r = solve(s->p, s->d, MECH_MASS_IS_CONSTANT ? s->minv : c.minv, t, &c, e.qdd, lam, s->rhs_message);
+    if (r == DAE_ASSEMBLY) {
+        s->rhs_failed = r;        /* read only when the integrator reports a failure (a start's) */
+        /* A trial point the branch cannot be followed to (a step too long for the predictor, or
+           one across a dead point): the integrator rejects the step and tries one 5x shorter
+           (dae.py returns an infinite derivative, whose error scipy's step control rejects). */
+        s->failed_evaluations++;
+        return RK_FUNCTION_REJECT;
+    }
     if (r) {
         s->rhs_failed = r;
-        return 1;
+        return RK_FUNCTION_ERROR;
     }
     e.t = t;
+    e.sign = c.sign;
     memcpy(e.q, c.q, sizeof e.q);
     memcpy(e.qd, c.qd, sizeof e.qd);
     s->last = e;
@@ -371,7 +424,7 @@ static int rhs(void *context, double t, const double *y, double *f)
         f[2 * K + k] = -lam[row] * c.nu[row];
     }
     if (2 * K + N_DRIVERS == 0) f[0] = 0.0;   /* nothing to integrate: one constant */
-    return 0;
+    return RK_FUNCTION_OK;
 }
 
 /* -- set-up -------------------------------------------------------------------------------- */
@@ -406,7 +459,8 @@ int dae_assemble(ModelState *s, double t, const double *guess, const double *rat
 
 int dae_start(ModelState *s, double first_step)
 {
-    double y0[RK_N];
+    double y0[RK_N], J[MA * N], tr[TRIG], block[MA * MA], inv_diag[MA];
+    int piv[MA];
     DaePoint e;
     const double bound = isfinite(s->stop_time) ? s->stop_time + 1.0 : INFINITY;
     /* The predictor's base is the current state; its accelerations come with the integrator's
@@ -415,6 +469,12 @@ int dae_start(ModelState *s, double first_step)
     memcpy(e.q, s->q, sizeof e.q);
     memcpy(e.qd, s->qd, sizeof e.qd);
     memset(e.qdd, 0, sizeof e.qdd);
+    /* its assembly branch: the sign of the dependent block's determinant at q (dae.py's start) */
+    eq_trig(s->q, tr);
+    eq_jacobian(s->q, tr, s->p, J);
+    dependent_block(J, s->dependent, block);
+    lu_factor(M, block, piv, inv_diag);
+    e.sign = lu_det_sign(M, piv, inv_diag);
     s->base = s->last = e;
     s->before.t = NAN;
     memset(y0, 0, sizeof y0);
@@ -557,23 +617,21 @@ int dae_advance(ModelState *s, double t_end)
             }
             continue;
         }
-        if (r == RK_ERROR_RHS && s->rhs_failed != DAE_ASSEMBLY) return rhs_failure(s, t_end);
+        if (r == RK_ERROR_RHS) return rhs_failure(s, t_end);
         if (r == RK_ERROR_FINISHED) {
             snprintf(s->rhs_message, MODEL_MESSAGE, "%s cannot step beyond t = %.9g s (the stop time + 1 s given "
                      "to fmi2SetupExperiment)", method, solver->t);
             return DAE_INTEGRATION;
         }
-        /* The step failed (its size collapsed, or the constraints could not be solved inside it:
-           a dead point between two communication points): restart from the last reported state
-           with other independent coordinates, at most DAE_RESCUES times per communication step. */
-        char why[MODEL_MESSAGE];
-        if (r == RK_ERROR_RHS) memcpy(why, s->rhs_message, sizeof why);
-        else snprintf(why, sizeof why, "Required step size is less than spacing between numbers.");
+        /* The step size collapsed (the dependent block goes singular ahead: a dead point between
+           two communication points): restart from the last reported state with other independent
+           coordinates, at most DAE_RESCUES times per communication step. */
         if (rescues < DAE_RESCUES && repartition(s)) {
             rescues++;
             continue;
         }
-        snprintf(s->rhs_message, MODEL_MESSAGE, "%s failed at t = %.9g s: %.400s", method, solver->t, why);
+        snprintf(s->rhs_message, MODEL_MESSAGE, "%s failed at t = %.9g s: Required step size is less than spacing "
+                 "between numbers.", method, solver->t);
         return DAE_INTEGRATION;
     }
     if (fabs(solver->t - t_end) <= eps)

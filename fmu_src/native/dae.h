@@ -21,6 +21,9 @@ enum { DAE_OK = 0, DAE_ASSEMBLY = 1, DAE_INTEGRATION = 2 };
 /* ... and changes to the column-pivoted QR's choice when that choice's dependent block is at least
    this many times better conditioned (2-norm). */
 #define DAE_REPARTITION_GAIN 2.0
+/* Sub-steps tried, in turn, to follow the assembly branch from the base to a trial stage that
+   Newton-Raphson from the predictor does not reach (dae.py's CONTINUATION_STEPS). */
+#define DAE_CONTINUATION_STEPS {2, 4, 8, 32}
 /* Restarts with the QR's independent coordinates allowed within one communication step when a
    Runge-Kutta step fails because the dependent block went singular inside it. */
 #define DAE_RESCUES 2

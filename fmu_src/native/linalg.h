@@ -101,6 +101,16 @@ static void lu_solve(int n, const double *lu, const int *piv, const double *inv_
     }
 }
 
+/* The sign of the determinant of A from lu_factor's result: (-1)^(row exchanges) times the signs of
+   U's diagonal (dae.py's _det_sign of LAPACK's factors). */
+static int lu_det_sign(int n, const int *piv, const double *inv_diag)
+{
+    int negative = 0;
+    LINALG_UNROLL
+    for (int k = 0; k < n; k++) negative ^= (piv[k] != k) ^ (inv_diag[k] < 0.0);
+    return negative ? -1 : 1;
+}
+
 /* min |U[i][i]| / max |U[i][i]| of lu_factor's result (0 when U is zero, 1 when n = 0): how
    well the block is conditioned, as dae.py's _pivot_ratio measures it. */
 static double lu_pivot_ratio(int n, const double *lu)

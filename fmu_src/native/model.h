@@ -22,10 +22,12 @@ typedef enum {
     MODE_STEP_FAILED = 8, MODE_TERMINATED = 16, MODE_ERROR = 32
 } ModelMode;
 
-/* One consistent state of the mechanism and its accelerations: a Newton-Raphson predictor's base. */
+/* One consistent state of the mechanism and its accelerations: a Newton-Raphson predictor's base,
+   with the sign of the determinant of its dependent block of Phi_q (its assembly branch). */
 typedef struct {
     double t;
     double q[MECH_N], qd[MECH_N], qdd[MECH_N];
+    int sign;
 } DaePoint;
 
 typedef struct {
@@ -52,6 +54,8 @@ typedef struct {
     unsigned long starts;                       /* integrator (re)starts */
     unsigned long repartitions;
     unsigned long newton_iterations;
+    unsigned long continuations;                /* trial points reached by continuation from the base */
+    unsigned long failed_evaluations;           /* trial points not reached: the step was rejected */
     int rhs_failed;                             /* DAE_ASSEMBLY or DAE_INTEGRATION (dae.h), with: */
     char rhs_message[MODEL_MESSAGE];
 } ModelState;

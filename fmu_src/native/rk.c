@@ -39,9 +39,14 @@ static RKResult initial_step(RKSolver *s, const RKTableau *tab, RKFunction fun, 
     if (h0 > interval) h0 = interval;
     for (int j = 0; j < RK_N; j++) y1[j] = s->y[j] + h0 * s->f[j];
     s->nfev++;
-    if (fun(ctx, s->t + h0, y1, f1)) return RK_ERROR_RHS;
-    for (int j = 0; j < RK_N; j++) v[j] = (f1[j] - s->f[j]) / scale[j];
-    double d2 = rms(v) / h0;
+    const int r = fun(ctx, s->t + h0, y1, f1);
+    if (r == RK_FUNCTION_ERROR) return RK_ERROR_RHS;
+    /* f1 infinite (dae.py's failed evaluation) gives scipy d2 = inf, h1 = 0: a first step of 10 ulp */
+    double d2 = INFINITY;
+    if (r == RK_FUNCTION_OK) {
+        for (int j = 0; j < RK_N; j++) v[j] = (f1[j] - s->f[j]) / scale[j];
+        d2 = rms(v) / h0;
+    }
     double h1;
     if (d1 <= 1e-15 && d2 <= 1e-15) h1 = fmax(1e-6, h0 * 1e-3);
     else h1 = pow(0.01 / fmax(d1, d2), 1.0 / (tab->error_estimator_order + 1));
@@ -67,7 +72,7 @@ RKResult rk_start(RKSolver *s, int method, RKFunction fun, void *ctx, double t0,
     s->has_step = 0;
     s->status = RK_RUNNING;
     s->nfev++;
-    if (fun(ctx, t0, s->y, s->f)) return RK_ERROR_RHS;
+    if (fun(ctx, t0, s->y, s->f) != RK_FUNCTION_OK) return RK_ERROR_RHS;   /* a consistent state: no trial */
     if (first_step > 0.0) {
         double interval = fabs(t_bound - t0);
         s->h_abs = first_step < interval ? first_step : interval;
@@ -76,10 +81,12 @@ RKResult rk_start(RKSolver *s, int method, RKFunction fun, void *ctx, double t0,
     return initial_step(s, tab, fun, ctx, &s->h_abs);
 }
 
-/* One attempt: stages, the solution at t + h and its derivative (scipy's rk_step). */
-static RKResult attempt(RKSolver *s, const RKTableau *tab, RKFunction fun, void *ctx, double h,
-                        double *y_new, double *f_new)
+/* One attempt: stages, the solution at t + h and its derivative (scipy's rk_step).  RK_OK, or the
+   function's RK_FUNCTION_REJECT or RK_FUNCTION_ERROR at the first stage that returned one. */
+static int attempt(RKSolver *s, const RKTableau *tab, RKFunction fun, void *ctx, double h,
+                   double *y_new, double *f_new)
 {
+    int r;
     const int n = tab->n_stages, stride = tab->n_stages_extended;
     double dy[RK_N], ys[RK_N];
     for (int j = 0; j < RK_N; j++) s->K[0][j] = s->f[j];
@@ -92,7 +99,7 @@ static RKResult attempt(RKSolver *s, const RKTableau *tab, RKFunction fun, void 
             ys[j] = s->y[j] + dy[j];
         }
         s->nfev++;
-        if (fun(ctx, s->t + tab->C[st] * h, ys, s->K[st])) return RK_ERROR_RHS;
+        if ((r = fun(ctx, s->t + tab->C[st] * h, ys, s->K[st])) != RK_FUNCTION_OK) return r;
     }
     for (int j = 0; j < RK_N; j++) {
         double sum = 0.0;
@@ -100,9 +107,9 @@ static RKResult attempt(RKSolver *s, const RKTableau *tab, RKFunction fun, void 
         y_new[j] = s->y[j] + h * sum;
     }
     s->nfev++;
-    if (fun(ctx, s->t + h, y_new, f_new)) return RK_ERROR_RHS;
+    if ((r = fun(ctx, s->t + h, y_new, f_new)) != RK_FUNCTION_OK) return r;
     for (int j = 0; j < RK_N; j++) s->K[n][j] = f_new[j];
-    return RK_OK;
+    return RK_FUNCTION_OK;
 }
 
 static double error_norm(const RKSolver *s, const RKTableau *tab, double h, const double *scale)
@@ -152,7 +159,14 @@ RKResult rk_step(RKSolver *s, RKFunction fun, void *ctx)
         h = t_new - t;
         h_abs = fabs(h);
         s->dense_ready = 0;                       /* K is overwritten from here on */
-        if (attempt(s, tab, fun, ctx, h, y_new, f_new) != RK_OK) { s->status = RK_FAILED; return RK_ERROR_RHS; }
+        const int r = attempt(s, tab, fun, ctx, h, y_new, f_new);
+        if (r == RK_FUNCTION_REJECT) {            /* scipy: error norm inf or NaN -> MIN_FACTOR */
+            s->rejected_by_function++;
+            h_abs *= MIN_FACTOR;
+            rejected = 1;
+            continue;
+        }
+        if (r != RK_FUNCTION_OK) { s->status = RK_FAILED; return RK_ERROR_RHS; }
         for (int j = 0; j < RK_N; j++) scale[j] = s->atol + fmax(fabs(s->y[j]), fabs(y_new[j])) * s->rtol;
         double en = error_norm(s, tab, h, scale);
         if (en < 1.0) {
@@ -189,7 +203,10 @@ static RKResult prepare_dense(RKSolver *s, const RKTableau *tab, RKFunction fun,
                 ys[j] = s->y_old[j] + sum * h;
             }
             s->nfev++;
-            if (fun(ctx, s->t_old + tab->C[st] * h, ys, s->K[st])) return RK_ERROR_RHS;
+            const int r = fun(ctx, s->t_old + tab->C[st] * h, ys, s->K[st]);
+            if (r == RK_FUNCTION_ERROR) return RK_ERROR_RHS;
+            if (r == RK_FUNCTION_REJECT)        /* scipy's interpolant gets inf (and NaN) from it */
+                for (int j = 0; j < RK_N; j++) s->K[st][j] = INFINITY;
         }
         for (int j = 0; j < RK_N; j++) {
             const double f_old = s->K[0][j], delta = s->y[j] - s->y_old[j];

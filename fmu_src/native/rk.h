@@ -43,7 +43,10 @@ typedef struct {
 extern const RKTableau RK_DOP853;
 extern const RKTableau RK_RK45;
 
-/* Right-hand side: f = dy/dt at (t, y).  Returns 0, or non-zero to abort the step. */
+/* Right-hand side: f = dy/dt at (t, y).  Returns RK_FUNCTION_OK; RK_FUNCTION_REJECT when f cannot be
+   evaluated at this trial point (the step that needs it is rejected as scipy rejects a step whose
+   f is infinite: error norm inf, step size times MIN_FACTOR); or RK_FUNCTION_ERROR to abort. */
+enum { RK_FUNCTION_OK = 0, RK_FUNCTION_REJECT = 1, RK_FUNCTION_ERROR = 2 };
 typedef int (*RKFunction)(void *context, double t, const double *y, double *f);
 
 typedef enum { RK_RUNNING = 0, RK_FINISHED = 1, RK_FAILED = 2 } RKStatus;
@@ -60,6 +63,7 @@ typedef struct {
     int has_step;                /* a step has been taken since the start */
     RKStatus status;
     unsigned long nfev;
+    unsigned long rejected_by_function;   /* attempts rejected because f could not be evaluated */
 } RKSolver;
 
 /* Results of rk_start / rk_step. */
@@ -71,10 +75,16 @@ const RKTableau *rk_tableau(int method);     /* 0 DOP853, 1 RK45; NULL otherwise
 RKResult rk_start(RKSolver *s, int method, RKFunction fun, void *ctx, double t0, const double *y0,
                   double t_bound, double rtol, double atol, double first_step);
 
-/* One accepted step (rejected attempts included). */
+/* One accepted step (rejected attempts included).  An attempt whose function returns
+   RK_FUNCTION_REJECT at one of its stages is rejected at once, and the step size is multiplied by
+   MIN_FACTOR (0.2): what scipy's error control does with the infinite derivative dae.py returns
+   there (the stages after it, evaluated at infinite or NaN states, change nothing).  Only a step
+   size below 10 ulp of t fails the step (RK_ERROR_STEP_TOO_SMALL). */
 RKResult rk_step(RKSolver *s, RKFunction fun, void *ctx);
 
-/* y at t within the last accepted step [t_old, t], from the dense output. */
+/* y at t within the last accepted step [t_old, t], from the dense output.  A dense-output stage
+   whose function returns RK_FUNCTION_REJECT is taken as infinite (scipy's interpolant then
+   holds inf or NaN): y is then not finite. */
 RKResult rk_dense(RKSolver *s, RKFunction fun, void *ctx, double t, double *y);
 
 #endif
