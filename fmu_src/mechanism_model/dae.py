@@ -63,6 +63,9 @@ REPARTITION_GAIN = 2.0
 #: Sub-steps tried, in turn, to follow the branch from the last accepted state to a trial stage
 #: the Taylor predictor does not reach (Newton-Raphson diverging from it).
 CONTINUATION_STEPS = (2, 4, 8, 32)
+#: Steps tried, in turn, to follow the branch to other parameters or start values (assemble,
+#: change_parameters) when Newton-Raphson does not reach them directly.
+FOLLOW_STEPS = (1, 8, 32, 128)
 #: Restarts with other independent coordinates allowed within one communication step, when a
 #: Runge-Kutta step fails because the dependent block went singular inside it.
 RESCUES = 2
@@ -166,11 +169,74 @@ class MechanismDAE:
 
     def assemble(self, t: float, guess, rates) -> None:
         """The consistent state at time t: q[INDEPENDENT] and qd[INDEPENDENT] from ``guess`` and
-        ``rates`` (sequences of n), the dependent coordinates by Newton-Raphson from ``guess``."""
-        self.d = self.drive_at(t)
-        q = self.positions(guess, t)
+        ``rates`` (sequences of n), the dependent coordinates on the file's assembly branch.
+
+        The file's guesses assemble the mechanism at its default parameters and start values
+        (checked before the build).  From there the parameters and the independent coordinates
+        move to the ones asked for along a straight path, in 1, 8, 32, then 128 steps, each
+        solved by Newton-Raphson from the previous one on the same branch (the dependent block's
+        determinant keeps its sign): so a start far from the file's (another crank angle,
+        another geometry) lands on the branch the file means, not on whichever Newton-Raphson
+        reaches from the guesses.  An angle may also be reached the other way round (+/- 2 pi).
+        """
+        target_p = self.p
+        start = {v.name: v.start for v in self.eq.VARIABLES}
+        p0 = tuple(float(start[name]) for name in self.eq.PARAMETERS)
+        base = list(self.eq.GUESS)
+        for i, (position, _) in zip(self.independent, self.eq.START_PARAMETERS):
+            base[i] = float(start[position])
+        target = [float(guess[i]) for i in self.independent]
+        try:
+            self.p, self.d = p0, self.drive_at(t)
+            q0 = self.positions(base, t)
+            sign = self._sign if self.dependent else 1
+        except AssemblyError:
+            q0, sign = None, None
+        finally:
+            self.p = target_p
+        q = None
+        if q0 is not None:
+            turns = [0.0] + ([2 * math.pi, -2 * math.pi] if any(self.eq.COORDINATES[i].startswith("theta")
+                                                                 for i in self.independent) else [])
+            for turn in turns:
+                end = [v + (turn if self.eq.COORDINATES[i].startswith("theta") else 0.0)
+                       for i, v in zip(self.independent, target)]
+                q = self._follow(q0, p0, target_p, end, t, sign)
+                if q is not None:
+                    for i, v in zip(self.independent, target):
+                        q[i] = v
+                    self.d = self.drive_at(t)
+                    q = self.positions(q, t)
+                    break
+        self.p, self.d = target_p, self.drive_at(t)
+        if q is None:
+            q = self.positions(guess, t)      # the guesses themselves (raises with the reason)
         qd = self.velocities([rates[i] for i in self.independent], t)
         self.t, self.q, self.qd = float(t), q, qd
+
+    def _follow(self, q0, p0, p1, end, t: float, sign: int) -> list | None:
+        """q at parameters p1 and independent coordinates ``end`` by following the branch from
+        q0 (at p0) in 1, 8, 32 or 128 equal steps; None when every try leaves the branch or fails.
+        Leaves self.p = p1."""
+        start = [q0[i] for i in self.independent]
+        for n in FOLLOW_STEPS:
+            q = list(q0)
+            try:
+                for k in range(1, n + 1):
+                    s = k / n
+                    self.p = tuple(a + s * (b - a) for a, b in zip(p0, p1))
+                    self.d = self.drive_at(t)
+                    for i, a, b in zip(self.independent, start, end):
+                        q[i] = a + s * (b - a)
+                    q = self.positions(q, t)
+                    if self.dependent and self._sign != sign:
+                        raise AssemblyError("the other assembly branch")
+                self.p = p1
+                return q
+            except AssemblyError:
+                continue
+        self.p = p1
+        return None
 
     def worst_joint(self, phi) -> str:
         k = int(np.argmax(np.abs(phi)))
@@ -460,7 +526,20 @@ class MechanismDAE:
             d += [s_ref + v * (self.t - t_ref), self.t, new_p[speed]]
         self.p, self.d, self._minv = new_p, d, None
         try:
-            q = self.positions(self.q, self.t)
+            lu, piv, info = lapack.dgetrf(self.eq.jacobian(self.q, old[0])[:, list(self.dependent)])
+            sign = _det_sign(lu, piv) if self.dependent else 1
+            try:
+                q = self.positions(self.q, self.t)
+                if self.dependent and self._sign != sign:
+                    raise AssemblyError("the other assembly branch")
+            except AssemblyError:
+                # A large change: follow the branch from the old parameters to the new ones.
+                q = self._follow(self.q, old[0], new_p, [self.q[i] for i in self.independent], self.t, sign)
+                self.d = d
+                if q is None:
+                    self.positions(self.q, self.t)      # raises with Newton-Raphson's reason
+                    raise AssemblyError("the loop cannot be closed on the way to the new parameters")
+                q = self.positions(q, self.t)
             qd = self.velocities([self.qd[i] for i in self.independent], self.t)
         except AssemblyError:
             self.p, self.d, self.q, self.qd, self.t = old
