@@ -289,9 +289,9 @@ class MechanismDAE:
                 break
             converged = step <= NEWTON_STEP
         phi = self.eq.constraints(q, t, self.p, self.d)
-        raise AssemblyError(f"Phi = 0 has no solution near the previous configuration (Newton-Raphson left "
-                            f"a residual of {np.max(np.abs(phi)):.3g} in joint {self.worst_joint(phi)}): "
-                            f"the loop cannot be closed")
+        raise AssemblyError(f"the loop cannot be closed: Phi = 0 has no solution near the previous configuration "
+                            f"(Newton-Raphson left a residual of {np.max(np.abs(phi)):.3g} in joint "
+                            f"{self.worst_joint(phi)})")
 
     def velocities(self, qd_independent, t: float) -> list:
         """qd with qd[independent] given and Phi_q qd = nu (Phi_q from the last ``positions``)."""

@@ -99,12 +99,15 @@ class MechanismSlave(Fmi2Slave):
         guess, rates = list(equations.GUESS), [0.0] * equations.N_COORDINATES
         for i, (position, rate) in zip(equations.INDEPENDENT, equations.START_PARAMETERS):
             guess[i], rates[i] = float(getattr(self, position)), float(getattr(self, rate))
+        given = ", ".join(f"{position} = {getattr(self, position)!r}" for position, _ in
+                          equations.START_PARAMETERS) or "the drivers' start values"
         try:
             dae.assemble(start, guess, rates)
         except AssemblyError as exc:
-            given = ", ".join(f"{position} = {getattr(self, position)!r}" for position, _ in
-                              equations.START_PARAMETERS) or "the drivers' start values"
             raise ValueError(f"initial assembly with {given} failed: {exc}") from None
+        except (ArithmeticError, ValueError) as exc:     # inf or nan from extreme values (L2 = 1e308)
+            raise ValueError(f"initial assembly with {given} failed: the arithmetic overflowed "
+                             f"({type(exc).__name__}: {exc}); are the parameters of a physical size?") from None
         dae.start()
         self._dae = dae
         self._publish()
