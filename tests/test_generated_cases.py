@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from hypothesis import HealthCheck, Phase, given, note, reject, settings
 from hypothesis import strategies as st
@@ -280,16 +281,28 @@ def test_a_generated_healthy_case_never_alarms(case, tmp_path_factory, native_fm
 @pytest.mark.slow
 @examples(3)
 @given(config=locking_configurations())
-def test_a_generated_case_that_reaches_a_fold_fails_part_way_with_the_reason(config, tmp_path_factory, native_fmu):
+def test_a_generated_case_that_reaches_a_fold_swings_through_it(config, tmp_path_factory, native_fmu):
+    """A motion that reaches a fold of the crank angle (coupler and rocker in line: theta2
+    cannot go on) passes it: coordinate partitioning changes its independent coordinate there
+    and the crank swings back.  (Until mechanisms became data the FMUs integrated theta2 with a
+    closed-form loop closure, which cannot pass a fold, and such a run failed there.)  On the
+    physical path: constraint residual at round-off (1e-10: coordinates of a few metres), energy
+    conserved to 1e-5 J (the FMU's rtol = atol = 1e-10 over 30 s on energies of ~200 J: 1.9e-6 J
+    measured; an integrator that stalls at the fold loses tens of joules: 35 J seen), and theta2
+    turning back without a full turn."""
     note(config.motion.reason)
     folder = tmp_path_factory.mktemp("fold")
-    case = write_case(folder, C.case_text(config, native_fmu, stop=30.0))
+    outputs = ["x2", "y2", "theta2", "energy", "constraint_residual"]
+    case = write_case(folder, C.case_text(config, native_fmu, stop=30.0, outputs=outputs))
     run = cli(FOURBAR_RUN, case, "--out", folder / "run", "--quiet")
-    assert run.code == 1, run
-    assert "the loop cannot be closed" in run.stderr and "rows kept" in run.stderr, run
+    assert run.code == 0, run
     record = json.loads((folder / "run" / "run.json").read_text())
-    lines = (folder / "run" / "exchange.csv").read_text().splitlines()
-    assert record["status"] == "failed" and record["rows_written"] == len(lines) - 1 >= 1, (record, len(lines))
+    data = pd.read_csv(folder / "run" / "exchange.csv")
+    assert record["status"] == "finished" and len(data) == 3001, (record, len(data))
+    assert data["constraint_residual"].max() <= 1e-10
+    assert (data["energy"] - data["energy"].iloc[0]).abs().max() <= 1e-5
+    theta = data["theta2"].to_numpy()
+    assert np.ptp(theta) < 2 * np.pi and np.any(np.diff(np.sign(np.diff(theta))) != 0)
 
 
 # ------------------------------------------------------------------------ invalid case files
