@@ -77,7 +77,11 @@ def test_generated_code_matches_sympy(prepared):
         assert_allclose(gam, np.ravel(gamma), rtol=0, atol=1e-12)
         assert_allclose(gen.gamma(q, qd, t, p, d), np.ravel(gamma), rtol=0, atol=1e-12)
         assert_allclose(gen.nu(t, p, d), np.ravel(nu) * np.ones(m), rtol=0, atol=1e-12)
-        assert_allclose(gen.outputs(q, qd, lam, t, p, d), np.ravel(outs), rtol=0, atol=1e-12)
+        states = iter(gen.state_outputs(q, qd, t, p, d))
+        forces = iter(gen.force_outputs(q, qd, lam, t, p, d))
+        generated = [next(states) if kind == "state" else next(forces) for kind in gen.OUTPUT_KINDS
+                     if kind in ("state", "force")]
+        assert_allclose(generated, np.ravel(outs), rtol=0, atol=1e-12)
 
 
 def test_range_space_solve_agrees_with_the_full_augmented_system(prepared):

@@ -275,12 +275,12 @@ class MechanismDAE:
             except (ValueError, OverflowError):        # cos(inf): the iteration ran away
                 raise AssemblyError("the loop cannot be closed: Newton-Raphson diverged") from None
             if converged:
+                self._sign = _det_sign(lu, piv)     # of the last factorization: the branch of q
                 return q
             lu, piv, dx, info = lapack.dgesv(self._Jp[:, :m], phi)
             if info != 0:
                 raise AssemblyError("the constraint Jacobian is singular there (a toggle or dead-point "
                                     "configuration)")
-            self._sign = _det_sign(lu, piv)
             step = 0.0
             for i, dxi in zip(dependent, dx.tolist()):
                 qi = q[i] - dxi
@@ -599,20 +599,29 @@ class MechanismDAE:
             velocity -= np.array(self.eq.nu(self.t, self.p, self.d))
         return max(max(map(abs, phi)), float(np.max(np.abs(velocity))))
 
-    def outputs(self) -> list[float]:
-        """Every output of the FMU, in output order."""
+    def outputs(self, forces: bool = True) -> list[float]:
+        """Every output of the FMU, in output order; with ``forces=False`` the outputs that need
+        the multipliers (joint reactions, drivers' torques) are None (see ``force_outputs``)."""
         eq = self.eq
-        phi = self._kinematics(self.q, self.t)
-        residual = self._residual(phi)
-        _, lam = self._solve_permuted(self.q, self.qd, self.t)
-        values = iter(eq.outputs(self.q, self.qd, lam.tolist(), self.t, self.p, self.d))
+        residual = self._residual(self._kinematics(self.q, self.t))
+        states = iter(eq.state_outputs(self.q, self.qd, self.t, self.p, self.d))
+        force = iter(self.force_outputs() if forces else ())
         works = iter(eq.OUTPUT_WORKS)
         out = []
         for kind in eq.OUTPUT_KINDS:
-            if kind == "expression":
-                out.append(float(next(values)))
+            if kind == "state":
+                out.append(float(next(states)))
+            elif kind == "force":
+                out.append(float(next(force)) if forces else None)
             elif kind == "work":
                 out.append(float(self.work[next(works)]))
             else:
                 out.append(residual)
         return out
+
+    def force_outputs(self) -> list[float]:
+        """The outputs of kind "force", in output order: eq. (11)'s multipliers at the current
+        state (one range-space solve), then the reactions and drivers' torques from them."""
+        self._kinematics(self.q, self.t)
+        _, lam = self._solve_permuted(self.q, self.qd, self.t)
+        return self.eq.force_outputs(self.q, self.qd, lam.tolist(), self.t, self.p, self.d)

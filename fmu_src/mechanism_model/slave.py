@@ -26,6 +26,10 @@ _CAUSALITY = {"parameter": Fmi2Causality.parameter, "output": Fmi2Causality.outp
 _VARIABILITY = {"tunable": Fmi2Variability.tunable, "fixed": Fmi2Variability.fixed,
                 "continuous": Fmi2Variability.continuous}
 _OUTPUTS = tuple(v.name for v in equations.VARIABLES if v.causality == "output")
+#: Outputs computed only when a host reads them (they need a solve for the multipliers):
+#: output name -> its index among ``MechanismDAE.force_outputs``.
+_FORCES = {name: k for k, name in enumerate(n for n, kind in zip(_OUTPUTS, equations.OUTPUT_KINDS)
+                                            if kind == "force")}
 _REAL_PARAMETERS = tuple(v for v in equations.VARIABLES if v.causality == "parameter" and v.type == "Real")
 
 
@@ -55,9 +59,13 @@ class MechanismSlave(Fmi2Slave):
         for var in equations.VARIABLES:
             setattr(self, var.name, 0.0 if var.start is None else var.start)
             kind = Real if var.type == "Real" else String
+            getter = None
+            if var.name in _FORCES:
+                getter = (lambda k=_FORCES[var.name]: self._force(k))
             self.register_variable(kind(var.name, causality=_CAUSALITY[var.causality],
                                         variability=_VARIABILITY[var.variability],
-                                        description=var.description))
+                                        description=var.description, getter=getter))
+        self._forces = None
         self._stop_time = math.inf
         self._dae = None
 
@@ -78,8 +86,18 @@ class MechanismSlave(Fmi2Slave):
         return False
 
     def _publish(self) -> None:
-        for name, value in zip(_OUTPUTS, self._dae.outputs()):
-            setattr(self, name, value)
+        for name, value in zip(_OUTPUTS, self._dae.outputs(forces=False)):
+            if value is not None:
+                setattr(self, name, value)
+        self._forces = None
+
+    def _force(self, k: int) -> float:
+        """A joint reaction or driver torque of the current state, computed at its first read."""
+        if self._dae is None:
+            return 0.0
+        if self._forces is None:
+            self._forces = self._dae.force_outputs()
+        return float(self._forces[k])
 
     # -- FMI -----------------------------------------------------------------------
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
