@@ -196,7 +196,7 @@ def main(argv=None) -> int:
         print(f"| FourBar {case} | {tw:.3f} | {fw:.3f} | {rw:.2f}x | {tc:.3f} | {fc:.3f} | {rc:.2f}x "
               f"| {rhs / 100.0:.0f} |")
     print()
-    print("Where the time goes, in-process (the same 10,000 steps through FourBarDAE.advance, without FMPy):")
+    print("Where the time goes, in-process (the same 10,000 steps through MechanismDAE.advance, without FMPy):")
     print()
     print("| run | model, wall s | of which scipy DOP853 + stepping logic (replay), wall s "
           "| floor + replay, ratio to floor |")
