@@ -208,10 +208,7 @@ def test_refused_start_values_write_nothing_and_name_the_value(fmu_kind, native_
     assert "the FMU refused the case's start values: fmi2ExitInitializationMode returned" in proc.stderr
     # The values the case set away from the FMU's own start values: the one override.
     assert "the case sets these away from the FMU's own start values: L2 = 1e+308 (from --set)" in proc.stderr
-    if fmu_kind == "pythonfmu":
-        assert "the arithmetic overflowed" in proc.stderr
-    else:
-        assert "the loop cannot be closed" in proc.stderr
+    assert "the loop cannot be closed" in proc.stderr      # both FMUs: the iteration runs away
     assert "nothing was run or written" in proc.stderr
     no_traceback(proc)
     assert folder_bytes(out) == before
