@@ -18,8 +18,11 @@
 6. Every shipped mechanism's native FMU (fmu_src/mechanisms/, built here from the working tree;
    the four-bar's is ``--native``) against a floor FMU of its own variables: 100 s, step 0.01 s,
    one output recorded (the first, x2), at the FMU's default tolerances (rtol = atol = 1e-10)
-   and at Table 1's.  Target (issue 24): native <= 1.5x the floor.  And the C model in-process
-   per mechanism (benchmarks/native/inprocess.c, Case 1).
+   and at Table 1's.  Target (issue 24): native <= 1.5x "FMPy's floor, the Reference-FMUs'
+   VanDerPol"; ``--vanderpol PATH`` adds that FMU (built by benchmarks/native/build_vanderpol.sh
+   from a Reference-FMUs release: it cannot be downloaded here) as a second floor, run the same
+   way (100 s, output interval 0.01 s, its x0 recorded), alternating with the other two in every
+   round.  And the C model in-process per mechanism (benchmarks/native/inprocess.c, Case 1).
 
 ``--quick`` is the smoke setting (tests/test_benchmarks_smoke.py): every table above but the
 sweep, from one round, with the FMPy runs cut to 20 s (Case 2's step at 10 s included), the
@@ -27,6 +30,7 @@ tolerance search to 1e-8 and 1e-9, and table 6 to the four-bar.  Its figures are
 benchmark's.
 
 Usage: python benchmarks/native_fmu.py [--repeat 5] [--sweep] [--quick] [--mechanisms fourbar,slider_crank]
+                                     [--vanderpol /tmp/VanDerPol.fmu]
 """
 from __future__ import annotations
 
@@ -186,21 +190,54 @@ FLOOR_TARGET = 1.5
 
 
 def record_one(fmu: Path, output: str, stop: float, **start_values) -> float:
-    """Wall time of a simulate_fmu run recording one output."""
+    """Wall time of a simulate_fmu run (co-simulation) recording one output."""
     from fmpy import simulate_fmu
     t0 = time.perf_counter()
-    simulate_fmu(str(fmu), stop_time=stop, output_interval=0.01, start_values=start_values, output=[output])
+    simulate_fmu(str(fmu), stop_time=stop, output_interval=0.01, start_values=start_values, output=[output],
+                 fmi_type="CoSimulation")
     return time.perf_counter() - t0
 
 
+#: The Reference-FMUs' VanDerPol: its model identifier and the output recorded.
+VANDERPOL_IDENTIFIER, VANDERPOL_OUTPUT = "VanDerPol", "x0"
+
+
+def check_vanderpol(path: Path) -> str | None:
+    """Why ``path`` is not the Reference-FMUs' VanDerPol FMU for this platform, or None."""
+    from fmpy import read_model_description
+    if not path.is_file():
+        return f"{path}: no such file (build it: benchmarks/native/build_vanderpol.sh SRC_DIR {path})"
+    if not zipfile.is_zipfile(path):
+        return f"{path}: not an FMU (not a zip file)"
+    try:
+        md = read_model_description(str(path))
+    except Exception as exc:        # FMPy raises several kinds for a broken modelDescription.xml
+        return f"{path}: its modelDescription.xml cannot be read ({exc})"
+    if md.coSimulation is None or md.coSimulation.modelIdentifier != VANDERPOL_IDENTIFIER:
+        return (f"{path}: not the Reference-FMUs' VanDerPol (co-simulation model identifier "
+                f"{md.coSimulation.modelIdentifier if md.coSimulation else 'none'!r})")
+    if VANDERPOL_OUTPUT not in {v.name for v in md.modelVariables}:
+        return f"{path}: VanDerPol without the output {VANDERPOL_OUTPUT!r}"
+    with zipfile.ZipFile(path) as z:
+        folder = {"linux": "linux64", "darwin": "darwin64", "win32": "win64"}.get(sys.platform, sys.platform)
+        if not any(n.startswith(f"binaries/{folder}/") for n in z.namelist()):
+            return f"{path}: no binaries/{folder}/ for this machine"
+    return None
+
+
 def mechanisms_against_floor(names: list[str], fourbar_native: Path, repeat: int, stop: float,
-                             directory: Path) -> list[str]:
-    """Table 6: each mechanism's native FMU against its floor, and its C model in-process."""
+                             directory: Path, vanderpol: Path | None = None) -> list[str]:
+    """Table 6: each mechanism's native FMU against its floor (and VanDerPol's, when given), and
+    its C model in-process."""
     from fmpy import read_model_description
     from fmu_src.native_build import build_native_fmu
-    lines = [f"| mechanism | rtol, atol | native s | floor s | native / floor (target <= {FLOOR_TARGET:g}x) "
-             f"| RHS evaluations (in-process, 100 s) | µs per RHS evaluation (in-process) |",
-             "|---|---|---|---|---|---|---|"]
+    vdp_head = f" | VanDerPol s | native / VanDerPol (target <= {FLOOR_TARGET:g}x)" if vanderpol else ""
+    lines = [f"| mechanism | rtol, atol | native s | floor s | native / floor (target <= {FLOOR_TARGET:g}x)"
+             f"{vdp_head} | RHS evaluations (in-process, 100 s) | ms in-process (100 s) "
+             f"| µs per RHS evaluation (in-process) |",
+             "|---|---|---|---|---|" + ("---|---|" if vanderpol else "") + "---|---|---|"]
+    if vanderpol:
+        record_one(vanderpol, VANDERPOL_OUTPUT, stop)                    # warm-up: first load
     for name in names:
         native = fourbar_native if name == "fourbar" else \
             build_native_fmu(directory / f"{name}.fmu", mechanism=name, validate=False).path
@@ -211,21 +248,30 @@ def mechanisms_against_floor(names: list[str], fourbar_native: Path, repeat: int
         record_one(floor, output, stop)
         model = {tol: out for tol, out in run_in_process(native, repeat, [t for _, _, t in MECHANISM_TOLERANCES])}
         for label, start_values, tol in MECHANISM_TOLERANCES:
-            rounds = [(record_one(native, output, stop, **start_values), record_one(floor, output, stop))
-                      for _ in range(repeat)]
+            rounds = []
+            for _ in range(repeat):          # the FMUs alternate within each round
+                rounds.append((record_one(native, output, stop, **start_values), record_one(floor, output, stop),
+                               record_one(vanderpol, VANDERPOL_OUTPUT, stop) if vanderpol else math.nan))
             med = statistics.median
-            n, f = med(r[0] for r in rounds), med(r[1] for r in rounds)
-            ratio = med(r[0] / r[1] for r in rounds)
+            n, f, v = (med(r[i] for r in rounds) for i in range(3))
+
+            def ratio(i: int) -> str:
+                value = med(r[0] / r[i] for r in rounds)
+                return f"{value:.2f}x ({'met' if value <= FLOOR_TARGET else '**not met**'})"
             case1 = next(line.split() for line in model[tol].splitlines() if line.startswith("case1"))
             ms, evals = float(case1[1]), int(case1[2])
-            verdict = "met" if ratio <= FLOOR_TARGET else "**not met**"
-            lines.append(f"| {name} | {label} | {n:.3f} | {f:.3f} | {ratio:.2f}x ({verdict}) | {evals:,} "
+            vdp = f" | {v:.3f} | {ratio(2)}" if vanderpol else ""
+            lines.append(f"| {name} | {label} | {n:.3f} | {f:.3f} | {ratio(1)}{vdp} | {evals:,} | {ms:.1f} "
                          f"| {1e3 * ms / evals:.2f} |")
+    floors = "native, floor and VanDerPol" if vanderpol else "native and floor"
     lines += ["", f"simulate_fmu for {stop:g} s on the 0.01 s grid recording one output (the first: x2 for "
-                  "the shipped mechanisms); "
-                  f"median of {repeat} rounds, native and floor alternating, the ratio the median of the "
+                  "the shipped mechanisms; x0 for VanDerPol); "
+                  f"median of {repeat} rounds, {floors} alternating, each ratio the median of the "
                   "per-round ratios.  The floor FMU has the mechanism's FMI layer and variables and a "
-                  "doStep that copies a number.  In-process: benchmarks/native/inprocess.c, Case 1, 100 s, "
+                  "doStep that copies a number"
+                  + ("; VanDerPol is the Reference-FMUs' (v0.0.39, benchmarks/native/build_vanderpol.sh), "
+                     "issue 24's floor" if vanderpol else "")
+                  + ".  In-process: benchmarks/native/inprocess.c, Case 1, 100 s, "
                   "best of the rounds; its time includes stepping, dense output and output updates."]
     return lines
 
@@ -263,6 +309,9 @@ def main(argv=None) -> int:
     parser.add_argument("--mechanisms", default=None,
                         help="comma-separated shipped mechanisms for the every-mechanism table (default: all; "
                              "fourbar with --quick)")
+    parser.add_argument("--vanderpol", type=Path, default=None, metavar="PATH",
+                        help="the Reference-FMUs' VanDerPol.fmu (benchmarks/native/build_vanderpol.sh SRC_DIR PATH) "
+                             "as a second floor of the every-mechanism table: issue 24's")
     parser.add_argument("--quick", action="store_true",
                         help=f"smoke setting, not the benchmark: one round, FMPy runs of {QUICK_STOP:g} s, tolerance "
                              f"search over {', '.join(f'{t:g}' for t in QUICK_SEARCH)} only (every table but the "
@@ -276,6 +325,11 @@ def main(argv=None) -> int:
     if not native.exists() or not python.exists():
         print("build both FMUs first: python build_fmu.py", file=sys.stderr)
         return 2
+    if args.vanderpol is not None:
+        problem = check_vanderpol(args.vanderpol)
+        if problem:
+            print(f"error: --vanderpol {problem}", file=sys.stderr)
+            return 2
     from fmu_src.mechanism.description import shipped_mechanisms
     shipped = shipped_mechanisms()
     mechanisms = args.mechanisms.split(",") if args.mechanisms else (["fourbar"] if args.quick else list(shipped))
@@ -291,7 +345,7 @@ def main(argv=None) -> int:
                "### The C model in-process", "", *in_process(native, repeat), "",
                "### Accuracy per wall second", "", *accuracy(native, python, repeat, stop, search), "",
                "### Every mechanism: the native FMU against FMPy's floor", "",
-               *mechanisms_against_floor(mechanisms, native, repeat, stop, Path(tmp))]
+               *mechanisms_against_floor(mechanisms, native, repeat, stop, Path(tmp), args.vanderpol)]
     if args.sweep:
         out += ["", "### fourbar-sweep sweeps/l2_step.toml", "", *sweeps(native)]
     print("\n".join(out))

@@ -13,8 +13,8 @@ Checked here:
   whose declared independent coordinate (the slider) stops fixing the motion every half turn;
 - trial steps too long for the Newton-Raphson predictor (dae.py's continuation and step
   rejection, commit 87f0b6f): the driven four-bar 600 s healthy at rtol = atol = 1e-6, the
-  five-bar at 1e-3 where a trial point is not reached at all, a first step of 10 s forced by
-  tests/native_host/long_step.c, and Case 2 at Table 1's tolerances to 100 s.
+  five-bar at 1e-3, a first step of 10 s forced by tests/native_host/long_step.c (trial
+  points not reached at all, steps rejected), and Case 2 at Table 1's tolerances to 100 s.
 The physics tests of test_fmu_physics.py run for the four-bar's FMU too.
 """
 from __future__ import annotations
@@ -410,15 +410,25 @@ def test_the_driven_four_bar_runs_600_s_healthy(mechanism_fmus):
     assert max(loose["constraint_residual"].max(), tight["constraint_residual"].max()) <= 1e-12
 
 
-def test_a_trial_point_not_reached_rejects_the_step_and_the_run_goes_on(mechanism_fmus):
-    """The five-bar at rtol = atol = 1e-3 (commit 3c215f4's FMU failed at t = 1.18 s): once in 20 s
-    even the continuation from the last accepted state does not reach a trial stage (measured
-    between 10 and 20 s); the step is rejected and retried 5x shorter, with no re-partition."""
+def test_the_five_bar_runs_through_at_loose_tolerances(mechanism_fmus):
+    """The five-bar at rtol = atol = 1e-3 (commit 3c215f4's FMU failed at t = 1.18 s): its long
+    steps take trial stages beyond the predictor's reach, which the continuation from the last
+    accepted state reaches (measured 30 times in 20 s), or, where even that fails, whose step
+    is rejected (measured once in 20 s with one build, never with another: this linkage is
+    chaotic and the round-off decides; the forced long step below is the deterministic test of
+    that), without a re-partition."""
     fmu = mechanism_fmus.get("fivebar")
-    result, stats = simulate_with_statistics(fmu, 20.0, {"rtol": 1e-3, "atol": 1e-3}, ["energy", "constraint_residual"])
+    angles = ["theta2", "theta3", "theta4", "theta5"]
+    result, stats = simulate_with_statistics(fmu, 20.0, {"rtol": 1e-3, "atol": 1e-3},
+                                             ["energy", "constraint_residual"] + angles)
     assert result["time"][-1] == pytest.approx(20.0)
-    assert stats.failed >= 1 and stats.repartitions == 0, stats
-    assert result["constraint_residual"].max() <= 1e-12          # every reported state assembled
+    assert stats.continuations >= 1 and stats.repartitions == 0, stats
+    # Every reported state assembled, to round-off in its angles: at this tolerance Newton-Raphson
+    # from a poor prediction may close a loop with a coupler angle 2 pi k away (dae.py's too: the
+    # same configuration; angles of -700 rad were seen, whose ulp is 1.1e-13), so the bound is
+    # 1e-12 x max(1, |angle|) (measured 4e-15 .. 1.3e-11 at |angle| up to 1e3 among builds).
+    size = max(1.0, float(np.abs(positions(result, angles)).max()))
+    assert result["constraint_residual"].max() <= 1e-12 * size
     # No driver, no friction: energy is conserved up to the integrator's error, which rtol = 1e-3
     # lets reach ~0.5 % of the 67 J over 20 s (measured 0.32 J); a step taken from a state on the
     # wrong branch or a bad stage would show as a jump of joules.
@@ -638,8 +648,8 @@ def test_bad_mass_mid_run_is_an_error_and_the_host_goes_on(native):
 
 #: dae.py's message when Newton-Raphson cannot close the loop (the residual and the joint depend
 #: on the iterations, which the two implementations take differently).
-NO_CLOSURE = (r"Phi = 0 has no solution near the previous configuration \(Newton-Raphson left a residual of "
-              r"\S+ in joint \w+\): the loop cannot be closed")
+NO_CLOSURE = (r"the loop cannot be closed: Phi = 0 has no solution near the previous configuration "
+              r"\(Newton-Raphson left a residual of \S+ in joint \w+\)")
 
 
 def test_an_impossible_change_is_refused_as_the_slave_refuses_it(native):

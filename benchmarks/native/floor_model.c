@@ -31,7 +31,8 @@ fmi2Status model_do_step(ModelInstance *m, double current_time, double step)
     return fmi2OK;
 }
 
-void model_preview_outputs(ModelInstance *m)
+void model_preview_outputs(ModelInstance *m, int groups)
 {
     (void)m;
+    (void)groups;
 }

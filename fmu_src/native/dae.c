@@ -5,10 +5,11 @@
  *     [[M,     Phi_q^T],   [qdd   ]   [Q    ]
  *      [Phi_q, 0      ]] . [lambda] = [gamma]
  *
- * is solved for the accelerations and the multipliers, with M qdd + Phi_q^T lambda = Q (the
- * joints act on the bodies with -Phi_q^T lambda).  M is diagonal, so the solve is the
- * range-space form (Phi_q M^-1 Phi_q^T) lambda = Phi_q M^-1 Q - gamma, a Cholesky
- * factorisation, then qdd = M^-1 (Q - Phi_q^T lambda).
+ * is solved for the accelerations (and the drivers' multipliers), with M qdd + Phi_q^T lambda = Q
+ * (the joints act on the bodies with -Phi_q^T lambda).  dae.py solves its range-space form
+ * (Phi_q M^-1 Phi_q^T) lambda = Phi_q M^-1 Q - gamma; here its null-space form gives the same
+ * accelerations up to round-off with less work (accelerations()); the range-space solve, which
+ * gives every multiplier, serves the outputs that need them (joint and driver forces).
  *
  * Constraint stabilisation is generalized-coordinate partitioning (Wehage and Haug): the
  * Runge-Kutta method (rk.c) integrates the independent coordinates, their rates and each
@@ -16,38 +17,46 @@
  * Phi(q, t) = 0 by Newton-Raphson from a prediction made from accepted states only (so the
  * assembly branch is kept by continuity: a stage of a rejected step may sit on the other
  * branch near a dead point), and their rates from Phi_q qd = nu.  Every reported state
- * satisfies both to round-off.  At every communication point the partition is reviewed: when
- * the dependent block's LU pivots spread by more than 1 / DAE_REPARTITION_REVIEW, the
- * independent coordinates change to those a column-pivoted QR factorisation of Phi_q picks if
- * their dependent block is DAE_REPARTITION_GAIN times better conditioned, and the integrator
- * restarts.  A trial stage that Newton-Raphson from the prediction does not reach, or reaches
- * on the other assembly branch (the sign of the dependent block's determinant, which changes
- * only through a dead point), is reached by continuation from the base (DAE_CONTINUATION_STEPS
- * sub-steps); where even that fails the evaluation fails and the Runge-Kutta step is rejected
- * and retried 5x shorter (rk.h: RK_FUNCTION_REJECT; dae.py returns inf there, which scipy's step
- * control rejects the same way).  Only a step size that collapses fails a step (a dead point
- * between two communication points): it restarts from the last reported state with the QR's
- * choice, at most DAE_RESCUES times per communication step.
+ * satisfies both to round-off.  After every accepted Runge-Kutta step and at every
+ * communication point the partition is reviewed: when the dependent block's LU pivots spread by
+ * more than 1 / DAE_REPARTITION_REVIEW, the independent coordinates change to those a
+ * column-pivoted QR factorisation of Phi_q picks if their dependent block is
+ * DAE_REPARTITION_GAIN times better conditioned, and the integrator restarts there.  A trial
+ * stage that Newton-Raphson from the prediction does not reach, or reaches on the other
+ * assembly branch (the sign of the dependent block's determinant, which changes only through a
+ * dead point), is reached by continuation from the base (DAE_CONTINUATION_STEPS sub-steps);
+ * where even that fails the evaluation fails and the Runge-Kutta step is rejected and retried
+ * 5x shorter (rk.h: RK_FUNCTION_REJECT; dae.py returns inf there, which scipy's step control
+ * rejects the same way).  Only a step size that collapses fails a step (a dead point between
+ * two communication points): it restarts from the last reported state with the QR's choice, at
+ * most DAE_RESCUES times per communication step.
  *
- * The same algorithm, tolerances and decisions as dae.py, computed with less work.  Measured on
- * the four-bar at rtol = atol = 1e-10 (100 s): dae.py's way takes 2.4 Newton-Raphson
- * iterations per evaluation, each with an LU factorisation, and one more factorisation for the
- * rates; here 1.8 iterations and one factorisation, 0.8 us per evaluation instead of 1.8:
+ * The same algorithm, tolerances and decisions as dae.py, computed with less work:
  * - the prediction is the quintic Hermite interpolant of the last accepted step's start and
- *   end (positions, rates and accelerations; 1.8 iterations against 3.0 with dae.py's
- *   second-order Taylor step from the end, which is used after a restart);
- * - Newton-Raphson factorises the dependent block of Phi_q at the prediction and reuses the
- *   factors while the corrections shrink fast (a chord iteration), refactorising when they do
- *   not.  A fresh factorisation stops as dae.py does (a correction of at most NEWTON_STEP
- *   (1 + |q_i|), whose square is the error left); a reused one stops once the error it leaves,
- *   estimated from the ratio of successive corrections, is at most NEWTON_STEP^2 (1 + |q_i|);
- * - the rates solve Phi_q qd = nu at the converged q by iterative refinement from the
- *   prediction's rates with those factors, until the error left is at most NEWTON_STEP^2 of the
- *   rates (velocities() says how that is estimated), else by a factorisation at q;
- * - cos and sin of the angles are moved through a Newton correction by the rotation it makes
- *   (a short series, exact to round-off for corrections up to 1e-3 rad) instead of libm calls;
- * - Phi_q M^-1 Phi_q^T, its right-hand side and qdd(lambda) are printed from Phi_q's sparsity
- *   (equations.c); the small dense kernels are unrolled (linalg.h).
+ *   end (positions, rates and accelerations; 1.8 Newton-Raphson iterations per evaluation on
+ *   the four-bar at 1e-10 against 3.0 with dae.py's second-order Taylor step from the end,
+ *   which is used after a restart);
+ * - the declared partition's dependent block is factorised by generated code (equations.c,
+ *   eq_dep_*): Gaussian elimination on its constant pivots (each body's x and y have +-1 in their
+ *   joints' rows), fixed when the FMU is built, leaves a small Schur complement in the
+ *   dependent angles (2 x 2 for the four-bar, 4 x 4 for the Watt six-bar) for a dense LU with
+ *   partial pivoting; any other partition (after a re-partition) takes a dense LU of the block;
+ * - Newton-Raphson factorises the block at the prediction and reuses the factors while the
+ *   corrections shrink fast (a chord iteration), refactorising when they do not.  A fresh
+ *   factorisation stops as dae.py does (a correction of at most NEWTON_STEP (1 + |q_i|), whose
+ *   square is the error left); a reused one stops once the error it leaves, estimated from the
+ *   ratio of successive corrections, is at most NEWTON_STEP^2 (1 + |q_i|);
+ * - at the solution the block is factorised once more, for the rates and the accelerations:
+ *   V = [-block^-1 Phi_q[:, independent]; I] spans Phi_q's null space, qd = V qd[independent]
+ *   (+ block^-1 nu with drivers), and qdd comes from the K x K system V^T M V (K: degrees of
+ *   freedom) and one more solve;
+ * - cos and sin of the angles at the prediction are rotated from the base's (libm's, once per
+ *   accepted step) by a series exact to round-off, and moved through each Newton correction the
+ *   same way;
+ * - Phi_q's constant entries are written only where the generic code reads the whole matrix
+ *   (a dense LU, the partition's review); the outputs are computed when a host reads them,
+ *   a group at a time (fmi2Functions.c);
+ * - the small dense kernels are unrolled and inlined (linalg.h).
  * Results agree with dae.py's to round-off: tests/test_fmu_native.py.
  */
 #include <math.h>
@@ -59,7 +68,18 @@
 #if defined(__GNUC__) && MECH_M <= 16 && MECH_N <= 32
 #define LINALG_UNROLL _Pragma("GCC unroll 16")
 #endif
+/* ... and to inline the LU kernels: the Schur complement's (MECH_DEP_R, at every evaluation) where
+   they are called; the whole block's (MECH_M, rarer) through the dense_* functions below. */
+#if defined(__GNUC__)
+#define LINALG_INLINE __attribute__((always_inline)) inline
+#define NOINLINE __attribute__((noinline))
+#else
+#define NOINLINE
+#endif
 #include "linalg.h"
+
+/* pi to double precision (C99 has no M_PI). */
+#define M_PI_VALUE 3.14159265358979323846
 
 enum {
     N = MECH_N,
@@ -69,20 +89,22 @@ enum {
     N_ANGLES = MECH_N_ANGLES,
     MA = MECH_ALLOC(MECH_M),
     KA = MECH_ALLOC(MECH_K),
-    TRIG = MECH_ALLOC(MECH_N_TRIG)
+    TRIG = MECH_ALLOC(MECH_N_TRIG),
+    R = MECH_DEP_R,                       /* the declared block's Schur complement (equations.h) */
+    RA = MECH_ALLOC(MECH_DEP_R),
+    FACTORS = MA * MA > MECH_DEP_W ? MA * MA : MECH_DEP_W
 };
-
-/* Velocity refinements before the dependent block is factorised at q itself ... */
-#define REFINEMENTS 3
-/* ... at once when the factors were computed farther than this (relative) from q: each
-   refinement then gains less than six digits, and three cost more than a factorisation
-   (measured at Table 1's tolerances, where Runge-Kutta steps are long: -10 % time). */
-#define REFACTOR_BEYOND 1e-6
 /* Angle changes up to this (rad) move cos and sin by the rotation's series: its truncation
-   error, |delta|^6 / 720 and |delta|^7 / 5040, stays below 1e-20. */
+   error, |delta|^6 / 720 and |delta|^7 / 5040, stays below 1e-20 (Newton-Raphson corrections) ... */
 #define TRIG_STEP 1e-3
+/* ... and changes up to this (rad) by a longer series, to delta^14 (|delta|^15 / 15! < 1e-21): from
+   the base, whose cos and sin come from libm, to a prediction (libm calls cost more). */
+#define TRIG_ROTATION 0.25
 
 static const int INDEPENDENT[KA] = MECH_INDEPENDENT;
+static const int DEP_ROWS[RA] = MECH_DEP_ROWS;
+static const int DEP_COLS[RA] = MECH_DEP_COLS;
+static const int ZEROS[KA] = {0};       /* a dense matrix's envelope (cholesky_factor) */
 static const int ANGLES[MECH_ALLOC(MECH_N_ANGLES)] = MECH_ANGLES;
 static const int S_ENVELOPE[MA] = MECH_RANGE_ENVELOPE;
 static const int DRIVERS[MECH_ALLOC(MECH_N_DRIVERS)][3] = MECH_DRIVERS;
@@ -90,6 +112,23 @@ static const char *const ROW_NAMES[MA] = MECH_ROW_NAMES;
 static const int OUTPUT_KINDS[MECH_N_OUTPUTS] = MECH_OUTPUT_KINDS;
 static const int OUTPUT_INDICES[MECH_N_OUTPUTS] = MECH_OUTPUT_INDICES;
 static const char *const INTEGRATOR_NAMES[FB_N_INTEGRATORS] = FB_INTEGRATOR_NAMES;
+
+/* The whole dependent block's LU kernels (a partition other than the declared one, the review). */
+static NOINLINE int dense_factor(double *a, int *piv, double *inv_diag)
+{
+    return lu_factor(M, a, piv, inv_diag);
+}
+
+static NOINLINE void dense_solve(const double *lu, const int *piv, const double *inv_diag, const double *b, double *x)
+{
+    lu_solve(M, lu, piv, inv_diag, b, x);
+}
+
+static NOINLINE void dense_solve_transposed(const double *lu, const int *piv, const double *inv_diag, const double *b,
+                                            double *x)
+{
+    lu_solve_transposed(M, lu, piv, inv_diag, b, x);
+}
 
 double dae_snap_time(double t)
 {
@@ -105,11 +144,11 @@ void dae_drive_at(const double *p, double t, double *d)
     }
 }
 
-/* 1 / the diagonal of M at q. */
-static void mass_inverse(const double *p, const double *q, const double *tr, double *minv)
+/* The diagonal of M at q and its inverse. */
+static void mass_inverse(const double *p, const double *q, const double *tr, double *mass, double *minv)
 {
-    eq_mass_diagonal(q, tr, p, minv);
-    for (int i = 0; i < N; i++) minv[i] = 1.0 / minv[i];
+    eq_mass_diagonal(q, tr, p, mass);
+    for (int i = 0; i < N; i++) minv[i] = 1.0 / mass[i];
 }
 
 /* tr (eq_trig's cos and sin of the angles) of q_new, from tr of q_old. */
@@ -133,6 +172,30 @@ static void trig_move(const double *q_old, const double *q_new, double *tr)
     }
 }
 
+/* tr of q_new from tr_old of q_old (libm's values there): each angle rotated by its change, by the
+   series to delta^14 when that is within TRIG_ROTATION, else by libm. */
+static void trig_rotate(const double *q_old, const double *tr_old, const double *q_new, double *tr)
+{
+    LINALG_UNROLL
+    for (int a = 0; a < N_ANGLES; a++) {
+        const int i = ANGLES[a];
+        const double delta = q_new[i] - q_old[i];
+        if (!(fabs(delta) <= TRIG_ROTATION)) {
+            tr[2 * a] = cos(q_new[i]);
+            tr[2 * a + 1] = sin(q_new[i]);
+            continue;
+        }
+        const double d2 = delta * delta;
+        const double c = 1.0 - d2 * (1.0 / 2.0) * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0) * (1.0 - d2
+            * (1.0 / 56.0) * (1.0 - d2 * (1.0 / 90.0) * (1.0 - d2 * (1.0 / 132.0) * (1.0 - d2 * (1.0 / 182.0)))))));
+        const double sn = delta * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0)
+            * (1.0 - d2 * (1.0 / 72.0) * (1.0 - d2 * (1.0 / 110.0) * (1.0 - d2 * (1.0 / 156.0)))))));
+        const double c0 = tr_old[2 * a], s0 = tr_old[2 * a + 1];
+        tr[2 * a] = c0 * c - s0 * sn;
+        tr[2 * a + 1] = s0 * c + c0 * sn;
+    }
+}
+
 /* -- kinematics --------------------------------------------------------------------------- */
 
 /* The dependent columns of the m x n Jacobian J, as an m x m block. */
@@ -146,40 +209,95 @@ static void dependent_block(const double *J, const int *dependent, double *block
     }
 }
 
+/* The dependent block of Phi_q, LU-factorised: for the declared partition by eq_dep_factor (the
+   static elimination on its constant pivots, equations.h) and a dense LU of its small Schur
+   complement; for any other partition (after a re-partition) by a dense LU of the block. */
+typedef struct {
+    int dense;
+    double lu[FACTORS];         /* dense: the block's LU; else eq_dep_factor's workspace, the Schur LU in it */
+    int piv[MA];
+    double inv_diag[MA];
+    int sign;                   /* the sign of det(block) */
+} Factors;
+
+/* Factorise the block of J's columns `dependent` (declared: the declared partition's); 0, or 1 when
+   it is singular. */
+static int factor_block(int declared, const int *dependent, const double *J, Factors *f)
+{
+    f->dense = !declared;
+    if (declared) {
+        double *schur = f->lu + MECH_DEP_SCHUR;
+        eq_dep_factor(J, f->lu);
+        if (lu_factor(R, schur, f->piv, f->inv_diag)) return 1;
+        f->sign = MECH_DEP_SIGN * lu_det_sign(R, f->piv, f->inv_diag);
+        return 0;
+    }
+    dependent_block(J, dependent, f->lu);
+    if (dense_factor(f->lu, f->piv, f->inv_diag)) return 1;
+    f->sign = lu_det_sign(M, f->piv, f->inv_diag);
+    return 0;
+}
+
+/* x = block^-1 b (b: the block's rows, x: its columns; not the same array). */
+static void block_solve(const Factors *f, const double *b, double *x)
+{
+    double t[MA], g[RA];
+    if (f->dense) {
+        dense_solve(f->lu, f->piv, f->inv_diag, b, x);
+        return;
+    }
+    memcpy(t, b, sizeof t);
+    eq_dep_forward(f->lu, t);
+    LINALG_UNROLL
+    for (int a = 0; a < R; a++) g[a] = t[DEP_ROWS[a]];
+    lu_solve(R, f->lu + MECH_DEP_SCHUR, f->piv, f->inv_diag, g, g);
+    LINALG_UNROLL
+    for (int a = 0; a < R; a++) x[DEP_COLS[a]] = g[a];
+    eq_dep_backward(f->lu, t, x);
+}
+
+/* y = block^-T c (c: the block's columns, y: its rows; not the same array). */
+static void block_solve_transposed(const Factors *f, const double *c, double *y)
+{
+    double g[RA];
+    if (f->dense) {
+        dense_solve_transposed(f->lu, f->piv, f->inv_diag, c, y);
+        return;
+    }
+    eq_dep_forward_t(f->lu, c, y, g);
+    lu_solve_transposed(R, f->lu + MECH_DEP_SCHUR, f->piv, f->inv_diag, g, g);
+    LINALG_UNROLL
+    for (int a = 0; a < R; a++) y[DEP_ROWS[a]] = g[a];
+    eq_dep_backward_t(f->lu, y);
+}
+
 /* A configuration and what the right-hand side needs of it. */
 typedef struct {
     double q[N], qd[N], tr[TRIG];
     double J[MA * N];           /* Phi_q at q */
     double nu[MA];
-    double block[MA * MA];      /* the dependent block of Phi_q at (or near) q, LU-factorised */
-    int piv[MA];
-    double inv_diag[MA];
+    Factors f;                  /* the dependent block: positions() leaves its last Newton-Raphson
+                                   factorisation (near q), velocities() the one at q */
     int sign;                   /* sign of det(block) where positions() last factorised it: the branch */
-    double moved;               /* how far q is from where block was factorised, relative */
-    int S_wanted;               /* state_at factorises S = Phi_q M^-1 Phi_q^T at q (Cholesky) too */
-    int S_singular;             /* ... and it was not positive definite */
-    double S[MA * MA];
-    double minv[N];             /* 1 / diag(M) at q, when M depends on q */
+    double v[KA][MA];           /* velocities(): -block^-1 Phi_q[:, independent j], the null space of Phi_q */
 } Configuration;
 
 /* c->q[dependent] with Phi(c->q, t) = 0, by Newton-Raphson from c->q (c->q[independent] fixed);
-   c->tr is set for the result, c->block and c->piv hold the last factorisation (module doc), and
-   c->sign the sign of its determinant (dae.py's: of the last factorisation, near the solution). */
-static int positions(const double *p, const double *d, const int *dependent, double t, Configuration *c,
-                     unsigned long *iterations, char *message)
+   c->tr is set for the result, c->f holds the last factorisation (module doc), and c->sign the
+   sign of its determinant (dae.py's: of the last factorisation, near the solution).  declared:
+   `dependent` is the declared partition's. */
+static int positions(const double *p, const double *d, int declared, const int *dependent, double t,
+                     Configuration *c, unsigned long *iterations, char *message)
 {
-    double phi[MA], dx[MA], q_old[N];
+    double phi[MA], dx[MA], ratio[MA], q_old[N];
     double *q = c->q;
     int fresh = 1;                       /* factorise Phi_q at the current q in this iteration */
     double previous = INFINITY;
-    eq_trig(q, c->tr);
     for (int iteration = 0; iteration < DAE_NEWTON_ITERATIONS; iteration++) {
         ++*iterations;
         if (fresh) {
-            c->moved = 0.0;
             eq_constraints_jacobian(q, c->tr, t, p, d, phi, c->J);
-            dependent_block(c->J, dependent, c->block);
-            if (lu_factor(M, c->block, c->piv, c->inv_diag)) {
+            if (factor_block(declared, dependent, c->J, &c->f)) {
                 snprintf(message, MODEL_MESSAGE, "the constraint Jacobian is singular there (a toggle or dead-point "
                          "configuration)");
                 return DAE_ASSEMBLY;
@@ -187,27 +305,38 @@ static int positions(const double *p, const double *d, const int *dependent, dou
         } else {
             eq_constraints(q, c->tr, t, p, d, phi);
         }
-        lu_solve(M, c->block, c->piv, c->inv_diag, phi, dx);
+        block_solve(&c->f, phi, dx);
         memcpy(q_old, q, sizeof q_old);
-        double step = 0.0;
+        LINALG_UNROLL
         for (int j = 0; j < M; j++) {
             const double qi = q[dependent[j]] - dx[j];
             q[dependent[j]] = qi;
-            const double r = fabs(dx[j]) / (1.0 + fabs(qi));
-            if (!(r <= step)) step = r;
+            ratio[j] = fabs(dx[j]) / (1.0 + fabs(qi));
         }
+        /* the largest correction, relative (NaN if any is: then it failed) */
+        LINALG_UNROLL
+        for (int width = 1; width < M; width *= 2) {
+            LINALG_UNROLL
+            for (int j = 0; j + width < M; j += 2 * width)
+                ratio[j] = ratio[j + width] > ratio[j] || isnan(ratio[j + width]) ? ratio[j + width] : ratio[j];
+        }
+        const double step = ratio[0];
         if (!isfinite(step)) break;
-        c->moved += step;
         trig_move(q_old, q, c->tr);
         if (fresh ? step <= DAE_NEWTON_STEP
                   : step <= DAE_NEWTON_STEP && step * step <= DAE_NEWTON_STEP * DAE_NEWTON_STEP * previous) {
-            c->sign = lu_det_sign(M, c->piv, c->inv_diag);
+            c->sign = c->f.sign;
             return DAE_OK;
         }
         /* reuse the factors while the corrections shrink at least fourfold per iteration */
         fresh = !fresh && !(step <= 0.25 * previous);
         previous = step;
     }
+    for (int i = 0; i < N; i++)
+        if (isinf(q[i])) {                   /* dae.py: cos(inf) raised there */
+            snprintf(message, MODEL_MESSAGE, "the loop cannot be closed: Newton-Raphson diverged");
+            return DAE_ASSEMBLY;
+        }
     eq_trig(q, c->tr);
     eq_constraints(q, c->tr, t, p, d, phi);
     int worst = 0;
@@ -217,93 +346,78 @@ static int positions(const double *p, const double *d, const int *dependent, dou
         if (isnan(v)) { worst = i; largest = v; break; }
         if (v > largest) { largest = v; worst = i; }
     }
-    snprintf(message, MODEL_MESSAGE, "Phi = 0 has no solution near the previous configuration (Newton-Raphson "
-             "left a residual of %.3g in joint %s): the loop cannot be closed", largest, ROW_NAMES[worst]);
+    snprintf(message, MODEL_MESSAGE, "the loop cannot be closed: Phi = 0 has no solution near the previous "
+             "configuration (Newton-Raphson left a residual of %.3g in joint %s)", largest, ROW_NAMES[worst]);
     return DAE_ASSEMBLY;
 }
 
-/* c->qd[dependent] from Phi_q qd = nu (c->J, c->nu at c->q) with c->qd[independent] given, by iterative refinement from c->qd[dependent] (a guess) with the
-   factors in c->block.  Each correction leaves an error of about its size times the rate rho at
-   which the refinement converges: c->moved (the factors were computed that far from q) for the
-   first, the ratio of successive corrections after.  Accepted once that is at most
-   NEWTON_STEP^2 of the rates (and the correction at most NEWTON_STEP of them), as Newton-Raphson
-   is; after REFINEMENTS corrections, or at once when the factors are from farther than
-   REFACTOR_BEYOND, the block is factorised at q and one solve gives the rates. */
-static int velocities(const int *dependent, Configuration *c, char *message)
+/* c->qd[dependent] from Phi_q qd = nu (c->J, c->nu at c->q) with c->qd[independent] given: the
+   block is factorised at q (c->f, for the accelerations too) and solved for c->v, the rates of
+   the dependent coordinates per unit rate of each independent one (Phi_q V = 0 with
+   V = [c->v; I]), so that qd[dependent] = block^-1 nu + sum_j v_j qd[independent j] (nu = 0
+   without drivers). */
+static int velocities(int declared, const int *dependent, const int *independent, Configuration *c, char *message)
 {
-    double r[MA], dx[MA];
-    double previous = INFINITY;
-    /* factors from too far away would take more refinements than a factorisation costs */
-    for (int refinement = c->moved > REFACTOR_BEYOND ? REFINEMENTS : 0;; refinement++) {
-        if (refinement == REFINEMENTS) {           /* slow: factorise at q itself */
-            dependent_block(c->J, dependent, c->block);
-            if (lu_factor(M, c->block, c->piv, c->inv_diag)) {
-                snprintf(message, MODEL_MESSAGE, "the constraint Jacobian is singular: a toggle (dead-point) "
-                         "configuration");
-                return DAE_ASSEMBLY;
-            }
-            c->moved = 0.0;
-        }
-        eq_jacobian_product(c->J, c->qd, r);           /* r = nu - Phi_q qd */
+    double b[MA], w[MA];
+    if (factor_block(declared, dependent, c->J, &c->f)) {
+        snprintf(message, MODEL_MESSAGE, "the constraint Jacobian is singular: a toggle (dead-point) configuration");
+        return DAE_ASSEMBLY;
+    }
+    for (int j = 0; j < K; j++) {
+        eq_jacobian_column(c->J, independent[j], b);
         LINALG_UNROLL
-        for (int i = 0; i < M; i++) r[i] = c->nu[i] - r[i];
-        lu_solve(M, c->block, c->piv, c->inv_diag, r, dx);
-        double size = 0.0, change = 0.0;
-        LINALG_UNROLL
-        for (int j = 0; j < M; j++) {
-            const double x = c->qd[dependent[j]] + dx[j];
-            c->qd[dependent[j]] = x;
-            if (!(fabs(x) <= size)) size = fabs(x);
-            if (!(fabs(dx[j]) <= change)) change = fabs(dx[j]);
-        }
-        const double rho = refinement == 0 ? c->moved : fmax(c->moved, change / previous);
-        if (refinement == REFINEMENTS || (change <= DAE_NEWTON_STEP * size
-                                          && change * rho <= DAE_NEWTON_STEP * DAE_NEWTON_STEP * size))
-            break;
-        previous = change;
+        for (int i = 0; i < M; i++) b[i] = -b[i];
+        block_solve(&c->f, b, c->v[j]);
+    }
+    if (N_DRIVERS > 0) block_solve(&c->f, c->nu, w);
+    LINALG_UNROLL
+    for (int i = 0; i < M; i++) {
+        double x = N_DRIVERS > 0 ? w[i] : 0.0;
+        for (int j = 0; j < K; j++) x += c->v[j][i] * c->qd[independent[j]];
+        c->qd[dependent[i]] = x;
     }
     return DAE_OK;
 }
 
-/* c->J and c->nu at c->q (c->tr set). */
+/* A configuration's Jacobian with its constant entries (eq_constraints_jacobian and
+   eq_jacobian_variable write the others): what the dense LU, the partition's review and choice
+   read.  The declared partition's factorisation, the products and the columns (eq_jacobian_column)
+   read only the entries that vary. */
+static void configuration_init(Configuration *c)
+{
+    eq_jacobian_constants(c->J);
+}
+
+/* c->J and c->nu at c->q (c->tr set; c->J initialised). */
 static void jacobian_at(const double *p, const double *d, double t, Configuration *c)
 {
-    eq_jacobian(c->q, c->tr, p, c->J);
+    eq_jacobian_variable(c->q, c->tr, p, c->J);
     eq_nu(t, p, d, c->nu);
 }
 
 /* -- the predictor ------------------------------------------------------------------------- */
 
-/* q and qd at time t predicted from the accepted states: the quintic Hermite interpolant of the
-   last accepted step's start and end (positions, rates, accelerations), else (after a restart)
-   the second-order Taylor step from the base that dae.py's _state takes. */
-static void predict(const ModelState *s, double t, double *q, double *qd)
+/* q at time t predicted from the accepted states: the quintic Hermite interpolant of the last
+   accepted step's start and end (positions, rates, accelerations), else (after a restart) the
+   second-order Taylor step from the base that dae.py's _state takes. */
+static void predict(const ModelState *s, double t, double *q)
 {
     const DaePoint *p1 = &s->base, *p0 = &s->before;
     if (!(p0->t < p1->t)) {
         const double dt = t - p1->t, half = 0.5 * dt * dt;
         LINALG_UNROLL
-        for (int i = 0; i < N; i++) {
-            q[i] = p1->q[i] + p1->qd[i] * dt + p1->qdd[i] * half;
-            qd[i] = p1->qd[i] + p1->qdd[i] * dt;
-        }
+        for (int i = 0; i < N; i++) q[i] = p1->q[i] + p1->qd[i] * dt + p1->qdd[i] * half;
         return;
     }
     const double h = p1->t - p0->t, x = (t - p0->t) / h;
     const double x_2 = x * x, x_3 = x_2 * x, x_4 = x_3 * x, x_5 = x_4 * x;
-    /* the quintic Hermite basis: values, and derivatives in t */
+    /* the quintic Hermite basis */
     const double H0 = 1.0 - 10.0 * x_3 + 15.0 * x_4 - 6.0 * x_5, H5 = 1.0 - H0;
     const double H1 = (x - 6.0 * x_3 + 8.0 * x_4 - 3.0 * x_5) * h, H4 = (-4.0 * x_3 + 7.0 * x_4 - 3.0 * x_5) * h;
     const double H2 = 0.5 * (x_2 - 3.0 * x_3 + 3.0 * x_4 - x_5) * h * h, H3 = 0.5 * (x_3 - 2.0 * x_4 + x_5) * h * h;
-    const double D0 = (-30.0 * x_2 + 60.0 * x_3 - 30.0 * x_4) / h, D5 = -D0;
-    const double D1 = 1.0 - 18.0 * x_2 + 32.0 * x_3 - 15.0 * x_4, D4 = -12.0 * x_2 + 28.0 * x_3 - 15.0 * x_4;
-    const double D2 = 0.5 * (2.0 * x - 9.0 * x_2 + 12.0 * x_3 - 5.0 * x_4) * h;
-    const double D3 = 0.5 * (3.0 * x_2 - 8.0 * x_3 + 5.0 * x_4) * h;
     LINALG_UNROLL
-    for (int i = 0; i < N; i++) {
+    for (int i = 0; i < N; i++)
         q[i] = H0 * p0->q[i] + H1 * p0->qd[i] + H2 * p0->qdd[i] + H3 * p1->qdd[i] + H4 * p1->qd[i] + H5 * p1->q[i];
-        qd[i] = D0 * p0->q[i] + D1 * p0->qd[i] + D2 * p0->qdd[i] + D3 * p1->qdd[i] + D4 * p1->qd[i] + D5 * p1->q[i];
-    }
 }
 
 /* c->q at (y's independent coordinates, t) by following the assembly branch from the base (dae.py's
@@ -327,7 +441,8 @@ static int continuation(ModelState *s, double t, const double *y, Configuration 
                 const int i = s->independent[j];
                 c->q[i] = b->q[i] + f * (y[j] - b->q[i]);
             }
-            if (positions(s->p, s->d, s->dependent, b->t + f * (t - b->t), c, &s->newton_iterations,
+            eq_trig(c->q, c->tr);
+            if (positions(s->p, s->d, s->declared, s->dependent, b->t + f * (t - b->t), c, &s->newton_iterations,
                           s->rhs_message) || c->sign != b->sign)
                 break;
         }
@@ -344,58 +459,99 @@ static int continuation(ModelState *s, double t, const double *y, Configuration 
    from the base. */
 static int state_at(ModelState *s, double t, const double *y, Configuration *c)
 {
-    predict(s, t, c->q, c->qd);
+    if (!s->declared) configuration_init(c);
+    predict(s, t, c->q);
     for (int j = 0; j < K; j++) {
         c->q[s->independent[j]] = y[j];
         c->qd[s->independent[j]] = y[K + j];
     }
-    int r = positions(s->p, s->d, s->dependent, t, c, &s->newton_iterations, s->rhs_message);
+    trig_rotate(s->base.q, s->base.tr, c->q, c->tr);
+    int r = positions(s->p, s->d, s->declared, s->dependent, t, c, &s->newton_iterations, s->rhs_message);
     if (r || c->sign != s->base.sign) r = continuation(s, t, y, c);
     if (r) return r;
     jacobian_at(s->p, s->d, t, c);
-    /* Phi_q M^-1 Phi_q^T depends on q only: factorised before the rates are solved for, so that
-       the two chains of dependent operations can overlap in the processor. */
-    if (c->S_wanted) {
-        if (!MECH_MASS_IS_CONSTANT) mass_inverse(s->p, c->q, c->tr, c->minv);
-        eq_range_matrix(c->J, MECH_MASS_IS_CONSTANT ? s->minv : c->minv, c->S);
-        c->S_singular = cholesky_factor(M, c->S, S_ENVELOPE) != 0;
-    }
-    return velocities(s->dependent, c, s->rhs_message);
+    return velocities(s->declared, s->dependent, s->independent, c, s->rhs_message);
 }
 
 /* -- dynamics ------------------------------------------------------------------------------ */
 
-/* (qdd, lambda) of eq. (11) at a consistent configuration by the range-space solve (S factorised
-   here, unless state_at did: c->S_wanted). */
+/* (qdd, lambda) of eq. (11) at a consistent configuration (c->J at c->q) by the range-space solve:
+   every multiplier, for the outputs that need them (joint and driver forces). */
 static int solve(const double *p, const double *d, const double *minv, double t, Configuration *c, double *qdd,
                  double *lam, char *message)
 {
-    double Q[N];
-    if (!c->S_wanted) {
-        eq_range_matrix(c->J, minv, c->S);
-        c->S_singular = cholesky_factor(M, c->S, S_ENVELOPE) != 0;
-    }
-    if (c->S_singular) {
+    double Q[N], S[MA * MA];
+    eq_range_matrix(c->J, minv, S);
+    if (cholesky_factor(M, S, S_ENVELOPE)) {
         snprintf(message, MODEL_MESSAGE, "Phi_q M^-1 Phi_q^T is singular: a toggle (dead-point) configuration");
         return DAE_INTEGRATION;
     }
     eq_range_rhs(c->q, c->tr, c->qd, t, p, d, c->J, minv, Q, lam);
-    cholesky_solve(M, c->S, S_ENVELOPE, lam);
+    cholesky_solve(M, S, S_ENVELOPE, lam);
     eq_accelerations(c->J, minv, Q, lam, qdd);
     return DAE_OK;
 }
 
-/* dy/dt for y = (q[independent], qd[independent], work): the Runge-Kutta right-hand side. */
+/* qdd of eq. (11) at a consistent configuration whose dependent block is factorised at q (c->f,
+   with c->v: velocities()), and the drivers' multipliers (lam, on their rows), by the null-space
+   form of the same equations: with V = [c->v; I] (Phi_q V = 0) and qdd = c + V a,
+   c = [block^-1 gamma; 0] (Phi_q c = gamma), the multipliers drop out of V^T (M qdd - Q) = 0:
+   (V^T M V) a = V^T (Q - M c), a K x K system; then block^T lambda = (Q - M qdd)[dependent].
+   One solve with the block's factors (and one transposed for the drivers) instead of forming
+   and factorising Phi_q M^-1 Phi_q^T: the same accelerations up to round-off. */
+static int accelerations(const ModelState *s, double t, Configuration *c, double *qdd, double *lam)
+{
+    double Q[N], gamma[MA], particular[MA], b[MA], A[KA * KA], a[KA], mass_q[N];
+    double (*v)[MA] = c->v;
+    const double *mass = MECH_MASS_IS_CONSTANT ? s->mass : mass_q;
+    const int *dependent = s->dependent, *independent = s->independent;
+    if (!MECH_MASS_IS_CONSTANT) eq_mass_diagonal(c->q, c->tr, s->p, mass_q);
+    eq_dynamics(c->q, c->tr, c->qd, t, s->p, s->d, Q, gamma);
+    block_solve(&c->f, gamma, particular);
+    for (int j = 0; j < K; j++) {
+        double sum = Q[independent[j]];
+        LINALG_UNROLL
+        for (int i = 0; i < M; i++) sum += v[j][i] * (Q[dependent[i]] - mass[dependent[i]] * particular[i]);
+        a[j] = sum;
+        for (int l = 0; l <= j; l++) {
+            double m = j == l ? mass[independent[j]] : 0.0;
+            LINALG_UNROLL
+            for (int i = 0; i < M; i++) m += mass[dependent[i]] * v[j][i] * v[l][i];
+            A[j * K + l] = m;
+        }
+    }
+    if (K == 1) {
+        a[0] /= A[0];
+    } else if (K > 1) {
+        if (cholesky_factor(K, A, ZEROS)) return DAE_INTEGRATION;
+        cholesky_solve(K, A, ZEROS, a);
+    }
+    for (int j = 0; j < K; j++) qdd[independent[j]] = a[j];
+    LINALG_UNROLL
+    for (int i = 0; i < M; i++) {
+        double x = particular[i];
+        for (int j = 0; j < K; j++) x += v[j][i] * a[j];
+        qdd[dependent[i]] = x;
+    }
+    if (N_DRIVERS > 0) {
+        LINALG_UNROLL
+        for (int i = 0; i < M; i++) b[i] = Q[dependent[i]] - mass[dependent[i]] * qdd[dependent[i]];
+        block_solve_transposed(&c->f, b, lam);
+    }
+    return DAE_OK;
+}
+
+/* dy/dt for y = (q[independent], qd[independent], work): the Runge-Kutta right-hand side.  The
+   evaluation is kept in s->last (a base when it ends an accepted step). */
 static int rhs(void *context, double t, const double *y, double *f)
 {
     ModelState *s = (ModelState *)context;
+    DaePoint *e = &s->last;
     Configuration c;
-    DaePoint e;
     double lam[MA];
     s->rhs_evaluations++;
-    c.S_wanted = 1;
+    e->t = NAN;                   /* not an evaluation until it succeeds */
     int r = state_at(s, t, y, &c);
-    if (!r) r = solve(s->p, s->d, MECH_MASS_IS_CONSTANT ? s->minv : c.minv, t, &c, e.qdd, lam, s->rhs_message);
     if (r == DAE_ASSEMBLY) {
         s->rhs_failed = r;        /* read only when the integrator reports a failure (a start's) */
         /* A trial point the branch cannot be followed to (a step too long for the predictor, or
@@ -404,19 +560,21 @@ static int rhs(void *context, double t, const double *y, double *f)
         s->failed_evaluations++;
         return RK_FUNCTION_REJECT;
     }
+    if (!r) r = accelerations(s, t, &c, e->qdd, lam);
     if (r) {
+        snprintf(s->rhs_message, MODEL_MESSAGE, "the reduced mass matrix V^T M V is singular at t = %.9g s", t);
         s->rhs_failed = r;
         return RK_FUNCTION_ERROR;
     }
-    e.t = t;
-    e.sign = c.sign;
-    memcpy(e.q, c.q, sizeof e.q);
-    memcpy(e.qd, c.qd, sizeof e.qd);
-    s->last = e;
-    if (t == s->base.t) s->base = e;     /* after a (re)start: the base's accelerations */
+    e->t = t;
+    e->sign = c.sign;
+    memcpy(e->q, c.q, sizeof e->q);
+    memcpy(e->qd, c.qd, sizeof e->qd);
+    memcpy(e->tr, c.tr, sizeof e->tr);
+    if (t == s->base.t) s->base = *e;     /* after a (re)start: the base's accelerations */
     for (int j = 0; j < K; j++) {
         f[j] = y[K + j];
-        f[K + j] = e.qdd[s->independent[j]];
+        f[K + j] = e->qdd[s->independent[j]];
     }
     for (int k = 0; k < N_DRIVERS; k++) {
         /* the driver's power: its constraint force -Phi_q^T lambda (row `row`) times qd, -lambda nu */
@@ -429,10 +587,48 @@ static int rhs(void *context, double t, const double *y, double *f)
 
 /* -- set-up -------------------------------------------------------------------------------- */
 
+/* c->q at parameters p1 (drivers d1 when given, else at their start values at t) and independent
+   coordinates `end`, by following the assembly branch from q0 at parameters p0 (dae.py's
+   _follow): parameters and independent coordinates move along a straight path in 1, 8, 32, then
+   128 equal steps, each solved by Newton-Raphson from the previous one, the dependent block's
+   determinant keeping the sign `sign`.  DAE_ASSEMBLY when every try leaves the branch or fails. */
+static int follow(ModelState *s, const double *q0, const double *p0, const double *p1, const double *d1,
+                  const double *end, double t, int sign, Configuration *c)
+{
+    static const int STEPS[] = DAE_FOLLOW_STEPS;
+    double p[MECH_ALLOC(MECH_N_PARAMETERS)], d[MECH_ALLOC(3 * MECH_N_DRIVERS)];
+    for (size_t a = 0; a < sizeof STEPS / sizeof *STEPS; a++) {
+        const int n = STEPS[a];
+        int k = 1;
+        memcpy(c->q, q0, sizeof c->q);
+        for (; k <= n; k++) {
+            const double f = (double)k / n;
+            for (int i = 0; i < MECH_N_PARAMETERS; i++) p[i] = p0[i] + f * (p1[i] - p0[i]);
+            if (d1) memcpy(d, d1, sizeof d);
+            else dae_drive_at(p, t, d);
+            for (int j = 0; j < K; j++) {
+                const int i = s->independent[j];
+                c->q[i] = q0[i] + f * (end[j] - q0[i]);
+            }
+            eq_trig(c->q, c->tr);
+            if (positions(p, d, s->declared, s->dependent, t, c, &s->newton_iterations, s->rhs_message)
+                || c->sign != sign)
+                break;
+        }
+        if (k > n) return DAE_OK;
+    }
+    return DAE_ASSEMBLY;
+}
+
 int dae_assemble(ModelState *s, double t, const double *guess, const double *rates)
 {
+    static const double STARTS[FB_N_VARIABLES] = FB_REAL_STARTS;
+    static const int PARAMETER_VRS[MECH_ALLOC(MECH_N_PARAMETERS)] = MECH_PARAMETER_VRS;
+    static const int START_POSITION_VRS[KA] = MECH_START_POSITION_VRS;
+    static const double GUESS[N] = MECH_GUESS;
     Configuration c;
-    int is_independent[N];
+    double p0[MECH_ALLOC(MECH_N_PARAMETERS)], d0[MECH_ALLOC(3 * MECH_N_DRIVERS)], q0[N], end[KA];
+    int is_independent[N], r = DAE_ASSEMBLY;
     memset(is_independent, 0, sizeof is_independent);
     for (int j = 0; j < K; j++) {
         s->independent[j] = INDEPENDENT[j];            /* the file's order, as dae.py */
@@ -440,16 +636,51 @@ int dae_assemble(ModelState *s, double t, const double *guess, const double *rat
     }
     for (int i = 0, j = 0; i < N; i++)
         if (!is_independent[i]) s->dependent[j++] = i;
+    s->declared = 1;
+    configuration_init(&c);
+    /* The file's guesses assemble the mechanism at its default parameters and start values
+       (checked before the build); from there the branch is followed to the parameters and
+       independent coordinates asked for (dae.py's assemble), an angle possibly the other way
+       round (+-2 pi), so that any start lands on the branch the file means. */
+    for (int i = 0; i < MECH_N_PARAMETERS; i++) p0[i] = STARTS[PARAMETER_VRS[i]];
+    memcpy(c.q, GUESS, sizeof c.q);
+    for (int j = 0; j < K; j++) c.q[INDEPENDENT[j]] = STARTS[START_POSITION_VRS[j]];
+    dae_drive_at(p0, t, d0);
+    eq_trig(c.q, c.tr);
+    if (!positions(p0, d0, 1, s->dependent, t, &c, &s->newton_iterations, s->rhs_message)) {
+        const int sign = c.sign;
+        int angles = 0;
+        memcpy(q0, c.q, sizeof q0);
+        for (int j = 0; j < K; j++)
+            for (int a = 0; a < N_ANGLES; a++) angles |= ANGLES[a] == INDEPENDENT[j];
+        static const double TURNS[3] = {0.0, 2.0 * M_PI_VALUE, -2.0 * M_PI_VALUE};
+        for (int turn = 0; turn < (angles ? 3 : 1) && r; turn++) {
+            for (int j = 0; j < K; j++) {
+                int angle = 0;
+                for (int a = 0; a < N_ANGLES; a++) angle |= ANGLES[a] == INDEPENDENT[j];
+                end[j] = guess[INDEPENDENT[j]] + (angle ? TURNS[turn] : 0.0);
+            }
+            if (follow(s, q0, p0, s->p, NULL, end, t, sign, &c)) continue;
+            for (int j = 0; j < K; j++) c.q[INDEPENDENT[j]] = guess[INDEPENDENT[j]];
+            dae_drive_at(s->p, t, s->d);
+            eq_trig(c.q, c.tr);
+            r = positions(s->p, s->d, 1, s->dependent, t, &c, &s->newton_iterations, s->rhs_message);
+            if (r) return r;
+        }
+    }
     dae_drive_at(s->p, t, s->d);
-    memcpy(c.q, guess, sizeof c.q);
-    int r = positions(s->p, s->d, s->dependent, t, &c, &s->newton_iterations, s->rhs_message);
-    if (r) return r;
-    memset(c.qd, 0, sizeof c.qd);              /* the rates' first guess: at rest */
+    if (r) {                                   /* the guesses themselves (fails with the reason) */
+        memcpy(c.q, guess, sizeof c.q);
+        eq_trig(c.q, c.tr);
+        r = positions(s->p, s->d, 1, s->dependent, t, &c, &s->newton_iterations, s->rhs_message);
+        if (r) return r;
+    }
+    memset(c.qd, 0, sizeof c.qd);
     for (int j = 0; j < K; j++) c.qd[s->independent[j]] = rates[s->independent[j]];
     jacobian_at(s->p, s->d, t, &c);
-    r = velocities(s->dependent, &c, s->rhs_message);
+    r = velocities(1, s->dependent, s->independent, &c, s->rhs_message);
     if (r) return r;
-    mass_inverse(s->p, c.q, c.tr, s->minv);
+    mass_inverse(s->p, c.q, c.tr, s->mass, s->minv);
     s->t = t;
     memcpy(s->q, c.q, sizeof s->q);
     memcpy(s->qd, c.qd, sizeof s->qd);
@@ -471,9 +702,10 @@ int dae_start(ModelState *s, double first_step)
     memset(e.qdd, 0, sizeof e.qdd);
     /* its assembly branch: the sign of the dependent block's determinant at q (dae.py's start) */
     eq_trig(s->q, tr);
+    memcpy(e.tr, tr, sizeof e.tr);
     eq_jacobian(s->q, tr, s->p, J);
     dependent_block(J, s->dependent, block);
-    lu_factor(M, block, piv, inv_diag);
+    dense_factor(block, piv, inv_diag);
     e.sign = lu_det_sign(M, piv, inv_diag);
     s->base = s->last = e;
     s->before.t = NAN;
@@ -494,7 +726,8 @@ int dae_start(ModelState *s, double first_step)
 int dae_change_parameters(ModelState *s, const double *p)
 {
     Configuration c;
-    double d[MECH_ALLOC(3 * MECH_N_DRIVERS)];
+    double d[MECH_ALLOC(3 * MECH_N_DRIVERS)], end[KA];
+    Factors f;
     for (int k = 0; k < N_DRIVERS; k++) {
         const double s_ref = s->d[3 * k], t_ref = s->d[3 * k + 1], v = s->d[3 * k + 2];
         d[3 * k] = s_ref + v * (s->t - t_ref);
@@ -502,19 +735,42 @@ int dae_change_parameters(ModelState *s, const double *p)
         d[3 * k + 2] = p[DRIVERS[k][1]];
     }
     if (N_DRIVERS == 0) d[0] = 0.0;
+    configuration_init(&c);
+    /* the branch the state is on: the sign of the dependent block's determinant there */
+    eq_trig(s->q, c.tr);
+    eq_jacobian(s->q, c.tr, s->p, c.J);
+    const int sign = factor_block(0, s->dependent, c.J, &f) ? 0 : f.sign;
     memcpy(c.q, s->q, sizeof c.q);
     memcpy(c.qd, s->qd, sizeof c.qd);
-    int r = positions(p, d, s->dependent, s->t, &c, &s->newton_iterations, s->rhs_message);
+    int r = positions(p, d, s->declared, s->dependent, s->t, &c, &s->newton_iterations, s->rhs_message);
+    if (r || c.sign != sign) {
+        /* A large change: follow the branch from the parameters in use to the new ones (dae.py's
+           change_parameters; the drivers continue from where they are on the way). */
+        for (int j = 0; j < K; j++) end[j] = s->q[s->independent[j]];
+        r = follow(s, s->q, s->p, p, d, end, s->t, sign, &c);
+        if (r) {
+            memcpy(c.q, s->q, sizeof c.q);
+            eq_trig(c.q, c.tr);
+            r = positions(p, d, s->declared, s->dependent, s->t, &c, &s->newton_iterations, s->rhs_message);
+            if (!r) {
+                snprintf(s->rhs_message, MODEL_MESSAGE, "the loop cannot be closed on the way to the new parameters");
+                r = DAE_ASSEMBLY;
+            }
+            return r;                                   /* nothing changed */
+        }
+        r = positions(p, d, s->declared, s->dependent, s->t, &c, &s->newton_iterations, s->rhs_message);
+    }
     if (!r) {
         jacobian_at(p, d, s->t, &c);
-        r = velocities(s->dependent, &c, s->rhs_message);
+        memcpy(c.qd, s->qd, sizeof c.qd);
+        r = velocities(s->declared, s->dependent, s->independent, &c, s->rhs_message);
     }
     if (r) return r;                                    /* nothing changed */
     memcpy(s->p, p, sizeof s->p);
     memcpy(s->d, d, sizeof s->d);
     memcpy(s->q, c.q, sizeof s->q);
     memcpy(s->qd, c.qd, sizeof s->qd);
-    mass_inverse(s->p, c.q, c.tr, s->minv);
+    mass_inverse(s->p, c.q, c.tr, s->mass, s->minv);
     return DAE_OK;
 }
 
@@ -551,32 +807,70 @@ static void choose_partition(const double *J, int *independent, int *dependent)
 
 static void set_partition(ModelState *s, const int *independent, const int *dependent)
 {
+    int is_independent[N];
+    memset(is_independent, 0, sizeof is_independent);
+    for (int j = 0; j < K; j++) is_independent[INDEPENDENT[j]] = 1;
     memcpy(s->independent, independent, sizeof s->independent);
     memcpy(s->dependent, dependent, sizeof s->dependent);
+    /* the generated factorisation serves the declared dependent coordinates (in any order of the
+       independent ones) */
+    s->declared = 1;
+    for (int j = 0; j < M; j++) s->declared &= !is_independent[dependent[j]];
     s->repartitions++;
 }
 
-/* Review the partition at the current state (c: its configuration): when the dependent block is
-   ill-conditioned, change to the QR's choice if that is clearly better (dae.py's _check_partition). */
-static int check_partition(ModelState *s, const Configuration *c)
+/* dae.py's review of the partition at a state whose Phi_q is J (whole): 1, with the QR's choice in
+   independent and dependent, when the dependent block's LU pivots (partial pivoting, at that
+   state) spread by more than 1 / DAE_REPARTITION_REVIEW and that choice's block is
+   DAE_REPARTITION_GAIN times better conditioned (2-norm); else 0. */
+static int better_partition(const ModelState *s, const double *J, int *independent, int *dependent)
 {
-    double block[MA * MA], inv_diag[MA];
-    int piv[MA], independent[KA], dependent[MA];
-    if (K == 0) return DAE_OK;
-    /* c->block was factorised near q (within c->moved): decide on the block at q itself when that
-       could matter. */
-    if (lu_pivot_ratio(M, c->block) >= 2.0 * DAE_REPARTITION_REVIEW) return DAE_OK;
-    dependent_block(c->J, s->dependent, block);
-    if (!lu_factor(M, block, piv, inv_diag) && lu_pivot_ratio(M, block) >= DAE_REPARTITION_REVIEW) return DAE_OK;
-    choose_partition(c->J, independent, dependent);
-    if (memcmp(independent, s->independent, K * sizeof(int)) == 0) return DAE_OK;
-    dependent_block(c->J, s->dependent, block);
+    double block[MA * MA];
+    int row[MA], cols[MA];
+    if (K == 0) return 0;
+    dependent_block(J, s->dependent, block);
+    if (lu_pivot_ratio_sparse(M, block, row, cols) >= DAE_REPARTITION_REVIEW) return 0;
+    choose_partition(J, independent, dependent);
+    if (memcmp(independent, s->independent, K * sizeof(int)) == 0) return 0;
+    dependent_block(J, s->dependent, block);
     const double now = condition_number(M, block);
-    dependent_block(c->J, dependent, block);
+    dependent_block(J, dependent, block);
     const double chosen = condition_number(M, block);
-    if (!(chosen * DAE_REPARTITION_GAIN < now)) return DAE_OK;
+    return chosen * DAE_REPARTITION_GAIN < now;
+}
+
+/* The review at a communication point (c: its configuration; dae.py's _check_partition): a better
+   partition restarts the integrator there. */
+static int check_partition(ModelState *s, Configuration *c)
+{
+    int independent[KA], dependent[MA];
+    if (K == 0) return DAE_OK;
+    configuration_init(c);                 /* c->J whole */
+    if (!better_partition(s, c->J, independent, dependent)) return DAE_OK;
     set_partition(s, independent, dependent);
     return dae_start(s, s->solver.h_abs);
+}
+
+/* The review after an accepted Runge-Kutta step, at its state (the base; dae.py's
+   _review_at_accepted): a crank can go from a pivot ratio of 0.15 to its dead point within one
+   communication step, and an integrator that reaches a dead point in the old coordinates stops
+   there (their rates go to zero while the mechanism moves on).  A better partition restarts the
+   integrator at that state: 1 when it did (*result: dae_start's), 0 when nothing changed. */
+static int review_at_accepted(ModelState *s, int *result)
+{
+    double J[MA * N];
+    int independent[KA], dependent[MA];
+    const DaePoint *b = &s->base;
+    if (K == 0) return 0;
+    eq_jacobian(b->q, b->tr, s->p, J);
+    if (!better_partition(s, J, independent, dependent)) return 0;
+    s->t = b->t;
+    memcpy(s->q, b->q, sizeof s->q);
+    memcpy(s->qd, b->qd, sizeof s->qd);
+    for (int k = 0; k < N_DRIVERS; k++) s->work[k] = s->solver.y[2 * K + k];
+    set_partition(s, independent, dependent);
+    *result = dae_start(s, s->solver.h_abs);
+    return 1;
 }
 
 /* Restart at the last reported state with the QR's independent coordinates when they differ from
@@ -601,8 +895,9 @@ int dae_advance(ModelState *s, double t_end)
     RKSolver *solver = &s->solver;
     const char *method = INTEGRATOR_NAMES[s->integrator];
     const double eps = 1e-12 * fmax(1.0, fabs(t_end));   /* a step ending within round-off reaches t_end */
+    const double t_start = s->t;
     double y[RK_N];
-    int rescues = 0;
+    int rescues = 0, restarted;
     Configuration c;
     while (solver->t < t_end - eps) {
         const RKResult r = rk_step(solver, rhs, s);
@@ -614,6 +909,10 @@ int dae_advance(ModelState *s, double t_end)
             if (s->last.t == solver->t) {
                 s->before = s->base;
                 s->base = s->last;
+                eq_trig(s->base.q, s->base.tr);     /* libm's: predictions rotate from them */
+                /* (a step past t_end is reviewed at t_end, from the reported state) */
+                if (solver->t < t_end - eps && review_at_accepted(s, &restarted) && restarted != DAE_OK)
+                    return restarted;
             }
             continue;
         }
@@ -643,13 +942,12 @@ int dae_advance(ModelState *s, double t_end)
             snprintf(s->rhs_message, MODEL_MESSAGE, "%s produced a non-finite state before t = %.9g s", method, t_end);
             return DAE_INTEGRATION;
         }
-    c.S_wanted = 0;
     int r = state_at(s, t_end, y, &c);
     if (r) {
         s->rhs_failed = r;
         return rhs_failure(s, t_end);
     }
-    s->last_step = t_end - s->t;
+    s->last_step = t_end - t_start;
     s->t = t_end;
     memcpy(s->q, c.q, sizeof s->q);
     memcpy(s->qd, c.qd, sizeof s->qd);
@@ -662,9 +960,22 @@ int dae_advance(ModelState *s, double t_end)
 void dae_outputs_state(const double *p, const double *d, double t, const double *q, const double *qd,
                        const double *work, double *out)
 {
-    double tr[TRIG], J[MA * N], nu[MA], phi[MA], values[MECH_ALLOC(MECH_N_STATE_OUTPUTS)];
+    double tr[TRIG], values[MECH_ALLOC(MECH_N_STATE_OUTPUTS)];
     eq_trig(q, tr);
     eq_outputs_state(q, tr, qd, t, p, d, values);
+    for (int k = 0; k < MECH_N_OUTPUTS; k++)
+        switch (OUTPUT_KINDS[k]) {
+        case MECH_OUTPUT_STATE: out[k] = values[OUTPUT_INDICES[k]]; break;
+        case MECH_OUTPUT_WORK: out[k] = work[OUTPUT_INDICES[k]]; break;
+        default: break;
+        }
+}
+
+void dae_outputs_residual(const double *p, const double *d, double t, const double *q, const double *qd,
+                          double *out)
+{
+    double tr[TRIG], J[MA * N], nu[MA], phi[MA];
+    eq_trig(q, tr);
     /* max(|Phi|, |Phi_q qd - nu|), NaN-propagating */
     eq_jacobian(q, tr, p, J);
     eq_nu(t, p, d, nu);
@@ -678,26 +989,20 @@ void dae_outputs_state(const double *p, const double *d, double t, const double 
         if (!(b <= residual)) residual = b;
     }
     for (int k = 0; k < MECH_N_OUTPUTS; k++)
-        switch (OUTPUT_KINDS[k]) {
-        case MECH_OUTPUT_STATE: out[k] = values[OUTPUT_INDICES[k]]; break;
-        case MECH_OUTPUT_WORK: out[k] = work[OUTPUT_INDICES[k]]; break;
-        case MECH_OUTPUT_RESIDUAL: out[k] = residual; break;
-        default: break;
-        }
+        if (OUTPUT_KINDS[k] == MECH_OUTPUT_RESIDUAL) out[k] = residual;
 }
 
 int dae_outputs_force(const double *p, const double *d, double t, const double *q, const double *qd, double *out,
                       char *message)
 {
     Configuration c;
-    double qdd[N], lam[MA], minv[N], values[MECH_ALLOC(MECH_N_FORCE_OUTPUTS)];
+    double qdd[N], lam[MA], mass[N], minv[N], values[MECH_ALLOC(MECH_N_FORCE_OUTPUTS)];
     if (MECH_N_FORCE_OUTPUTS == 0) return DAE_OK;
     memcpy(c.q, q, sizeof c.q);
     memcpy(c.qd, qd, sizeof c.qd);
     eq_trig(c.q, c.tr);
     eq_jacobian(c.q, c.tr, p, c.J);
-    mass_inverse(p, c.q, c.tr, minv);
-    c.S_wanted = 0;
+    mass_inverse(p, c.q, c.tr, mass, minv);
     int r = solve(p, d, minv, t, &c, qdd, lam, message);
     if (r) return r;
     eq_outputs_force(c.q, c.tr, c.qd, lam, t, p, d, values);

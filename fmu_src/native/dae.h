@@ -24,6 +24,9 @@ enum { DAE_OK = 0, DAE_ASSEMBLY = 1, DAE_INTEGRATION = 2 };
 /* Sub-steps tried, in turn, to follow the assembly branch from the base to a trial stage that
    Newton-Raphson from the predictor does not reach (dae.py's CONTINUATION_STEPS). */
 #define DAE_CONTINUATION_STEPS {2, 4, 8, 32}
+/* Steps tried, in turn, to follow the branch to other parameters or start values (dae_assemble,
+   dae_change_parameters) when Newton-Raphson does not reach them directly (dae.py's FOLLOW_STEPS). */
+#define DAE_FOLLOW_STEPS {1, 8, 32, 128}
 /* Restarts with the QR's independent coordinates allowed within one communication step when a
    Runge-Kutta step fails because the dependent block went singular inside it. */
 #define DAE_RESCUES 2
@@ -35,8 +38,10 @@ double dae_snap_time(double t);
 void dae_drive_at(const double *p, double t, double *d);
 
 /* The consistent state at time t with parameters s->p: q[independent] and qd[independent] from
-   `guess` and `rates` (n values each), the dependent coordinates by Newton-Raphson from `guess`.
-   Sets s->t, s->d, s->q, s->qd, the initial partition and the cached M^-1. */
+   `guess` and `rates` (n values each), the dependent coordinates on the file's assembly branch
+   (followed from the file's guesses at the default parameters and start values; else by
+   Newton-Raphson from `guess`).  Sets s->t, s->d, s->q, s->qd, the initial partition and the
+   cached M^-1. */
 int dae_assemble(ModelState *s, double t, const double *guess, const double *rates);
 
 /* (Re)start the integrator at s->t from the consistent state (first_step <= 0: scipy's choice). */
@@ -51,10 +56,13 @@ int dae_advance(ModelState *s, double t_end);
 int dae_change_parameters(ModelState *s, const double *p);
 
 /* The outputs of a consistent state with parameters p and drivers d, into out (MECH_N_OUTPUTS,
-   in output order): those of kinds STATE, WORK and RESIDUAL; then those of kind FORCE (they need
-   the multipliers: DAE_INTEGRATION with a message when eq. (11) cannot be solved there). */
+   in output order), in three groups: those of kinds STATE and WORK; the RESIDUAL; those of kind
+   FORCE (they need the multipliers: DAE_INTEGRATION with a message when eq. (11) cannot be
+   solved there). */
 void dae_outputs_state(const double *p, const double *d, double t, const double *q, const double *qd,
                        const double *work, double *out);
+void dae_outputs_residual(const double *p, const double *d, double t, const double *q, const double *qd,
+                          double *out);
 int dae_outputs_force(const double *p, const double *d, double t, const double *q, const double *qd, double *out,
                       char *message);
 

@@ -313,12 +313,12 @@ fmi2Status fmi2Reset(fmi2Component c)
 
 /* -- variables ----------------------------------------------------------------------- */
 
-/* 1 when one of vr[] is an output computed on first read (model_preview_outputs). */
-static int reads_forces(const fmi2ValueReference vr[], size_t nvr)
+/* The output groups (FB_GROUP_* bits) vr[] reads: computed on first read (model_preview_outputs). */
+static int groups_read(const fmi2ValueReference vr[], size_t nvr)
 {
-    for (size_t i = 0; i < nvr; i++)
-        if (READ_COMPUTED[vr[i]]) return 1;
-    return 0;
+    int groups = 0;
+    for (size_t i = 0; i < nvr; i++) groups |= READ_COMPUTED[vr[i]];
+    return groups;
 }
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
@@ -328,9 +328,10 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     REQUIRE_ARRAY(value, nvr);
     if (!check_refs(m, __func__, vr, nvr, KIND(KIND_TUNABLE) | KIND(KIND_FIXED) | KIND(KIND_OUTPUT), "a Real"))
         return fmi2Error;
-    if (nvr > 0 && (m->state.mode == MODE_INITIALIZATION || (m->state.forces_pending && reads_forces(vr, nvr)))) {
-        model_preview_outputs(m);
-        if (m->state.mode != MODE_INITIALIZATION && m->state.forces_pending) return fmi2Error;   /* logged why */
+    const int groups = nvr > 0 ? groups_read(vr, nvr) & m->state.outputs_pending : 0;
+    if (nvr > 0 && (m->state.mode == MODE_INITIALIZATION || groups)) {
+        model_preview_outputs(m, groups);
+        if (m->state.mode != MODE_INITIALIZATION && (m->state.outputs_pending & groups)) return fmi2Error;  /* logged */
     }
     for (size_t i = 0; i < nvr; i++) value[i] = m->state.values[vr[i]];
     return fmi2OK;

@@ -3,7 +3,9 @@
  * Matrices are row-major arrays of doubles; sizes are a few dozen at most, so the textbook
  * algorithms are used, written out:
  * - LU factorisation with partial pivoting (LAPACK dgetrf's choice of pivot: the first entry of
- *   largest magnitude in the column), for Newton-Raphson and the velocity equations;
+ *   largest magnitude in the column), solves with it and its transpose, the sign of the
+ *   determinant, for the dependent block of Phi_q (its Schur complement, or all of it); and the
+ *   same factorisation's pivot ratio for a sparse block (the partition's review);
  * - Cholesky factorisation of a symmetric positive definite matrix (LAPACK dposv's role), for the
  *   range-space solve of eq. (11);
  * - the column order of a Householder QR factorisation with column pivoting (LAPACK dgeqp3's
@@ -24,12 +26,17 @@
 #ifndef LINALG_UNROLL
 #define LINALG_UNROLL
 #endif
+/* The includer may define LINALG_INLINE as a request to inline the LU kernels at every call (for
+   sizes known at compile time; a call with another size it wraps in a function of its own). */
+#ifndef LINALG_INLINE
+#define LINALG_INLINE
+#endif
 
 /* LU = P A of the n x n matrix `a`, in place (unit lower L below the diagonal, U on and above),
    and inv_diag[k] = 1 / U[k][k].  piv[k] is the row exchanged with row k at step k.  Returns
    0, or k + 1 for the first k at which U[k][k] is exactly zero (dgetrf's info): then `a` is
    singular and must not be solved with.  Rows whose multiplier is zero are skipped. */
-static int lu_factor(int n, double *a, int *piv, double *inv_diag)
+LINALG_INLINE static int lu_factor(int n, double *a, int *piv, double *inv_diag)
 {
     int info = 0;
     LINALG_UNROLL
@@ -37,18 +44,18 @@ static int lu_factor(int n, double *a, int *piv, double *inv_diag)
         int p = k;
         double big = fabs(a[k * n + k]);
         LINALG_UNROLL
-        for (int i = k + 1; i < n; i++) {
+        for (int i = k + 1; i < n; i++) {        /* selections, not branches: the winner is data */
             const double v = fabs(a[i * n + k]);
-            if (v > big) { big = v; p = i; }
+            const int larger = v > big;
+            p = larger ? i : p;
+            big = larger ? v : big;
         }
         piv[k] = p;
-        if (p != k) {
-            LINALG_UNROLL
-            for (int j = 0; j < n; j++) {
-                const double tmp = a[k * n + j];
-                a[k * n + j] = a[p * n + j];
-                a[p * n + j] = tmp;
-            }
+        LINALG_UNROLL
+        for (int j = 0; j < n; j++) {             /* (p == k: the row with itself) */
+            const double tmp = a[k * n + j];
+            a[k * n + j] = a[p * n + j];
+            a[p * n + j] = tmp;
         }
         const double pivot = a[k * n + k];
         if (pivot == 0.0) {
@@ -71,10 +78,51 @@ static int lu_factor(int n, double *a, int *piv, double *inv_diag)
     return info;
 }
 
+/* min |U[i][i]| / max |U[i][i]| of lu_factor's factorisation of the n x n matrix `a` (overwritten
+   with a part of it), 0 when a pivot is exactly zero (then lu_factor reports it singular): how well
+   the block is conditioned, as dae.py's _pivot_ratio measures it (1 for n = 0).  The
+   same pivots, computed with less work for a sparse matrix -- the rows are exchanged through an
+   index rather than moved, L is not kept, and each elimination updates only the columns where
+   the pivot row is not zero, in the rows whose entry below the pivot is not zero.  row and cols:
+   n ints of scratch.  (For the partition's review, after every accepted step: not unrolled.) */
+static double lu_pivot_ratio_sparse(int n, double *a, int *row, int *cols)
+{
+    double lo = INFINITY, hi = 0.0;
+    if (n == 0) return 1.0;
+    for (int i = 0; i < n; i++) row[i] = i;
+    for (int k = 0; k < n; k++) {
+        int p = k;
+        double big = fabs(a[row[k] * n + k]);
+        for (int i = k + 1; i < n; i++) {
+            const double v = fabs(a[row[i] * n + k]);
+            if (v > big) { big = v; p = i; }
+        }
+        const int r = row[p];
+        row[p] = row[k];
+        row[k] = r;
+        const double *pivot_row = a + r * n;
+        const double pivot = pivot_row[k];
+        if (pivot == 0.0) return 0.0;
+        if (big < lo) lo = big;
+        if (big > hi) hi = big;
+        const double inverse = 1.0 / pivot;
+        int count = 0;
+        for (int j = k + 1; j < n; j++)
+            if (pivot_row[j] != 0.0) cols[count++] = j;
+        for (int i = k + 1; i < n; i++) {
+            double *row_i = a + row[i] * n;
+            if (row_i[k] == 0.0) continue;
+            const double l = row_i[k] * inverse;
+            for (int c = 0; c < count; c++) row_i[cols[c]] -= l * pivot_row[cols[c]];
+        }
+    }
+    return lo / hi;
+}
+
 /* x = A^-1 b with lu_factor's result (b and x may be the same array).  Column by column: the
    updates that one solved entry makes are independent of each other, so the chain of dependent
    operations is n long rather than n^2 / 2. */
-static void lu_solve(int n, const double *lu, const int *piv, const double *inv_diag, const double *b, double *x)
+LINALG_INLINE static void lu_solve(int n, const double *lu, const int *piv, const double *inv_diag, const double *b, double *x)
 {
     if (x != b) {
         LINALG_UNROLL
@@ -101,28 +149,43 @@ static void lu_solve(int n, const double *lu, const int *piv, const double *inv_
     }
 }
 
+/* x = A^-T b with lu_factor's result (A^T = U^T L^T P; b and x may be the same array). */
+LINALG_INLINE static void lu_solve_transposed(int n, const double *lu, const int *piv, const double *inv_diag, const double *b,
+                                double *x)
+{
+    if (x != b) {
+        LINALG_UNROLL
+        for (int i = 0; i < n; i++) x[i] = b[i];
+    }
+    LINALG_UNROLL
+    for (int j = 0; j < n; j++) {                  /* U^T z = b: column j of U^T is row j of U */
+        const double xj = x[j] * inv_diag[j];
+        x[j] = xj;
+        LINALG_UNROLL
+        for (int i = j + 1; i < n; i++) x[i] -= lu[j * n + i] * xj;
+    }
+    LINALG_UNROLL
+    for (int j = n - 1; j >= 0; j--) {             /* L^T w = z: unit upper triangular */
+        const double xj = x[j];
+        LINALG_UNROLL
+        for (int i = 0; i < j; i++) x[i] -= lu[j * n + i] * xj;
+    }
+    LINALG_UNROLL
+    for (int k = n - 1; k >= 0; k--) {             /* x = P^T w: the interchanges undone, last first */
+        const double tmp = x[k];
+        x[k] = x[piv[k]];
+        x[piv[k]] = tmp;
+    }
+}
+
 /* The sign of the determinant of A from lu_factor's result: (-1)^(row exchanges) times the signs of
    U's diagonal (dae.py's _det_sign of LAPACK's factors). */
-static int lu_det_sign(int n, const int *piv, const double *inv_diag)
+LINALG_INLINE static int lu_det_sign(int n, const int *piv, const double *inv_diag)
 {
     int negative = 0;
     LINALG_UNROLL
     for (int k = 0; k < n; k++) negative ^= (piv[k] != k) ^ (inv_diag[k] < 0.0);
     return negative ? -1 : 1;
-}
-
-/* min |U[i][i]| / max |U[i][i]| of lu_factor's result (0 when U is zero, 1 when n = 0): how
-   well the block is conditioned, as dae.py's _pivot_ratio measures it. */
-static double lu_pivot_ratio(int n, const double *lu)
-{
-    double lo = INFINITY, hi = 0.0;
-    if (n == 0) return 1.0;
-    for (int i = 0; i < n; i++) {
-        const double v = fabs(lu[i * n + i]);
-        if (v < lo) lo = v;
-        if (v > hi) hi = v;
-    }
-    return hi > 0.0 ? lo / hi : 0.0;
 }
 
 /* Cholesky factor L of the symmetric positive definite n x n matrix `a` (its lower triangle is

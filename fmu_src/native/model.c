@@ -113,20 +113,23 @@ static void start_configuration(const ModelState *s, double *guess, double *rate
 
 /* -- outputs ------------------------------------------------------------------------- */
 
-/* The outputs of the current state into values[] (slave.py's _publish): all but the forces,
-   which are computed when first read (model_preview_outputs). */
+/* The outputs of the current state (slave.py's _publish computes them all at every step): marked
+   pending, computed when first read (model_preview_outputs), a group at a time. */
 static fmi2Status publish(ModelInstance *m)
 {
-    ModelState *s = &m->state;
-    double out[MECH_N_OUTPUTS];
-    dae_outputs_state(s->p, s->d, s->t, s->q, s->qd, s->work, out);
-    for (int k = 0; k < MECH_N_OUTPUTS; k++)
-        if (OUTPUT_KINDS[k] != MECH_OUTPUT_FORCE) s->values[OUTPUT_VRS[k]] = out[k];
-    s->forces_pending = MECH_N_FORCE_OUTPUTS > 0;
+    m->state.outputs_pending = FB_GROUP_STATE | FB_GROUP_RESIDUAL | FB_GROUP_FORCE;
     return fmi2OK;
 }
 
-void model_preview_outputs(ModelInstance *m)
+/* Copy the outputs of kind `kind` from out (output order) into values[]. */
+static void store_outputs(ModelState *s, const double *out, int kind)
+{
+    for (int k = 0; k < MECH_N_OUTPUTS; k++)
+        if (OUTPUT_KINDS[k] == kind || (kind == MECH_OUTPUT_STATE && OUTPUT_KINDS[k] == MECH_OUTPUT_WORK))
+            s->values[OUTPUT_VRS[k]] = out[k];
+}
+
+void model_preview_outputs(ModelInstance *m, int groups)
 {
     ModelState *s = &m->state;
     double out[MECH_N_OUTPUTS];
@@ -142,19 +145,31 @@ void model_preview_outputs(ModelInstance *m)
         start_configuration(&scratch, guess, rates);
         if (dae_assemble(&scratch, dae_snap_time(scratch.start_time), guess, rates)) return;
         dae_outputs_state(scratch.p, scratch.d, scratch.t, scratch.q, scratch.qd, scratch.work, out);
+        dae_outputs_residual(scratch.p, scratch.d, scratch.t, scratch.q, scratch.qd, out);
         if (dae_outputs_force(scratch.p, scratch.d, scratch.t, scratch.q, scratch.qd, out, scratch.rhs_message))
             return;
         for (int k = 0; k < MECH_N_OUTPUTS; k++) s->values[OUTPUT_VRS[k]] = out[k];
         return;
     }
-    if (!s->forces_pending) return;
-    if (dae_outputs_force(s->p, s->d, s->t, s->q, s->qd, out, s->rhs_message)) {
-        fail(m, "at t = %.9g s %s", s->t, s->rhs_message);
-        return;
+    groups &= s->outputs_pending;
+    if (groups & FB_GROUP_STATE) {
+        dae_outputs_state(s->p, s->d, s->t, s->q, s->qd, s->work, out);
+        store_outputs(s, out, MECH_OUTPUT_STATE);
+        s->outputs_pending &= ~FB_GROUP_STATE;
     }
-    for (int k = 0; k < MECH_N_OUTPUTS; k++)
-        if (OUTPUT_KINDS[k] == MECH_OUTPUT_FORCE) s->values[OUTPUT_VRS[k]] = out[k];
-    s->forces_pending = 0;
+    if (groups & FB_GROUP_RESIDUAL) {
+        dae_outputs_residual(s->p, s->d, s->t, s->q, s->qd, out);
+        store_outputs(s, out, MECH_OUTPUT_RESIDUAL);
+        s->outputs_pending &= ~FB_GROUP_RESIDUAL;
+    }
+    if ((groups & FB_GROUP_FORCE) && MECH_N_FORCE_OUTPUTS > 0) {
+        if (dae_outputs_force(s->p, s->d, s->t, s->q, s->qd, out, s->rhs_message)) {
+            fail(m, "at t = %.9g s %s", s->t, s->rhs_message);
+            return;
+        }
+        store_outputs(s, out, MECH_OUTPUT_FORCE);
+        s->outputs_pending &= ~FB_GROUP_FORCE;
+    }
 }
 
 /* -- life cycle ---------------------------------------------------------------------- */

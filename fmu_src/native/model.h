@@ -27,6 +27,7 @@ typedef enum {
 typedef struct {
     double t;
     double q[MECH_N], qd[MECH_N], qdd[MECH_N];
+    double tr[MECH_ALLOC(MECH_N_TRIG)];          /* cos and sin of q's angles (eq_trig) */
     int sign;
 } DaePoint;
 
@@ -34,7 +35,7 @@ typedef struct {
     ModelMode mode;
     double values[FB_N_VARIABLES];     /* Real variables by value reference: set values and outputs */
     int integrator;                    /* index of FB_INTEGRATOR_NAMES */
-    int forces_pending;                /* the outputs FB_READ_COMPUTED are not yet the current state's */
+    int outputs_pending;               /* the output groups (FB_GROUP_*) not yet computed for the current state */
     double start_time, stop_time;      /* stop_time = INFINITY when not defined */
     /* The DAE (valid from fmi2ExitInitializationMode on; dae.c). */
     double p[MECH_ALLOC(MECH_N_PARAMETERS)];    /* parameters in use, in equations.h's order */
@@ -44,7 +45,8 @@ typedef struct {
     double t;                                   /* model time, on the 1 ns grid */
     double q[MECH_N], qd[MECH_N];               /* consistent: Phi(q, t) = 0, Phi_q qd = nu */
     double work[MECH_ALLOC(MECH_N_DRIVERS)];    /* each driver's work since the start, J */
-    double minv[MECH_N];                        /* 1 / diagonal of M for p (MECH_MASS_IS_CONSTANT) */
+    int declared;                               /* the partition's dependent coordinates are the file's */
+    double mass[MECH_N], minv[MECH_N];          /* diagonal of M and its inverse for p (MECH_MASS_IS_CONSTANT) */
     DaePoint base;                              /* the predictor's base: the last accepted step's end */
     DaePoint before;                            /* the accepted step's start (t NaN after a (re)start) */
     DaePoint last;                              /* the last right-hand-side evaluation */
@@ -74,10 +76,10 @@ void model_log(ModelInstance *m, fmi2Status status, const char *category, const 
 void model_reset(ModelInstance *m);                       /* start values, mode instantiated */
 fmi2Status model_initialize(ModelInstance *m);            /* check, assemble, start (exit init mode) */
 fmi2Status model_do_step(ModelInstance *m, double current_time, double step);
-/* Outputs into values[] before fmi2GetReal reads them: in initialization mode those the start
-   values give; afterwards the ones that need the multipliers (forces), when forces_pending says
-   they are not yet the current state's (each fmi2DoStep publishes the others; a failure is
-   logged and leaves forces_pending set). */
-void model_preview_outputs(ModelInstance *m);
+/* Outputs into values[] before fmi2GetReal reads them: in initialization mode all those the start
+   values give; afterwards the groups (FB_GROUP_* bits) of `groups` that outputs_pending says are
+   not yet the current state's (each fmi2DoStep only marks them all pending: a host that reads one
+   output pays for its group only).  A failure (forces) is logged and leaves its group pending. */
+void model_preview_outputs(ModelInstance *m, int groups);
 
 #endif
