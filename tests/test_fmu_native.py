@@ -15,6 +15,9 @@ Checked here:
   rejection, commit 87f0b6f): the driven four-bar 600 s healthy at rtol = atol = 1e-6, the
   five-bar at 1e-3, a first step of 10 s forced by tests/native_host/long_step.c (trial
   points not reached at all, steps rejected), and Case 2 at Table 1's tolerances to 100 s.
+- assembly and toggles as dae.py does them (its 505697f, 12db4dc): a non-Grashof four-bar that
+  swings through its folds (the same path as the pythonfmu FMU over 30 s), and another geometry
+  started at theta2 = 180 deg assembled on the file's branch.
 The physics tests of test_fmu_physics.py run for the four-bar's FMU too.
 """
 from __future__ import annotations
@@ -506,6 +509,35 @@ def test_case2_at_table1_tolerances_runs_to_100_s(native_fmu, tight_pairs):
     assert np.abs(centres(native) - positions(python, CENTRES)).max() <= 5e-3
 
 
+# -- the generated factorisation of the dependent block -------------------------------------
+@pytest.mark.parametrize("mechanism", _shipped())
+def test_the_generated_block_factorisation_solves_as_a_dense_lu(mechanism, mechanism_fmus, native_fmu, tmp_path):
+    """tests/native_host/block_lu.c on the FMU's shipped sources: at 2000 random configurations the
+    generated factorisation of the declared partition's dependent block (constant pivots fixed at
+    build time, a dense LU of the Schur complement) solves block x = b and block^T y = c backward
+    stably, gives the dense LU's determinant sign, reads none of Phi_q's constant entries (NaN
+    there), and eq_jacobian_column gives Phi_q's columns."""
+    from fmu_src.native_build import find_compiler
+    compiler = find_compiler()
+    if compiler is None:
+        pytest.skip("no C compiler to link the block test")
+    fmu = native_fmu if mechanism == "fourbar" else mechanism_fmus.get(mechanism)
+    with zipfile.ZipFile(fmu) as z:
+        z.extractall(tmp_path)
+    exe = tmp_path / "block_lu"
+    subprocess.run([compiler, "-std=c99", "-O2", "-I", str(tmp_path / "sources"), "-o", str(exe),
+                    str(Path(__file__).resolve().parent / "native_host" / "block_lu.c"),
+                    str(tmp_path / "sources" / "equations.c"), "-lm"], check=True, capture_output=True)
+    out = subprocess.run([str(exe)], check=True, capture_output=True, text=True, timeout=60).stdout.split()
+    found = dict(zip(out[::2], out[1::2]))
+    # Backward errors of a stable solve are a few units of round-off (measured <= 2.9e-16 on the
+    # shipped mechanisms: the constant pivots are +-1, no growth); 1e-14 leaves room for larger
+    # blocks, and a wrong elimination gives O(1).
+    assert float(found["backward"]) <= 1e-14 and float(found["backward_t"]) <= 1e-14, found
+    assert int(found["sign_mismatches"]) == 0 and int(found["non_finite"]) == 0, found
+    assert float(found["columns"]) == 0.0, found        # the same expressions, copied
+
+
 def test_model_identifier_and_guid_follow_the_mechanism(mechanism_fmus, native_fmu):
     slider = read_model_description(str(mechanism_fmus.get("slider_crank")))
     fourbar = read_model_description(str(native_fmu))
@@ -788,3 +820,55 @@ def test_twenty_fresh_processes_exit_cleanly(native_fmu):
             out, err = p.communicate(timeout=120)
             codes.append((p.returncode, err.decode()[-300:]))
     assert [c for c, _ in codes] == [0] * 20, [c for c in codes if c[0] != 0]
+
+
+# -- assembly on the file's branch, and a fold swung through (dae.py's 505697f, 12db4dc) ----
+#: A non-Grashof four-bar released at theta2 = 0 with -2.67 rad/s (tests/test_generated_cases.py's
+#: first locking example): the crank swings up to a fold (coupler and rocker in line, theta2 =
+#: -/+2.167 rad) and back, one toggle every ~2 s over 30 s.  Its start also lies on the other
+#: assembly branch from the file's guesses (128.57 J on the file's branch, 65.61 J on the other).
+FOLD = dict(L1=5.0, L2=2.9542677347030337, L3=3.212619742126355, L4=3.880718360951523, m2=0.9977855372316253,
+            m3=0.5785926096515448, m4=1.4209160324445602, g=9.81, theta2_start=0.0,
+            omega2_start=-2.6663554144869206)
+
+
+def test_a_non_grashof_four_bar_swings_through_its_folds_as_the_reference_does(native_fmu, fourbar_fmu):
+    """Both FMUs at their default tolerances (rtol = atol = 1e-10) over 30 s.  The native FMU of
+    commit 70e1f1d (assembly from the guesses, partition reviewed at communication points only)
+    started on the other branch (65.61 J instead of 128.57 J; positions 6.6 m off over the run) and
+    lost 124 J at once at t = 16.23 s."""
+    names = CENTRES + ["theta2"]
+    native = simulate(native_fmu, stop=30.0, start_values=FOLD, output=names + ["energy", "constraint_residual"])
+    python = simulate(fourbar_fmu, stop=30.0, start_values=FOLD, output=names + ["energy"])
+    theta2 = np.asarray(native["theta2"])
+    assert np.ptp(theta2) < 2 * np.pi and np.count_nonzero(np.diff(np.sign(np.diff(theta2)))) >= 10   # it swings
+    # The same physics through the folds: the same method and tolerances, operations in another
+    # order, a re-partition at each fold (measured 1.7e-9 m, 3.6e-9 J)
+    assert np.abs(positions(native, names) - positions(python, names)).max() <= 1e-6
+    assert np.abs(native["energy"] - python["energy"]).max() <= 1e-5
+    # Energy conserved to the integrator's error (6.3e-6 J measured on both FMUs, of ~130 J)
+    assert np.abs(native["energy"] - native["energy"][0]).max() <= 1e-5
+    assert native["constraint_residual"].max() <= 1e-12          # every reported state assembled
+
+
+#: Issue 23's generated geometry (L1..L4) started at theta2 = 180 deg: Newton-Raphson from the
+#: four-bar file's guesses (drawn at theta2 = 30 deg for Table 1's lengths) does not close it.
+GENERATED_START = dict(L1=3.8885, L2=1.2729, L3=4.0, L4=3.0115, theta2_start=math.pi)
+
+
+def test_another_geometry_and_start_assemble_on_the_files_branch(native_fmu, fourbar_fmu):
+    from reference_theta2 import Linkage
+    names = ["theta2", "theta3", "theta4", "constraint_residual"]
+    native = simulate(native_fmu, stop=0.01, start_values=GENERATED_START, output=names)
+    python = simulate(fourbar_fmu, stop=0.01, start_values=GENERATED_START, output=names)
+    for name in ("theta3", "theta4"):
+        # the same branch, Newton-Raphson converged on both: equal to round-off (measured <= 4e-16)
+        assert abs(native[name][0] - python[name][0]) <= 1e-12, name
+    # the branch the file means: the closed-form loop closure's branch +1 (acos and a complex
+    # phase, a few ulps: measured 4.4e-16 rad)
+    lengths = {k: GENERATED_START[k] for k in ("L1", "L2", "L3", "L4")}
+    expected = Linkage(**lengths, branch=+1).angles(math.pi)
+    got = (native["theta3"][0], native["theta4"][0])
+    wrapped = [math.remainder(a - b, 2 * math.pi) for a, b in zip(got, expected)]
+    assert np.abs(wrapped).max() <= 1e-12, (got, expected)
+    assert native["constraint_residual"][0] <= 1e-12
