@@ -214,9 +214,11 @@ class MechanismDAE:
         qd = self.velocities([rates[i] for i in self.independent], t)
         self.t, self.q, self.qd = float(t), q, qd
 
-    def _follow(self, q0, p0, p1, end, t: float, sign: int) -> list | None:
+    def _follow(self, q0, p0, p1, end, t: float, sign: int, anchor_drivers: bool = True) -> list | None:
         """q at parameters p1 and independent coordinates ``end`` by following the branch from
         q0 (at p0) in 1, 8, 32 or 128 equal steps; None when every try leaves the branch or fails.
+        With ``anchor_drivers`` (assembly) the drivers sit at their start values at time t for
+        each step's parameters; without (a change mid-run) they stay where self.d has them.
         Leaves self.p = p1."""
         start = [q0[i] for i in self.independent]
         for n in FOLLOW_STEPS:
@@ -225,7 +227,8 @@ class MechanismDAE:
                 for k in range(1, n + 1):
                     s = k / n
                     self.p = tuple(a + s * (b - a) for a, b in zip(p0, p1))
-                    self.d = self.drive_at(t)
+                    if anchor_drivers:
+                        self.d = self.drive_at(t)
                     for i, a, b in zip(self.independent, start, end):
                         q[i] = a + s * (b - a)
                     q = self.positions(q, t)
@@ -568,8 +571,9 @@ class MechanismDAE:
                     raise AssemblyError("the other assembly branch")
             except AssemblyError:
                 # A large change: follow the branch from the old parameters to the new ones.
-                q = self._follow(self.q, old[0], new_p, [self.q[i] for i in self.independent], self.t, sign)
                 self.d = d
+                q = self._follow(self.q, old[0], new_p, [self.q[i] for i in self.independent], self.t, sign,
+                                 anchor_drivers=False)
                 if q is None:
                     self.positions(self.q, self.t)      # raises with Newton-Raphson's reason
                     raise AssemblyError("the loop cannot be closed on the way to the new parameters")
