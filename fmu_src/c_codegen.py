@@ -285,7 +285,8 @@ def _jacobian_column_code(sym: "_Symbols", eqs: MechanismEquations) -> tuple[str
             value = printer.doprint(e) if e.is_number else f"J[{i * n + k}]"
             lines.append(f"        out[{i}] = {value};")
         lines.append("        break;")
-    lines += ["    default:", "        break;", "    }", "}"]
+    lines += ["    default:                           /* not a coordinate */",
+              f"        for (int i = 0; i < {m}; i++) out[i] = 0.0;", "        break;", "    }", "}"]
     return "\n".join(lines) + "\n", "void eq_jacobian_column(const double *J, int k, double *out);"
 
 

