@@ -270,7 +270,7 @@ def mechanisms_against_floor(names: list[str], fourbar_native: Path, repeat: int
                          f"| {1e3 * ms / evals:.2f} |")
     floors = "native, floor and VanDerPol" if vanderpol else "native and floor"
     lines += ["", f"simulate_fmu for {stop:g} s on the 0.01 s grid recording one output (the first: x2 for "
-                  "the shipped mechanisms; x0 for VanDerPol); "
+                  f"the shipped mechanisms{'; x0 for VanDerPol' if vanderpol else ''}); "
                   f"median of {repeat} rounds, {floors} alternating, each ratio the median of the "
                   "per-round ratios.  The floor FMU has the mechanism's FMI layer and variables and a "
                   "doStep that copies a number"
