@@ -479,17 +479,9 @@ class MechanismDAE:
         step, not only at communication points: a crank can go from a pivot ratio of 0.15 to
         its dead point within one 0.01 s step, and an integrator that reaches a dead point in
         the old coordinates stops there (its rate goes to zero while the mechanism moves on)."""
-        lu, piv, info = lapack.dgetrf(self._Jp[:, :self.m])
-        if info == 0 and _pivot_ratio(lu) >= REPARTITION_REVIEW:
-            return False
         t, q, qd, _, _ = self._base
-        J = self.eq.jacobian(q, self.p)
-        independent = choose_partition(J, len(self.independent))
-        if independent == self.independent:
-            return False
-        now = np.linalg.cond(J[:, list(self.dependent)])
-        new = np.linalg.cond(J[:, [i for i in range(self.n) if i not in independent]])
-        if not new * REPARTITION_GAIN < now:
+        independent = self._better_partition(q)
+        if independent is None:
             return False
         k = len(self.independent)
         self.t, self.q, self.qd, self.work = t, list(q), list(qd), solver.y.tolist()[2 * k:]
@@ -497,6 +489,21 @@ class MechanismDAE:
         self.repartitions += 1
         self.start(first_step=getattr(solver, "h_abs", None) or None)
         return True
+
+    def _better_partition(self, q) -> tuple[int, ...] | None:
+        """The QR's independent coordinates at q when the dependent block (_Jp, at q) has
+        degraded below REPARTITION_REVIEW and they are REPARTITION_GAIN times better
+        conditioned; None to keep the current ones."""
+        lu, piv, info = lapack.dgetrf(self._Jp[:, :self.m])
+        if info == 0 and _pivot_ratio(lu) >= REPARTITION_REVIEW:
+            return None
+        J = self.eq.jacobian(q, self.p)
+        independent = choose_partition(J, len(self.independent))
+        if independent == self.independent:
+            return None
+        now = np.linalg.cond(J[:, list(self.dependent)])
+        new = np.linalg.cond(J[:, [i for i in range(self.n) if i not in independent]])
+        return independent if new * REPARTITION_GAIN < now else None
 
     def _repartition(self) -> bool:
         """Restart at the last reported state with the QR's independent coordinates, when they
@@ -516,16 +523,8 @@ class MechanismDAE:
         (_Jp holds Phi_q at the current state)."""
         if not self.independent:
             return
-        lu, piv, info = lapack.dgetrf(self._Jp[:, :self.m])
-        if info == 0 and _pivot_ratio(lu) >= REPARTITION_REVIEW:
-            return
-        J = self.eq.jacobian(self.q, self.p)
-        independent = choose_partition(J, len(self.independent))
-        if independent == self.independent:
-            return
-        now = np.linalg.cond(J[:, list(self.dependent)])
-        new = np.linalg.cond(J[:, [i for i in range(self.n) if i not in independent]])
-        if not new * REPARTITION_GAIN < now:
+        independent = self._better_partition(self.q)
+        if independent is None:
             return
         self._set_partition(independent)
         self._kinematics(self.q, self.t)
