@@ -10,7 +10,8 @@ pythonfmu writes no units and no ``<InitialUnknowns>`` (its issues #131/#193), s
 ``fmpy validate`` rejects its FMUs as they come.  ``build_fmu`` rewrites the model
 description with unit definitions, units on every Real variable and the initial
 unknowns FMI 2.0 requires (every output, whose ``initial`` defaults to calculated),
-then validates the result with FMPy.
+adds the drawing annotation (``<VendorAnnotations>``, ``mechanism.drawing``), then
+validates the result with FMPy.
 
 The GUID is a hash of the FMU's content (every file, the model description with its GUID
 and generation time left out), as the native FMU's is a hash of its sources: rebuilding
@@ -34,6 +35,7 @@ from xml.etree import ElementTree as ET
 
 from .mechanism.check import CheckedMechanism, prepare_mechanism
 from .mechanism.description import Mechanism
+from .mechanism.drawing import MechanismDrawing, drawing_of, insert_vendor_annotations
 from .mechanism.table import variable_table
 from .mechanism_model.variables import UNITS
 
@@ -64,8 +66,9 @@ def unit_definitions() -> ET.Element:
     return units
 
 
-def _complete_model_description(xml: bytes, table) -> bytes:
-    """Add units, ranges and <InitialUnknowns> to pythonfmu's model description.
+def _complete_model_description(xml: bytes, table, drawing: MechanismDrawing) -> bytes:
+    """Add units, ranges, <InitialUnknowns> and the drawing annotation (``mechanism.drawing``)
+    to pythonfmu's model description.
 
     Also checks that pythonfmu numbered the variables as the mechanism's table does
     (``mechanism.table``): the native FMU relies on the same value references.
@@ -74,6 +77,7 @@ def _complete_model_description(xml: bytes, table) -> bytes:
     # Unit definitions go right after the <CoSimulation> element (schema order).
     position = list(root).index(root.find("CoSimulation")) + 1
     root.insert(position, unit_definitions())
+    insert_vendor_annotations(root, drawing)
 
     variables = root.find("ModelVariables")
     outputs = []
@@ -214,7 +218,8 @@ def build_fmu(dest: str | Path | None = None, validate: bool = True,
         with zipfile.ZipFile(raw) as zin:
             items = zin.infolist()
             files = {item.filename: zin.read(item.filename) for item in items}
-        files["modelDescription.xml"] = _complete_model_description(files["modelDescription.xml"], table)
+        files["modelDescription.xml"] = _complete_model_description(files["modelDescription.xml"], table,
+                                                                     drawing_of(checked.mechanism))
         guid = content_guid(files)
         files["modelDescription.xml"] = _with_guid(files["modelDescription.xml"], guid)
         tmp_dest = dest.with_name(f".{dest.name}.tmp")

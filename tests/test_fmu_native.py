@@ -229,9 +229,11 @@ def test_keeps_todays_variables(native_fmu, today_fmu):
         return [(v.name, v.valueReference, v.type, v.causality, v.variability, v.start, v.unit, v.displayUnit,
                  v.min) for v in md.modelVariables]
     now, today = table(native_fmu), table(today_fmu)
-    # today's 27 variables exactly; the joint reactions the mechanism file adds come after them
+    # today's 27 variables exactly; the joint reactions the mechanism file adds come after them,
+    # then the joints' positions (tests/test_fmu_drawing.py)
     assert now[:len(today)] == today
-    assert [v[0] for v in now[len(today):]] == ["O2_Fx", "O2_Fy", "A_Fx", "A_Fy", "B_Fx", "B_Fy", "O4_Fx", "O4_Fy"]
+    assert [v[0] for v in now[len(today):]] == ["O2_Fx", "O2_Fy", "A_Fx", "A_Fy", "B_Fx", "B_Fy", "O4_Fx", "O4_Fy",
+                                                "O2_x", "O2_y", "A_x", "A_y", "B_x", "B_y", "O4_x", "O4_y"]
 
 
 @pytest.fixture(scope="module")

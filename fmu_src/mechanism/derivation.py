@@ -29,6 +29,12 @@ driver's ``<driver>_torque`` (revolute) or ``<driver>_force`` (prismatic) is wha
 applies to the second body, ``<driver>_work`` the work it has done since the start (J), so that
 ``energy - sum(work)`` is conserved.
 
+After the outputs the file selects come, always, the joints' positions a view draws the
+mechanism from (``drawing``): ``<joint>_x, <joint>_y`` (m), the joint's second point in the
+ground frame, and for a prismatic joint its guide line ``<joint>_gx, <joint>_gy`` (m, its
+first point) and ``<joint>_gangle`` (rad).  They are expressions of ``q`` and ``p`` like the
+centres' coordinates, so each FMU computes them with its other state outputs.
+
 Nothing here knows a particular mechanism: the four-bar is ``fmu_src/mechanisms/fourbar.toml``.
 """
 from __future__ import annotations
@@ -37,7 +43,8 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .description import RATE_PREFIX, Joint, Mechanism, PointRef
+from .description import RATE_PREFIX, Joint, Mechanism, MechanismError, PointRef
+from .drawing import joint_columns
 
 __all__ = ["MechanismEquations", "OutputSpec", "derive", "RUNTIME_OUTPUTS"]
 
@@ -272,12 +279,59 @@ def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy):
             f"joint {joint.name} [{unit}]", -lam[row])
         offered[f"{driver.name}_work"] = OutputSpec(
             f"{driver.name}_work", "J", f"Work done by driver {driver.name} since the start [J]", work=k)
-    available = tuple(offered)
-    chosen = mech.outputs or tuple(n for n in available if not n.startswith(("vx", "vy")))
+    drawn = _joint_position_outputs(mech, frames, offered)
+    available = tuple(offered) + tuple(drawn)
+    chosen = mech.outputs or tuple(n for n in offered if not n.startswith(("vx", "vy")))
+    listed = [n for n in chosen if n in drawn]
+    if listed:
+        raise MechanismError(f"{mech.source}: [outputs]: {', '.join(map(repr, listed))}: the joints' positions "
+                             f"are always outputs, after those [outputs] lists; remove "
+                             f"{'it' if len(listed) == 1 else 'them'} from the list")
     unknown = [n for n in chosen if n not in offered]
     if unknown:
-        from .description import MechanismError
         raise MechanismError(f"{mech.source}: [outputs]: {', '.join(map(repr, unknown))} "
                              f"{'is' if len(unknown) == 1 else 'are'} not an output of this mechanism "
                              f"(available: {', '.join(available)})")
-    return tuple(offered[n] for n in chosen), available
+    return tuple(offered[n] for n in chosen) + tuple(drawn.values()), available
+
+
+def _point_words(ref: PointRef) -> str:
+    return f"{ref.body} {ref.point}"
+
+
+def _joint_position_outputs(mech: Mechanism, frames: _Frames, offered: dict[str, OutputSpec]) -> dict[str, OutputSpec]:
+    """Per joint, in file order, where it is (``J_x J_y``, its second point) and, for a prismatic
+    joint, its guide line (``J_gx J_gy``, its first point; ``J_gangle``, the line's direction:
+    the joint's angle plus the first body's).  What a view draws the mechanism from
+    (``drawing``).  A name that is already a variable's is a MechanismError naming the joint."""
+    taken = {p.name: "a parameter" for p in mech.parameters}
+    taken |= {s.parameter: "a start-value parameter" for s in mech.start}
+    taken |= {name: "a parameter of the integrator" for name in ("rtol", "atol", "integrator")}
+    taken |= {name: "an output" for name in offered}
+    out: dict[str, OutputSpec] = {}
+    for k, joint in enumerate(mech.joints):
+        names = joint_columns(joint.name, joint.type)
+        clash = [(n, taken[n]) for n in names if n in taken]
+        if clash:
+            n, what = clash[0]
+            raise MechanismError(f"{mech.source}: joints[{k}] '{joint.name}': its position output {n!r} would "
+                                 f"have the name of {what} of the mechanism; rename the joint (or the {n!r})")
+        where = f"{_point_words(joint.first)} / {_point_words(joint.second)}"
+        position = frames.point(joint.second)
+        specs = [("x", position[0]), ("y", position[1])]
+        if joint.type == "prismatic":
+            guide = frames.point(joint.first)
+            angle = frames.angle(joint.first.body) + (sp.Float(joint.angle) if joint.angle else 0)
+            specs += [("gx", guide[0]), ("gy", guide[1]), ("gangle", angle)]
+        for name, (suffix, expr) in zip(names, specs):
+            if suffix in ("x", "y"):
+                text = f"{suffix} of joint {joint.name} ({where}) [m]"
+            elif suffix == "gangle":
+                turns = "" if joint.first.body == "ground" or not frames.bodies[joint.first.body].rotates \
+                    else f", turning with the {joint.first.body}"
+                text = f"Direction of joint {joint.name}'s guide line from +x{turns} [rad]"
+            else:
+                text = f"{suffix[1]} of joint {joint.name}'s guide point ({_point_words(joint.first)}) [m]"
+            unit, display = ("rad", "deg") if suffix == "gangle" else ("m", None)
+            out[name] = OutputSpec(name, unit, text, sp.sympify(expr), display_unit=display)
+    return out
