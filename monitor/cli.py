@@ -46,7 +46,7 @@ detector 'mae' (the paper's rule):
 
 outputs (in --out; default <exchange dir>/monitor beside fourbar-run's run.json, else
 <exchange dir>/<exchange name>.monitor; nothing is written when the input is rejected):
-  events.jsonl  evaluations.csv  summary.json  history.png  statistic.png  spectrum.png
+  events.jsonl  evaluations.csv  forecast.csv  summary.json  history.png  statistic.png  spectrum.png
 
 examples:
   fourbar-monitor out/case2_fault_L2/exchange.csv
@@ -59,8 +59,8 @@ refused unless left at their defaults; --every shorter than the file's sample st
 once the step is known (after the training window), before anything is written.
 
 Ctrl-C or SIGTERM: --follow ends as if the run had ended (summary.json, plots and the verdict
-are written); a replay stops at once, keeps the events and evaluations written so far (no
-summary.json) and says so in one line.
+are written); a replay stops at once, keeps the events, evaluations and forecasts written so far
+(no summary.json) and says so in one line.
 
 exit status: 0 no alarm, 1 alarm or failed run, 2 usage/input error (nothing written), 3 the
 run was cut off (its writer died: run.json still says running), 130 interrupted (Ctrl-C),

@@ -81,9 +81,9 @@ class CusumDetector(Detector):
     def update(self, t: np.ndarray, X: np.ndarray) -> np.ndarray:
         assert self.engine is not None
         start = time.perf_counter()
-        f = self.engine.feed(t, X)
+        f = self.engine.feed(t, X)          # every signal's phase-locked, shape-corrected forecast
         self.host.timing["evaluate"] += time.perf_counter() - start
-        return f[:, 0]
+        return f
 
     def _estimate(self, name: str, t: np.ndarray, x: np.ndarray) -> PeriodEstimate:
         try:

@@ -6,7 +6,7 @@ A detector turns the samples after the training window into evaluations and even
     det = cls(options, host)          # cls = options.detector_class (monitor.detectors)
     det.state                         # State.TRAINING until det.train(...) succeeded
     det.train(t, X, end, step)        # the training window's samples; fits, host.add_fit(...)
-    f = det.update(t, X)              # newer samples; returns the first signal's forecast
+    F = det.update(t, X)              # newer samples; returns the forecasts they were judged by
     det.alarms, det.refits, det.buffered_samples
 
 Everything the detector produces goes to its :class:`DetectorHost`: events (``emit``),
@@ -181,8 +181,10 @@ class Detector(ABC):
     def update(self, t: np.ndarray, X: np.ndarray) -> np.ndarray:
         """Process samples after the training window (any batch sizes, increasing times).
 
-        Returns the forecast of the first signal at ``t`` (for the history).  The result
-        must depend only on the samples, never on how they were batched.
+        Returns the forecast each sample was compared with, one column per signal (shape
+        ``(len(t), signals)``; a 1-D array is the first signal's, the others then have none):
+        the history and ``forecast.csv`` show it.  The result must depend only on the samples,
+        never on how they were batched.
         """
 
     @property

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -137,6 +138,7 @@ class MaeDetector(Detector):
         self._fit: Fit | None = None
         self._next_k = 0
         self._origin = 0.0
+        self._judged: np.ndarray | None = None      # the forecasts update() returns (see _refit)
 
     # the rule holds the state machine
     @property
@@ -178,9 +180,14 @@ class MaeDetector(Detector):
         self._t = np.concatenate([self._t, t])
         self._x = np.concatenate([self._x, X[:, 0]])
         self._f = np.concatenate([self._f, f])
-        self._evaluate_due()
+        self._judged = f.copy()
+        try:
+            self._evaluate_due()
+            judged = self._judged
+        finally:
+            self._judged = None
         self._trim()
-        return f
+        return judged
 
     def _estimate(self, t: np.ndarray, x: np.ndarray) -> PeriodEstimate:
         try:
@@ -237,6 +244,10 @@ class MaeDetector(Detector):
                 if not math.isfinite(m):          # window emptied by skipped rows: no evaluation
                     continue
                 events, refit = self.rule.update(tk, m, th)
+                if refit:           # the refit event names the window the new model is fitted on
+                    sel = self._refit_window(tk)
+                    window = {"train_start": float(self._t[sel[0]]), "train_end": float(tk)}
+                    events = [replace(e, data={**e.data, **window}) if e.kind == "refit" else e for e in events]
                 self.host.record(tk, m, th, self.rule.state)
                 if events:
                     self.host.emit(events)
@@ -247,15 +258,26 @@ class MaeDetector(Detector):
                 return
             self._refit(refit_at)
 
+    def _refit_window(self, at: float) -> np.ndarray:
+        """Indices of the samples a refit at ``at`` is fitted on: the latest ``refit_samples``."""
+        return np.flatnonzero(self._t <= at + self._eps)[-self.options.refit_samples:]
+
     def _refit(self, at: float) -> None:
-        o = self.options
-        sel = np.flatnonzero(self._t <= at + self._eps)[-o.refit_samples:]
+        sel = self._refit_window(at)
         tt, xx = self._t[sel], self._x[sel]
         self._install_fit(tt, xx, end=at)
         later = self._t > at + self._eps
         self._f[:] = np.nan
         if later.any():
             self._f[later] = self._fit.forecaster.predict(self._t[later])
+            # samples of the batch being processed that are newer than the refit are judged by
+            # the new model: that is the forecast update() reports for them (so the history and
+            # forecast.csv do not depend on how the samples were batched)
+            if self._judged is not None:
+                first = self._t.size - self._judged.size
+                idx = np.flatnonzero(later)
+                idx = idx[idx >= first]
+                self._judged[idx - first] = self._f[idx]
 
     def _trim(self) -> None:
         o = self.options

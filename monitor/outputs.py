@@ -4,10 +4,21 @@
     One JSON object per line, written as it happens: ``time`` (simulated s), ``event``
     (``trained`` | ``stable`` | ``refit`` | ``alarm`` | ``clear``), ``state``, ``statistic``
     (the MAE or the CUSUM statistic), ``threshold``, ``message`` (the paper's sentence for an alarm), and for ``trained`` the
-    period, model and threshold settings; ``wall`` is the wall-clock time (ISO 8601).
+    period, model and threshold settings and ``train_start``, ``train_end`` (s, the window
+    the model was fitted on; a ``refit`` event names its window too); ``wall`` is the
+    wall-clock time (ISO 8601).
 ``evaluations.csv``
     ``time,statistic,threshold,state``: every evaluation, written as it happens (cusum:
     the largest CUSUM statistic of the interval; mae: the window's MAE).
+``forecast.csv``
+    ``time,signal,value,forecast``, long format: one row per monitored column per judged
+    sample (the training window's samples, then every later one), ``value`` the sample as
+    read, ``forecast`` what the detector compared it with when it judged it (cusum: the
+    phase-locked forecast with its shape correction; mae: the model's forecast), empty for
+    the training samples.  The training rows come when the training ends, later rows as
+    each batch of samples is judged; the file is flushed after every batch, so it is at most
+    one read behind ``evaluations.csv``.  Floats are written with ``repr`` (shortest text
+    that reads back to the same double).
 ``summary.json``
     Written at the end (atomically): periods (FFT and refined), model settings, fit time,
     validation MAE, threshold rule, first alarm, fault time from run.json, detection latency,
@@ -17,8 +28,8 @@
     run and a zoom on the alarm), MAE against the threshold with the alarm marked, and the
     spectrum of the training window with the FFT and refined periods.
 
-When the exchange file is replaced while following, ``events.jsonl`` and
-``evaluations.csv`` start again with the new file.  A new session in a folder removes the
+When the exchange file is replaced while following, ``events.jsonl``,
+``evaluations.csv`` and ``forecast.csv`` start again with the new file.  A new session in a folder removes the
 ``summary.json`` and plots an earlier one left there as it starts writing, so a session
 stopped by a signal before its summary leaves only its own (partial) events and evaluations.
 """
@@ -41,12 +52,14 @@ from .errors import OutputDirError
 if TYPE_CHECKING:  # pragma: no cover
     from .summary import MonitorResult
 
-__all__ = ["OUTPUT_FILES", "OutputWriters", "PLOT_FILES", "checked_default_out_dir", "checked_out_dir",
+__all__ = ["FORECAST_HEADER", "OUTPUT_FILES", "OutputWriters", "PLOT_FILES", "checked_default_out_dir", "checked_out_dir",
            "default_out_dir", "jsonable", "write_plots"]
 
 PLOT_FILES = ("history.png", "statistic.png", "spectrum.png")
 #: Every file the monitor writes into its output folder.
-OUTPUT_FILES = ("events.jsonl", "evaluations.csv", "summary.json", *PLOT_FILES)
+OUTPUT_FILES = ("events.jsonl", "evaluations.csv", "forecast.csv", "summary.json", *PLOT_FILES)
+#: The header of forecast.csv.
+FORECAST_HEADER = "time,signal,value,forecast\n"
 
 
 def default_out_dir(exchange_path: str | os.PathLike[str]) -> Path:
@@ -80,7 +93,7 @@ def checked_out_dir(out_dir: str | os.PathLike[str]) -> Path:
     file, cannot be created where it is, or cannot be written.  Nothing is created here: the
     folder is made once the input has been accepted."""
     out = Path(out_dir)
-    problem = output_folder_problem(out, f"{', '.join(OUTPUT_FILES[:3])} and the plots")
+    problem = output_folder_problem(out, f"{', '.join(OUTPUT_FILES[:4])} and the plots")
     if problem is not None:
         raise OutputDirError(f"--out {out}: {problem}")
     return out
@@ -109,23 +122,35 @@ def jsonable(value: Any) -> Any:
 
 
 class OutputWriters:
-    """The files of one monitor session; events and evaluations are streamed."""
+    """The files of one monitor session; events, evaluations and forecasts are streamed.
 
-    def __init__(self, out_dir: Path):
+    ``signals`` are the monitored columns, in the order of the forecast rows' columns.
+    """
+
+    def __init__(self, out_dir: Path, signals: tuple[str, ...]):
         self.out_dir = Path(out_dir)
+        self.signals = tuple(signals)
         self.out_dir.mkdir(parents=True, exist_ok=True)
         # The summary and plots of an earlier session here describe other data: removed, so a
         # session that is stopped before its own summary does not leave them beside its events.
         for name in ("summary.json", *PLOT_FILES):
             (self.out_dir / name).unlink(missing_ok=True)
-        self._events = open(self.out_dir / "events.jsonl", "w", encoding="utf-8")
+        opened = []
         try:
-            self._evals = open(self.out_dir / "evaluations.csv", "w", encoding="utf-8")
+            for name in ("events.jsonl", "evaluations.csv", "forecast.csv"):
+                opened.append(open(self.out_dir / name, "w", encoding="utf-8"))
         except BaseException:
-            self._events.close()
+            for fh in opened:
+                fh.close()
             raise
+        self._events, self._evals, self._forecast = opened
+        self._headers()
+
+    def _headers(self) -> None:
         self._evals.write("time,statistic,threshold,state\n")
-        self._evals.flush()
+        self._forecast.write(FORECAST_HEADER)
+        for fh in (self._events, self._evals, self._forecast):
+            fh.flush()
 
     def event(self, e: Event) -> None:
         d = e.as_dict()
@@ -137,27 +162,42 @@ class OutputWriters:
         self._evals.write(f"{t!r},{statistic!r},{threshold!r},{state.value}\n")
         self._evals.flush()
 
+    def forecast(self, t: np.ndarray, x: np.ndarray, f: np.ndarray) -> None:
+        """Rows of judged samples: times ``t``, values ``x`` and forecasts ``f`` (one column per signal)."""
+        names = self.signals
+        if x.shape[1] != len(names) or f.shape != x.shape:
+            raise ValueError(f"forecast rows: {x.shape[1]} value and {f.shape} forecast columns for "
+                             f"{len(names)} signals")
+        # repr of a Python float is the shortest text that reads back to the same double
+        tt = [repr(v) for v in np.asarray(t, dtype=float).tolist()]
+        lines = []
+        for j, name in enumerate(names):
+            xs = [repr(v) for v in x[:, j].tolist()]
+            fs = ["" if v != v else repr(v) for v in f[:, j].tolist()]     # NaN (v != v): no forecast
+            lines.append([f"{a},{name},{b},{c}\n" for a, b, c in zip(tt, xs, fs)])
+        # sample by sample, each sample's signals together
+        self._forecast.write("".join(lines[0]) if len(lines) == 1 else "".join(map("".join, zip(*lines))))
+        self._forecast.flush()
+
     def restart(self) -> None:
-        for fh in (self._events, self._evals):
+        for fh in (self._events, self._evals, self._forecast):
             fh.seek(0)
             fh.truncate()
-        self._evals.write("time,statistic,threshold,state\n")
-        self._evals.flush()
-        self._events.flush()
+        self._headers()
 
     def finish(self, result: "MonitorResult", plots: bool = True) -> None:
-        self._events.flush()
-        self._evals.flush()
+        for fh in (self._events, self._evals, self._forecast):
+            fh.flush()
         summary = result.summary.as_json()
-        summary["outputs"] = {"events": "events.jsonl", "evaluations": "evaluations.csv",
+        summary["outputs"] = {"events": "events.jsonl", "evaluations": "evaluations.csv", "forecast": "forecast.csv",
                               "plots": list(PLOT_FILES) if plots and result.fits else []}
         write_json_atomic(self.out_dir / "summary.json", jsonable(summary))
         if plots and result.fits:
             write_plots(result, self.out_dir)
 
     def close(self) -> None:
-        self._events.close()
-        self._evals.close()
+        for fh in (self._events, self._evals, self._forecast):
+            fh.close()
 
 
 def write_plots(result: "MonitorResult", out_dir: str | os.PathLike[str]) -> list[Path]:

@@ -71,13 +71,19 @@ class _Session:
             if on_evaluation is not None:
                 on_evaluation(t, m, th, s)
 
-        self.monitor = Monitor(self.options, source=str(path), on_event=event_cb, on_evaluation=eval_cb)
+        def samples_cb(t: np.ndarray, x: np.ndarray, f: np.ndarray) -> None:
+            writers = self._outputs()
+            if writers is not None:
+                writers.forecast(t, x, f)
+
+        self.monitor = Monitor(self.options, source=str(path), on_event=event_cb, on_evaluation=eval_cb,
+                               on_samples=samples_cb)
         self.reader = ExchangeReader(path, list(self.options.signals))
 
     def _outputs(self) -> OutputWriters | None:
         """The output files, created at the first thing worth writing."""
         if self._writers is None and self.out_dir is not None:
-            self._writers = OutputWriters(self.out_dir)
+            self._writers = OutputWriters(self.out_dir, self.options.signals)
         return self._writers
 
     def warn(self, message: str) -> None:

@@ -40,17 +40,23 @@ class Monitor:
     """Incremental monitor of one or several signals (see the module docstring).
 
     ``on_event(event)`` and ``on_evaluation(time, statistic, threshold, state)`` are called
-    as things happen (the CLI prints and logs from them); ``source`` names the data in
-    error messages.
+    as things happen (the CLI prints and logs from them).  ``on_samples(t, X, F)`` receives
+    every judged sample once, in time order: ``X`` the values as fed (one column per
+    signal), ``F`` the forecast the detector compared each with when it judged it (NaN for
+    the training window's samples, which come when the training ends, and for a signal a
+    detector gives no forecast of); the history is made of the same rows.  ``source`` names
+    the data in error messages.
     """
 
     def __init__(self, options: MonitorOptions, *, source: str = "<data>",
                  on_event: Callable[[Event], None] | None = None,
-                 on_evaluation: Callable[[float, float, float, State], None] | None = None):
+                 on_evaluation: Callable[[float, float, float, State], None] | None = None,
+                 on_samples: Callable[[np.ndarray, np.ndarray, np.ndarray], None] | None = None):
         self.options = options.validated()
         self.source = source
         self.on_event = on_event
         self.on_evaluation = on_evaluation
+        self.on_samples = on_samples
         self.fits: list[Fit] = []
         self.events: list[Event] = []
         self.history = BoundedSeries(("time", "value", "forecast"), self.options.history_points)
@@ -139,8 +145,17 @@ class Monitor:
 
     def _process(self, t: np.ndarray, x: np.ndarray) -> None:
         """Samples after the training window, with a fitted model."""
-        f = self.detector.update(t, x)
-        self.history.extend(np.column_stack([t, x[:, 0], f]))
+        f = np.asarray(self.detector.update(t, x), dtype=float)
+        if f.ndim == 1:             # the first signal's only (the interface allows it)
+            first, f = f, np.full(x.shape, np.nan)
+            f[:, 0] = first
+        self._judged(t, x, f.reshape(x.shape))
+
+    def _judged(self, t: np.ndarray, x: np.ndarray, f: np.ndarray) -> None:
+        """Samples judged (``f``: their forecasts, NaN in training): into the history and to ``on_samples``."""
+        self.history.extend(np.column_stack([t, x[:, 0], f[:, 0]]))
+        if self.on_samples is not None:
+            self.on_samples(t, x, f)
 
     def _train_initial(self) -> None:
         o = self.options
@@ -151,14 +166,14 @@ class Monitor:
         self._dt = float(np.median(np.diff(self._t[sel])))
         check_every(o.every, self._dt, self.source)    # before anything is written
         tt, xx = self._t[sel], self._x[sel]
-        # samples before the window end are training data; they go to the history as such
-        self.history.extend(np.column_stack([tt, xx[:, 0], np.full(tt.size, np.nan)]))
         rest = self._t > o.train[1] + 1e-6 * self._dt
         t_rest, x_rest = self._t[rest], self._x[rest]
         self._t, self._x = np.empty(0), np.empty((0, self._x.shape[1]))
         self.detector.train(tt, xx, float(o.train[1]), self._dt)
         if self._fit is None:
             raise RuntimeError(f"detector {o.detector}: train() reported no fit (it must call host.add_fit)")
+        # samples up to the window's end are training data: judged without a forecast
+        self._judged(tt, xx, np.full(xx.shape, np.nan))
         if t_rest.size:
             self._process(t_rest, x_rest)
 
