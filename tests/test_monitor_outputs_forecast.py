@@ -218,15 +218,16 @@ def _rows(path: Path) -> int:
 @pytest.mark.slow
 @pytest.mark.timeout(600)
 def test_forecast_csv_grows_while_a_live_run_is_followed(tmp_path, native_fmu):
-    """fourbar-monitor --follow on Case 2 run at 5x real time (20 s of data in 4 s, a block
-    of 1 s of data every 0.2 s): forecast.csv appears when the training ends (9 s of data)
-    and grows block by block; in the end it is what a replay of the finished file writes."""
+    """fourbar-monitor --follow (x2 and y2) on Case 2 run at 5x real time (20 s of data in 4 s,
+    a block of 1 s of data every 0.2 s): forecast.csv appears when the training ends (9 s of
+    data) and grows block by block; in the end it is what a replay of the finished file writes."""
     case = case_file("case2_fault_L2", native_fmu, tmp_path / "case2.toml")
     run_dir = tmp_path / "live"
     mon_dir = tmp_path / "followed"
     err = open(tmp_path / "monitor.err", "w")
     monitor = subprocess.Popen([FOURBAR_MONITOR, str(run_dir / "exchange.csv"), "--follow", "--poll", "0.05",
-                                "--timeout", "120", "--out", str(mon_dir), "--no-plots", "--model", "harmonic"],
+                                "--timeout", "120", "--out", str(mon_dir), "--no-plots", "--model", "harmonic",
+                                "--signal", "x2,y2"],
                                stdout=subprocess.PIPE, stderr=err, text=True)
     printed: list[str] = []
     waiting = threading.Event()
@@ -258,6 +259,6 @@ def test_forecast_csv_grows_while_a_live_run_is_followed(tmp_path, native_fmu):
     # rows came in several steps while the run was still writing (20 blocks; a busy machine may merge some)
     assert len(growing) >= 3, counts
     assert counts == sorted(counts)                                # never shrinks
-    replay(run_dir / "exchange.csv", out_dir=tmp_path / "replayed", plots=False, model="harmonic")
+    replay(run_dir / "exchange.csv", out_dir=tmp_path / "replayed", plots=False, model="harmonic", signal="x2,y2")
     assert (mon_dir / "forecast.csv").read_bytes() == (tmp_path / "replayed" / "forecast.csv").read_bytes()
-    assert _rows(mon_dir / "forecast.csv") == int(STOP / 0.01) + 1
+    assert _rows(mon_dir / "forecast.csv") == 2 * (int(STOP / 0.01) + 1)
