@@ -52,8 +52,8 @@ from .errors import OutputDirError
 if TYPE_CHECKING:  # pragma: no cover
     from .summary import MonitorResult
 
-__all__ = ["FORECAST_HEADER", "OUTPUT_FILES", "OutputWriters", "PLOT_FILES", "checked_default_out_dir", "checked_out_dir",
-           "default_out_dir", "jsonable", "write_plots"]
+__all__ = ["FORECAST_HEADER", "OUTPUT_FILES", "OutputWriters", "PLOT_FILES", "checked_default_out_dir",
+           "checked_out_dir", "default_out_dir", "jsonable", "write_plots"]
 
 PLOT_FILES = ("history.png", "statistic.png", "spectrum.png")
 #: Every file the monitor writes into its output folder.
