@@ -181,3 +181,17 @@ def test_default_window_and_frame_times():
     assert len(t) == 301
     np.testing.assert_allclose(t[-1], 20.0, rtol=0, atol=1e-12)       # an integer count, no drift
     assert len(frame_times(5.0, 15.0, 3, 1)) == 31                    # 10 s at 3 fps: 30 steps of 1/3 s
+
+
+def test_an_interrupted_animation_leaves_no_partial_file_and_keeps_the_old_one(case2_run, tmp_path):
+    out = tmp_path / "a.gif"
+    out.write_bytes(b"the previous animation")
+
+    def stop_at_third(done, total):
+        if done == 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        animate(case2_run, out, fps=2, speed=5, progress=stop_at_third)
+    assert out.read_bytes() == b"the previous animation"
+    assert [p.name for p in tmp_path.iterdir()] == ["a.gif"]
