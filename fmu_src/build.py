@@ -35,7 +35,9 @@ from xml.etree import ElementTree as ET
 
 from .mechanism.check import CheckedMechanism, prepare_mechanism
 from .mechanism.description import Mechanism
-from .mechanism.drawing import MechanismDrawing, drawing_of, insert_vendor_annotations
+from fourbar_common.drawing import Drawing
+
+from .mechanism.drawing import drawing_of, insert_vendor_annotations
 from .mechanism.table import variable_table
 from .mechanism_model.variables import UNITS
 
@@ -66,7 +68,7 @@ def unit_definitions() -> ET.Element:
     return units
 
 
-def _complete_model_description(xml: bytes, table, drawing: MechanismDrawing) -> bytes:
+def _complete_model_description(xml: bytes, table, drawing: Drawing) -> bytes:
     """Add units, ranges, <InitialUnknowns> and the drawing annotation (``mechanism.drawing``)
     to pythonfmu's model description.
 

@@ -37,7 +37,7 @@ from .c_codegen import GENERATED_FILES, generate_c_sources
 from .mechanism.check import prepare_mechanism
 from .mechanism.derivation import MechanismEquations
 from .mechanism.description import Mechanism
-from .mechanism.drawing import drawing_of, vendor_annotations
+from .mechanism.drawing import drawing_of
 from .mechanism.table import variable_table
 
 __all__ = ["NativeBuildResult", "CompilerNotFound", "build_native_fmu", "find_compiler", "model_identifier",
@@ -126,7 +126,7 @@ def _guid(eqs: MechanismEquations, replace: Mapping[str, bytes] | None = None) -
     for name, data in sorted(native_sources(eqs, "GUID", replace).items()):
         digest.update(name.encode() + b"\0" + data + b"\0")
     digest.update(repr(variable_table(eqs)).encode())
-    digest.update(ET.tostring(vendor_annotations(drawing_of(eqs.mechanism))))
+    digest.update(ET.tostring(drawing_of(eqs.mechanism).to_annotation()))
     return str(uuid.UUID(bytes=digest.digest()[:16], version=5))
 
 
@@ -163,7 +163,7 @@ def model_description(eqs: MechanismEquations, guid: str, source_files) -> bytes
         ET.SubElement(categories, "Category", {"name": name, "description": text})
     ET.SubElement(root, "DefaultExperiment", {"startTime": "0.0", "stopTime": "100.0", "stepSize": "0.01",
                                               "tolerance": "1e-09"})
-    root.append(vendor_annotations(drawing_of(mech)))
+    root.append(drawing_of(mech).to_annotation())
     variables = ET.SubElement(root, "ModelVariables")
     outputs = []
     for vr, var in enumerate(variable_table(eqs)):

@@ -5,6 +5,7 @@ may all import this package, which imports nothing of theirs and only the standa
 """
 from __future__ import annotations
 
+from .drawing import Drawing, DrawingError, DrawnBody, DrawnJoint
 from .events import Event, RampEvent, StepEvent, Value
 from .files import output_folder_problem, replace_atomically, write_json_atomic
 from .run_record import (PARAMETER_SOURCES, SCHEMA_VERSION, ParameterStart, RecordedExchange, RecordedExperiment,
@@ -13,6 +14,10 @@ from .run_record import (PARAMETER_SOURCES, SCHEMA_VERSION, ParameterStart, Reco
 from .version import package_version
 
 __all__ = [
+    "Drawing",
+    "DrawingError",
+    "DrawnBody",
+    "DrawnJoint",
     "Event",
     "PARAMETER_SOURCES",
     "ParameterStart",

@@ -17,7 +17,9 @@ case set, with no source (:attr:`ParameterStart.source` ``"unknown"``), and any 
 absent (the fields it lacks are None).  :meth:`RunRecord.completed_with` adds the FMU's
 defaults to such a record.  A schema 2 record is checked in full: every field present and of
 its type; any problem raises :class:`RunRecordError` naming the file and the field.  Keys this
-reader does not know are ignored (a newer writer may add some).
+reader does not know are ignored (a newer writer may add some).  The one optional field is
+``drawing`` (:class:`~fourbar_common.drawing.Drawing`, or null): records written before
+drawings lack it and read as None.
 
 Standard library only.
 """
@@ -30,6 +32,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Iterable, Mapping, NoReturn
 
+from .drawing import Drawing, DrawingError
 from .events import Event, RampEvent, StepEvent, Value
 from .files import write_json_atomic
 
@@ -158,6 +161,21 @@ class RecordedWriter:
     host: str
     heartbeat_s: float
 
+    def alive(self) -> bool | None:
+        """Whether the writing process still exists: None when it cannot be told from here
+        (another host); a process id reused within a run is not detected."""
+        import socket
+
+        if self.host != socket.gethostname():
+            return None
+        try:
+            os.kill(self.pid, 0)
+        except ProcessLookupError:
+            return False
+        except PermissionError:          # exists, owned by someone else
+            return True
+        return True
+
     def to_json(self) -> dict:
         return {"pid": self.pid, "host": self.host, "heartbeat_s": self.heartbeat_s}
 
@@ -195,6 +213,9 @@ class RunRecord:
     wall_time_s: float | None = 0.0
     error: str | None = None
     writer: RecordedWriter | None = None
+    #: How to draw the mechanism (the FMU's drawing annotation); None when the FMU declares
+    #: none, the run recorded no drawing columns, or the record predates drawings.
+    drawing: Drawing | None = None
     schema: int = SCHEMA_VERSION
 
     # -- what readers ask -------------------------------------------------------------
@@ -261,6 +282,7 @@ class RunRecord:
             "started_at": self.started_at, "updated_at": self.updated_at, "finished_at": self.finished_at,
             "wall_time_s": self.wall_time_s, "error": self.error,
             "writer": self.writer.to_json() if self.writer is not None else None,
+            "drawing": self.drawing.to_json() if self.drawing is not None else None,
         }
 
     @classmethod
@@ -412,8 +434,19 @@ class _Parser:
             wall_time_s=self.number(data, "wall_time_s", ""),
             error=self.text(data, "error", "", nullable=True),
             writer=self.writer(data),
+            drawing=self.drawing(data),
             schema=schema,
         )
+
+    def drawing(self, data: dict) -> Drawing | None:
+        """The optional ``drawing`` (absent in records written before drawings: None)."""
+        value = data.get("drawing")
+        if value is None:
+            return None
+        try:
+            return Drawing.from_json(value, f"{self.source}: field 'drawing'")
+        except DrawingError as exc:
+            raise RunRecordError(str(exc)) from None
 
     def fmu(self, data: dict) -> RecordedFmu | None:
         table = self.obj(data, "fmu", "")

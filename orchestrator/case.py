@@ -13,12 +13,13 @@ Standard library only at import time; FMPy is imported when an FMU is described.
 from __future__ import annotations
 
 import os
+import zipfile
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 from typing import Any, Mapping
 
-from fourbar_common import Event, ParameterStart, RampEvent, StepEvent, Value
+from fourbar_common import Drawing, DrawingError, Event, ParameterStart, RampEvent, StepEvent, Value
 
 from .validation import grid_steps
 
@@ -54,6 +55,10 @@ class FmuDescription:
     path: Path
     stamp: tuple[int, int]
     model: Any                     # fmpy.model_description.ModelDescription
+    #: How to draw the mechanism, from the FMU's drawing annotation (None: it has none), and
+    #: why the annotation could not be read when it is malformed (``drawing`` is None then).
+    drawing: Drawing | None = None
+    drawing_problem: str | None = None
 
     @property
     def guid(self) -> str:
@@ -107,7 +112,22 @@ def describe_fmu(path: Path, known: FmuDescription | None = None) -> FmuDescript
     from fmpy import read_model_description     # heavy import, only when a file is read
 
     stamp = _stamp(path)
-    return FmuDescription(path=path, stamp=stamp, model=read_model_description(str(path)))
+    model = read_model_description(str(path))
+    drawing, problem = _drawing(path)
+    return FmuDescription(path=path, stamp=stamp, model=model, drawing=drawing, drawing_problem=problem)
+
+
+def _drawing(path: Path) -> tuple[Drawing | None, str | None]:
+    """The drawing annotation of the FMU at ``path`` (FMPy keeps no vendor annotations) and
+    the problem that made it unreadable, if any."""
+    try:
+        with zipfile.ZipFile(path) as z:
+            xml = z.read("modelDescription.xml")
+        return Drawing.from_model_description(xml, f"{path.name}'s modelDescription.xml"), None
+    except DrawingError as exc:
+        return None, str(exc)
+    except (OSError, KeyError, zipfile.BadZipFile) as exc:   # FMPy read it a moment ago: a race
+        return None, f"{path.name}: cannot read modelDescription.xml again: {exc}"
 
 
 @dataclass(frozen=True)
@@ -183,6 +203,11 @@ class Case:
     parameters: Mapping[str, Value] = field(default_factory=dict)
     events: tuple[Event, ...] = ()
     outputs: tuple[str, ...] = DEFAULT_OUTPUTS
+    #: The FMU's drawing when its columns are recorded (after ``outputs``: :attr:`recorded`);
+    #: None with ``[outputs] drawing = false`` or when the FMU declares no drawing.
+    drawing: Drawing | None = None
+    #: ``[outputs] drawing``: record the drawing's columns when the FMU declares a drawing.
+    record_drawing: bool = True
     noise: Noise | None = None
     exchange: ExchangeSettings = ExchangeSettings()
     description: str = ""
@@ -197,13 +222,21 @@ class Case:
         """Earliest event time (a step's time or a ramp's start), None without events."""
         return min((e.first_time for e in self.events), default=None)
 
+    @property
+    def recorded(self) -> tuple[str, ...]:
+        """The exchange file's columns after ``time``: ``outputs``, then the drawing's columns
+        they do not already name."""
+        if self.drawing is None:
+            return self.outputs
+        return self.outputs + tuple(c for c in self.drawing.columns if c not in self.outputs)
+
     def as_dict(self) -> dict:
         """The case as a TOML-shaped dict (what run.json records and what overrides edit)."""
         data = {"name": self.name, "description": self.description, "fmu": str(self.fmu),
                 "experiment": {k: v for k, v in self.experiment.as_dict().items() if v is not None},
                 "parameters": dict(self.parameters),
                 "events": [e.as_dict() for e in self.events],
-                "outputs": {"variables": list(self.outputs)},
+                "outputs": {"variables": list(self.outputs), "drawing": self.record_drawing},
                 "exchange": self.exchange.as_dict()}
         if self.noise is not None:
             data["noise"] = self.noise.as_dict()

@@ -22,6 +22,8 @@ import math
 from pathlib import Path
 from typing import Any, Mapping
 
+from fourbar_common import Drawing
+
 from .case import (DEFAULT_OUTPUTS, Case, Event, ExchangeSettings, Experiment, FmuDescription, Noise,
                    RampEvent, StepEvent, Value, describe_fmu)
 from .validation import ConfigError, ProblemReporter, kind_of, read_toml
@@ -32,7 +34,7 @@ _TOP_KEYS = ("name", "description", "fmu", "experiment", "parameters", "events",
 _EXPERIMENT_KEYS = ("start", "stop", "step", "tolerance")
 _STEP_KEYS = ("type", "time", "variable", "value")
 _RAMP_KEYS = ("type", "variable", "from", "to", "start", "end")
-_OUTPUT_KEYS = ("variables",)
+_OUTPUT_KEYS = ("variables", "drawing")
 _NOISE_KEYS = ("seed", "std")
 _EXCHANGE_KEYS = ("flush_interval", "realtime_factor", "max_rows")
 #: Rough size of one written value in exchange.csv (``repr`` of a double and a comma), for
@@ -161,13 +163,15 @@ class _Validator(ProblemReporter):
         experiment = self.experiment()
         parameters = self.parameters()
         outputs = self.outputs()
+        drawing, record_drawing = self.drawing()
+        recorded = outputs + tuple(c for c in drawing.columns if c not in outputs) if drawing else outputs
         events = self.events(experiment)
-        noise = self.noise(outputs)
-        exchange = self.exchange(experiment, outputs)
+        noise = self.noise(recorded)
+        exchange = self.exchange(experiment, recorded)
         if self.problems:
             raise ConfigError(self.label, self.problems)
         return Case(name=name, fmu=fmu, experiment=experiment, parameters=parameters, events=events,
-                    outputs=outputs, noise=noise, exchange=exchange, description=description,
+                    outputs=outputs, drawing=drawing, record_drawing=record_drawing, noise=noise, exchange=exchange, description=description,
                     source=self.source, fmu_description=self.description,
                     overridden=frozenset(n for n in parameters if f"parameters.{n}" in self.origins))
 
@@ -380,6 +384,29 @@ class _Validator(ProblemReporter):
             if isinstance(name, str):
                 result.append(name)
         return tuple(result)
+
+    def drawing(self) -> tuple[Drawing | None, bool]:
+        """The FMU's drawing, when its columns are to be recorded (``[outputs] drawing``,
+        default true; None when the FMU declares no drawing), and the case's flag."""
+        table = self.raw.get("outputs")
+        wanted = table.get("drawing", True) if isinstance(table, dict) else True
+        if not isinstance(wanted, bool):
+            self.problem("outputs.drawing", wanted, "expected true (record the joint positions a view draws the "
+                                                     "mechanism from) or false")
+            return None, True
+        if not wanted or self.description is None:
+            return None, wanted
+        if self.description.drawing_problem is not None:
+            self.problems.append(f"fmu: {self.description.drawing_problem}; rebuild the FMU, or set "
+                                 f"[outputs] drawing = false to run without drawing the mechanism")
+            return None, wanted
+        drawing = self.description.drawing
+        lacking = [c for c in drawing.columns if c not in self.variables] if drawing is not None else []
+        if lacking:
+            self.problems.append(f"fmu: its drawing places joints by {', '.join(lacking)}, which {self.fmu_name} "
+                                 f"does not declare; rebuild the FMU, or set [outputs] drawing = false")
+            return None, wanted
+        return drawing, wanted
 
     def events(self, experiment: Experiment | None) -> tuple[Event, ...]:
         raw = self.raw.get("events")

@@ -242,8 +242,9 @@ class _Run:
             parameters=_parameter_starts(case),
             events=tuple(case.events),
             fault_time=case.fault_time,
-            outputs=tuple(case.outputs),
-            units=described.units(case.outputs),
+            outputs=tuple(case.recorded),
+            units=described.units(case.recorded),
+            drawing=case.drawing,
             noise=RecordedNoise(seed=case.noise.seed, std=dict(case.noise.std)) if case.noise is not None else None,
             exchange=RecordedExchange(flush_interval=exchange.flush_interval,
                                       realtime_factor=exchange.realtime_factor, max_rows=exchange.max_rows),
@@ -397,7 +398,7 @@ class _Run:
         derived folders, write run.json, start the heartbeat and the progress bar.  If
         exchange.csv cannot be created, nothing of this run was written (``started`` False)."""
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        self.writer = ExchangeWriter(self.exchange_path, ("time", *self.case.outputs))
+        self.writer = ExchangeWriter(self.exchange_path, ("time", *self.case.recorded))
         self.started = True         # from here on, run.json reports what happens
         self.replaced = remove_derived_outputs(self.out_dir)
         self._write_record()
@@ -455,12 +456,12 @@ class _Run:
         if case.noise is not None:
             from .noise import NoiseSource
 
-            self.noise = NoiseSource(case.noise, case.outputs)
+            self.noise = NoiseSource(case.noise, case.recorded)
         if case.exchange.realtime_factor > 0.0:
             self.pacer = RealtimePacer(case.exchange.realtime_factor, start, flag)
         flush_every = max(1, round(case.exchange.flush_interval / step))
         schedule = _schedule(case)
-        read = fmu.reader(case.outputs)
+        read = fmu.reader(case.recorded)
         do_step, set_values = fmu.do_step, fmu.set_values
         pending_t, pending_v = self.pending_t, self.pending_v
 

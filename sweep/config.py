@@ -365,9 +365,9 @@ class _Validator(ProblemReporter):
             self.problem("monitor.signal", signal, "expected the name of an output column, e.g. \"x2\", or several "
                                                    "separated by commas")
             ok = False
-        elif case is not None and any(s not in case.outputs for s in split_signals(signal)):
+        elif case is not None and any(s not in case.recorded for s in split_signals(signal)):
             self.problem("monitor.signal", signal, f"not an output of the base case; expected one of "
-                                                   f"{', '.join(case.outputs)} ([outputs] of {case.source.name}), "
+                                                   f"{', '.join(case.recorded)} ([outputs] of {case.source.name}), "
                                                    "or several separated by commas")
             ok = False
         else:

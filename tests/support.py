@@ -34,6 +34,24 @@ def case_file(case: str, fmu: Path, dest: Path, *, name: str | None = None, extr
     return path
 
 
+#: Table 1's link centres: the paper's exchange columns, and fourbar-run's default outputs.
+CENTRES = ("x2", "y2", "x3", "y3", "x4", "y4")
+
+
+def recorded_columns(fmu: Path, named=CENTRES) -> list[str]:
+    """The exchange file's columns after ``time`` for a case naming ``named`` on ``fmu``:
+    ``named``, then the columns of the FMU's drawing (read here from modelDescription.xml,
+    not through the orchestrator) that ``named`` lacks."""
+    import zipfile
+
+    from fourbar_common import Drawing
+
+    with zipfile.ZipFile(fmu) as z:
+        drawing = Drawing.from_model_description(z.read("modelDescription.xml"))
+    extra = [c for c in drawing.columns if c not in named] if drawing is not None else []
+    return [*named, *extra]
+
+
 def unwritable_folder(tmp_path: Path) -> Path:
     """An existing folder this process cannot create files in: a 0o555 folder, or for root (who
     ignores modes) a read-only system folder; skips the test when there is none."""

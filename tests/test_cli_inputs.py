@@ -203,7 +203,7 @@ def test_a_signal_stops_a_replay_and_says_what_is_kept(long_run, tmp_path, signu
     assert proc.returncode == EXIT[signum], (proc.returncode, stdout, stderr)
     lines = stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"fourbar-monitor: {REASON[signum]} at t = "), stderr
-    assert f"kept events.jsonl, evaluations.csv in {out} (up to then; no summary.json" in lines[0]
+    assert f"kept events.jsonl, evaluations.csv, forecast.csv in {out} (up to then; no summary.json" in lines[0]
     assert not (out / "summary.json").exists()
     text = (out / "evaluations.csv").read_text()
     assert text.endswith("\n") and 200 <= text.count("\n") - 1 < 11_910     # whole lines; stopped before the end

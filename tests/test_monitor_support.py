@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from support import FOURBAR_MONITOR, FOURBAR_RUN, REPO, case_file  # noqa: F401 - re-exported to the monitor tests
+from support import FOURBAR_MONITOR, FOURBAR_RUN, REPO, case_file, recorded_columns  # noqa: F401 - re-exported to the monitor tests
 NOISE_STD = 0.005   # m, σ of the x2 sensor noise in the acceptance criteria
 
 NOISE_SEED = 7
@@ -73,7 +73,7 @@ def test_orchestrated_files_follow_the_exchange_contract(tmp_path_factory, fourb
         path = orchestrated(tmp_path_factory, fourbar_fmu, name)
         data = path.read_bytes()
         lines = data.split(b"\n")
-        assert lines[0] == b"time,x2,y2,x3,y3,x4,y4"
+        assert lines[0] == ",".join(["time", *recorded_columns(fourbar_fmu)]).encode()
         assert data.endswith(b"\n") and len(lines) == 10001 + 2        # header + rows + final ''
         assert lines[1001].startswith(b"10.0,")
         run = json.loads((path.parent / "run.json").read_text())

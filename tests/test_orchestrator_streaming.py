@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from orchestrator import ExchangeSettings, load_case, run_case
-from support import case_file
+from support import case_file, recorded_columns
 from support import REPO
 
 FOURBAR_RUN = [sys.executable, "-m", "orchestrator.cli"]
@@ -29,15 +29,16 @@ def complete_part(data: bytes) -> bytes:
     return data[: data.rfind(b"\n") + 1]
 
 
-def check_rows(complete: bytes, step: float = 0.01) -> int:
-    """Every complete line after the header is a whole row on the grid; returns the row count."""
+def check_rows(complete: bytes, columns: list[str], step: float = 0.01) -> int:
+    """Every complete line after the header ``time,<columns>`` is a whole row on the grid;
+    returns the row count."""
     lines = complete.decode().splitlines()
     if not lines:
         return 0
-    assert lines[0] == "time,x2,y2,x3,y3,x4,y4"
+    assert lines[0] == ",".join(["time", *columns])
     for k, line in enumerate(lines[1:]):
         fields = line.split(",")
-        assert len(fields) == 7, f"partial row {k}: {line!r}"
+        assert len(fields) == 1 + len(columns), f"partial row {k}: {line!r}"
         values = [float(v) for v in fields]          # every field parses
         assert values[0] == 0.0 + k * step           # no row missing, none out of order
     return len(lines) - 1
@@ -64,7 +65,7 @@ def test_concurrent_reader_never_sees_a_partial_row(fourbar_fmu, tmp_path):
                 data = exchange.read_bytes()
                 complete = complete_part(data)
                 partial_tails += data != complete
-                rows = check_rows(complete)
+                rows = check_rows(complete, recorded_columns(fourbar_fmu))
                 # run.json is written after the rows it counts (read before the exchange file here).
                 assert rows >= last_rows_json
                 snapshots.append(complete)
@@ -78,7 +79,7 @@ def test_concurrent_reader_never_sees_a_partial_row(fourbar_fmu, tmp_path):
             proc.kill()
     assert proc.returncode == 0, stderr
     final = exchange.read_bytes()
-    assert check_rows(final) == 1201 and final.endswith(b"\n")
+    assert check_rows(final, recorded_columns(fourbar_fmu)) == 1201 and final.endswith(b"\n")
     assert all(final.startswith(s) for s in snapshots)     # nothing seen was later rewritten
     assert len(sizes) >= 10, "the reader should have watched the file grow"
     assert statuses[0] == "running" and statuses[-1] == "finished"
@@ -182,7 +183,7 @@ def test_ctrl_c_keeps_rows_and_exits_130(fourbar_fmu, tmp_path):
     assert "interrupted after" in stderr and "Traceback" not in stderr
     data = (out / "exchange.csv").read_bytes()
     assert data.endswith(b"\n")
-    rows = check_rows(data)
+    rows = check_rows(data, recorded_columns(fourbar_fmu))
     record = json.loads((out / "run.json").read_text())
     assert record["status"] == "interrupted"
     assert record["error"].startswith("interrupted by Ctrl-C at t = ")

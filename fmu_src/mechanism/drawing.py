@@ -27,70 +27,23 @@ from its tail; around the centroid of the joints' points (counter-clockwise) for
 joints are not on one line; else in file order.  Its ``parameters`` are those its length,
 mass, inertia and points use (file order), so a view can mark the body a fault changes.  A
 joint has ``ground="true"`` when one of its points is on the ground.  The annotation does not
-repeat the column names: the view derives them from the joints' names and types
-(:func:`joint_columns`).
+repeat the column names: the view derives them from the joints' names and types.  The
+schema (its dataclasses, the column names, writing and reading the annotation) has one home,
+:mod:`fourbar_common.drawing`; this module makes a mechanism's drawing and puts it into a
+model description.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from xml.etree import ElementTree as ET
 
 import sympy as sp
 
+from fourbar_common.drawing import TOOL_NAME, Drawing, DrawnBody, DrawnJoint, joint_columns
+
 from .description import Joint, Mechanism
 
-__all__ = ["DrawnBody", "DrawnJoint", "MechanismDrawing", "drawing_of", "joint_columns", "vendor_annotations",
-           "insert_vendor_annotations", "TOOL_NAME", "DRAWING_SCHEMA"]
-
-#: The ``Tool`` name of the annotation and the schema of its ``Drawing`` element.
-TOOL_NAME = "fourbar-cosim"
-DRAWING_SCHEMA = 1
-#: The column suffixes of a joint, by joint type.
-_SUFFIXES = {"revolute": ("x", "y"), "prismatic": ("x", "y", "gx", "gy", "gangle")}
-
-
-def joint_columns(name: str, joint_type: str) -> tuple[str, ...]:
-    """The output names that place joint ``name``: ``J_x J_y`` (+ ``J_gx J_gy J_gangle``, prismatic)."""
-    return tuple(f"{name}_{suffix}" for suffix in _SUFFIXES[joint_type])
-
-
-@dataclass(frozen=True)
-class DrawnBody:
-    """A body of the drawing: the joints that touch it, in drawing order, and its parameters."""
-
-    name: str
-    label: str
-    kind: str                       # "rod" or "block"
-    joints: tuple[str, ...]
-    parameters: tuple[str, ...]
-
-
-@dataclass(frozen=True)
-class DrawnJoint:
-    """A joint of the drawing; ``ground`` when one of its points is on the ground."""
-
-    name: str
-    type: str                       # "revolute" or "prismatic"
-    ground: bool
-
-    @property
-    def columns(self) -> tuple[str, ...]:
-        return joint_columns(self.name, self.type)
-
-
-@dataclass(frozen=True)
-class MechanismDrawing:
-    """What the annotation of a mechanism's FMUs says."""
-
-    mechanism: str
-    bodies: tuple[DrawnBody, ...]
-    joints: tuple[DrawnJoint, ...]
-
-    @property
-    def columns(self) -> tuple[str, ...]:
-        """Every output the drawing implies, joint by joint in file order."""
-        return tuple(c for j in self.joints for c in j.columns)
+__all__ = ["drawing_of", "insert_vendor_annotations", "joint_columns"]
 
 
 def _body_joint_order(mech: Mechanism, body_name: str, joints: list[Joint]) -> tuple[str, ...]:
@@ -116,7 +69,7 @@ def _body_joint_order(mech: Mechanism, body_name: str, joints: list[Joint]) -> t
     return tuple(names[k] for k in order)
 
 
-def drawing_of(mech: Mechanism) -> MechanismDrawing:
+def drawing_of(mech: Mechanism) -> Drawing:
     """The drawing of a mechanism (see the module doc)."""
     order = {p.name: k for k, p in enumerate(mech.parameters)}
     bodies = []
@@ -128,29 +81,14 @@ def drawing_of(mech: Mechanism) -> MechanismDrawing:
         bodies.append(DrawnBody(body.name, body.label, body.kind, _body_joint_order(mech, body.name, touching),
                                 tuple(sorted(used & set(order), key=order.__getitem__))))
     joints = tuple(DrawnJoint(j.name, j.type, "ground" in (j.first.body, j.second.body)) for j in mech.joints)
-    return MechanismDrawing(mech.name, tuple(bodies), joints)
+    return Drawing(mech.name, tuple(bodies), joints)
 
 
-def vendor_annotations(drawing: MechanismDrawing) -> ET.Element:
-    """The ``<VendorAnnotations>`` element that declares ``drawing``."""
-    root = ET.Element("VendorAnnotations")
-    tool = ET.SubElement(root, "Tool", {"name": TOOL_NAME})
-    node = ET.SubElement(tool, "Drawing", {"schema": str(DRAWING_SCHEMA), "mechanism": drawing.mechanism})
-    for b in drawing.bodies:
-        attrs = {"name": b.name, "label": b.label, "kind": b.kind, "joints": " ".join(b.joints)}
-        if b.parameters:
-            attrs["parameters"] = " ".join(b.parameters)
-        ET.SubElement(node, "Body", attrs)
-    for j in drawing.joints:
-        ET.SubElement(node, "Joint", {"name": j.name, "type": j.type} | ({"ground": "true"} if j.ground else {}))
-    return root
-
-
-def insert_vendor_annotations(root: ET.Element, drawing: MechanismDrawing) -> None:
+def insert_vendor_annotations(root: ET.Element, drawing: Drawing) -> None:
     """Put the annotation into a model description's root where the FMI 2.0 schema wants it:
     right before ``<ModelVariables>`` (``VendorAnnotations`` follows ``DefaultExperiment``).
     An existing ``<VendorAnnotations>`` keeps its other tools; this tool's entry is replaced."""
-    ours = vendor_annotations(drawing)
+    ours = drawing.to_annotation()
     existing = root.find("VendorAnnotations")
     if existing is None:
         root.insert(list(root).index(root.find("ModelVariables")), ours)
