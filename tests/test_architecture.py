@@ -41,6 +41,14 @@ def test_parts_do_not_import_each_other(part):
     assert not offenders, f"{part} imports other parts: {offenders}"
 
 
+def test_the_view_imports_none_of_the_parts():
+    """fourbar-view reads a run folder's files only: no part, integration package or FMU code."""
+    forbidden = set(PARTS) | {"sweep", "diagnose", "mechanism_model"}
+    offenders = {str(p.relative_to(REPO)): sorted(imported_roots(p) & forbidden)
+                 for p in sorted((REPO / "view").rglob("*.py")) if imported_roots(p) & forbidden}
+    assert not offenders, offenders
+
+
 def test_the_shared_helpers_need_only_the_standard_library():
     """fourbar_common is imported by every part, so it may import none of them (nor anything else)."""
     stdlib = set(sys.stdlib_module_names)
@@ -57,7 +65,7 @@ def _relative_imports(path: Path) -> set[str]:
     return found
 
 
-@pytest.mark.parametrize("package", ("monitor", "orchestrator", "sweep", "diagnose"))
+@pytest.mark.parametrize("package", ("monitor", "orchestrator", "sweep", "diagnose", "view"))
 def test_modules_import_each_other_without_a_circle(package):
     """Within a package the imports (lazy ones included) form a DAG: each module can be read
     knowing only the ones below it."""

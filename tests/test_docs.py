@@ -43,9 +43,10 @@ TOOLS = {
     "fourbar-monitor": ("monitor.cli", "docs/monitor.md"),
     "fourbar-sweep": ("sweep.cli", "docs/sweep.md"),
     "fourbar-diagnose": ("diagnose.cli", "docs/diagnose.md"),
+    "fourbar-view": ("view.cli", "docs/view.md"),
     "build_fmu.py": ("build_fmu", "README.md"),
 }
-TOOL_AT_START = re.compile(r"^(?:\.venv/bin/|python3? )?(fourbar-run|fourbar-monitor|fourbar-sweep|fourbar-diagnose"
+TOOL_AT_START = re.compile(r"^(?:\.venv/bin/|python3? )?(fourbar-run|fourbar-monitor|fourbar-sweep|fourbar-diagnose|fourbar-view"
                            r"|build_fmu\.py)(?=\s|$)")
 FLAG = re.compile(r"(?<![\w-])--[a-z][\w-]*")
 
@@ -245,6 +246,7 @@ def test_exit_code_lists_agree_with_the_tools():
     assert doc_exit_list("docs/monitor.md", "Exit status:") == epilog_codes("fourbar-monitor")
     assert doc_exit_list("docs/sweep.md", "Exit status:") == epilog_codes("fourbar-sweep")
     assert doc_exit_list("docs/diagnose.md", "Exit status:") == epilog_codes("fourbar-diagnose")
+    assert doc_exit_list("docs/view.md", "Exit status:") == epilog_codes("fourbar-view")
 
 
 # --- links and cited documents ----------------------------------------------------------------

@@ -296,12 +296,8 @@ class _Picture:
             for (x0, x1), (y0, y1) in scene.guides:
                 self.ax_m.add_line(Line2D((x0, x1), (y0, y1), lw=1.0, color=GROUND_COLOUR, zorder=1))
             b = scene.block_size
-            # scene.ground lists the ground joints in the drawing's order; a prismatic one's
-            # ground is its guide line (drawn above), and its point slides: no triangle there
-            grounded = [j for j in run.record.drawing.joints if j.ground]
-            for joint, (gx, gy) in zip(grounded, scene.ground):
-                if joint.type != "revolute":
-                    continue
+            # scene.ground: the revolute joints to the ground (a prismatic one's ground is its guide)
+            for gx, gy in scene.ground:
                 self.ax_m.add_patch(Polygon(((gx, gy), (gx - 0.6 * b, gy - b), (gx + 0.6 * b, gy - b)),
                                             closed=True, facecolor=GROUND_COLOUR, edgecolor=GROUND_COLOUR,
                                             lw=0.8, zorder=1))

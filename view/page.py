@@ -1,0 +1,385 @@
+"""The live page of one run folder: Panel on Bokeh.
+
+Each browser session gets its own :class:`RunPage`: a :class:`~view.sources.RunFolder` polled
+every ``poll_ms``, a :class:`~view.timeline.Timeline` of what was read, and a clock.  The clock
+follows the newest row while the run is written (live) and plays the run back at a chosen
+speed once it is finished (replay, with pause and a time slider).  At each tick the page
+streams to the browser only the rows between the last time shown and the clock
+(``ColumnDataSource.stream`` with rollover), so the cost per tick is the new rows, not the run:
+
+- *recent* plots (signal with its forecast, detector statistic with its limit) at full
+  resolution over the last ``window_s`` seconds (rollover keeps them bounded);
+- a *whole run* plot of the signal's min/max per bin (``overview_bins`` over the run's span),
+  re-sent once per bin;
+- the mechanism at the clock, drawn from the joint columns (:mod:`view.geometry`).
+
+The page names its data sources (``signal_recent``, ``forecast_recent``, ``statistic``,
+``signal_overview``, ``bodies``, ``joints``) so a test can count the rows a browser holds.
+"""
+from __future__ import annotations
+
+import html
+import math
+import time as _time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import Geometry, faulted_bodies
+from .sources import RunFolder
+from .timeline import Timeline
+
+__all__ = ["PageSettings", "RunPage"]
+
+COLOURS = {"body": "#1f4e79", "faulted": "#c0392b", "joint": "#222222", "ground": "#7f7f7f",
+           "signal": "#1f77b4", "forecast": "#d62728", "statistic": "#2ca02c", "limit": "#d62728"}
+BANNER = {"WAITING": ("#6c757d", "waiting for the monitor (no monitor outputs yet)"),
+          "TRAINING": ("#1f6fb2", "TRAINING: the monitor is learning the healthy signal"),
+          "STABLE": ("#2e7d32", "STABLE: the signal follows its forecast"),
+          "ALARM": ("#c62828", "ALARM")}
+
+
+@dataclass(frozen=True)
+class PageSettings:
+    poll_ms: int = 250             # how often the folder is read and the browser updated
+    window_s: float = 20.0         # recent plots: seconds at full resolution
+    bin_s: float = 1.0             # whole-run plot: seconds per min/max bin when the run's span is unknown
+    overview_bins: int = 1500      # whole-run plot: bins over the run's span (an hour: 2.4 s each)
+    speed: float = 1.0             # replay: run seconds per wall second
+    max_stream: int = 20_000       # rows sent in one tick at most (a jump re-sends the window)
+
+
+class RunPage:
+    """One session's page.  ``panel`` is imported here, when a page is made."""
+
+    def __init__(self, folder, settings: PageSettings = PageSettings()):
+        import panel as pn
+        from bokeh.models import ColumnDataSource
+
+        self.pn = pn
+        self.settings = settings
+        self.folder = RunFolder(folder)
+        self.timeline = Timeline()
+        self.geometry: Geometry | None = None
+        self.scene = None
+        self.shown_t: float | None = None          # the clock value the plots show
+        self.generation = -1
+        self.clock: float | None = None
+        self.playing = True
+        self.live = True
+        self._wall = _time.monotonic()
+        self._overview_bin = -1
+        self._signal: str | None = None
+
+        self.src = {
+            "signal_recent": ColumnDataSource({"time": [], "value": []}, name="signal_recent"),
+            "forecast_recent": ColumnDataSource({"time": [], "forecast": []}, name="forecast_recent"),
+            "statistic": ColumnDataSource({"time": [], "statistic": [], "threshold": []}, name="statistic"),
+            "signal_overview": ColumnDataSource({"time": [], "low": [], "high": []}, name="signal_overview"),
+            "bodies": ColumnDataSource({"xs": [], "ys": [], "colour": [], "name": []}, name="bodies"),
+            "joints": ColumnDataSource({"x": [], "y": [], "name": []}, name="joints"),
+            "ground": ColumnDataSource({"x": [], "y": []}, name="ground"),
+            "guides": ColumnDataSource({"xs": [], "ys": []}, name="guides"),
+        }
+        self._build(pn)
+
+    # -- layout -------------------------------------------------------------------------
+    def _build(self, pn) -> None:
+        from bokeh.models import BoxAnnotation, DataRange1d, Span
+        from bokeh.plotting import figure
+
+        s = self.src
+        self.mechanism = figure(title="mechanism", height=380, width=380, match_aspect=True,
+                                x_axis_label="x [m]", y_axis_label="y [m]", tools="pan,wheel_zoom,reset")
+        self.mechanism.multi_line("xs", "ys", source=s["guides"], line_color=COLOURS["ground"], line_width=1,
+                                  line_dash="dashed")
+        self.mechanism.scatter("x", "y", source=s["ground"], marker="triangle", size=16, color=COLOURS["ground"])
+        self.mechanism.multi_line("xs", "ys", source=s["bodies"], line_color="colour", line_width=6)
+        self.mechanism.scatter("x", "y", source=s["joints"], size=9, color="white", line_color=COLOURS["joint"],
+                               line_width=2)
+
+        # the recent plots' x range follows the newest data (annotations outside it do not widen it)
+        recent = dict(follow="end", follow_interval=self.settings.window_s, range_padding=0.0)
+        self.signal_plot = figure(title="signal and forecast (recent)", height=250, sizing_mode="stretch_width",
+                                  x_axis_label="time [s]", tools="pan,xwheel_zoom,reset",
+                                  x_range=DataRange1d(**recent))
+        self.signal_plot.line("time", "value", source=s["signal_recent"], color=COLOURS["signal"], legend_label="signal")
+        self.signal_plot.line("time", "forecast", source=s["forecast_recent"], color=COLOURS["forecast"],
+                              line_dash="dashed", legend_label="forecast")
+        self.signal_plot.legend.location = "top_left"
+        self.train_box = BoxAnnotation(fill_alpha=0.12, fill_color="#1f6fb2", visible=False)
+        self.signal_plot.add_layout(self.train_box)
+
+        self.overview = figure(title="whole run (min/max per bin)", height=160, sizing_mode="stretch_width",
+                               x_axis_label="time [s]", tools="pan,xwheel_zoom,reset")
+        self.overview.varea("time", "low", "high", source=s["signal_overview"], fill_color=COLOURS["signal"],
+                            fill_alpha=0.5)
+        self.overview_train = BoxAnnotation(fill_alpha=0.12, fill_color="#1f6fb2", visible=False)
+        self.overview.add_layout(self.overview_train)
+        self.fault_marks = []
+        for fig in (self.signal_plot, self.overview):
+            mark = Span(dimension="height", line_color="#555555", line_dash="dotted", line_width=2, visible=False)
+            fig.add_layout(mark)
+            self.fault_marks.append(mark)
+        self.alarm_marks = []
+        for fig in (self.signal_plot, self.overview):
+            mark = Span(dimension="height", line_color=COLOURS["limit"], line_width=2, visible=False)
+            fig.add_layout(mark)
+            self.alarm_marks.append(mark)
+
+        self.stat_plot = figure(title="detector statistic and its limit", height=200, sizing_mode="stretch_width",
+                                x_axis_label="time [s]", tools="pan,xwheel_zoom,reset",
+                                x_range=DataRange1d(**recent))
+        self.stat_plot.line("time", "statistic", source=s["statistic"], color=COLOURS["statistic"],
+                            legend_label="statistic")
+        self.stat_plot.line("time", "threshold", source=s["statistic"], color=COLOURS["limit"], line_dash="dashed",
+                            legend_label="limit")
+        self.stat_plot.legend.location = "top_left"
+
+        self.banner = pn.pane.HTML("", sizing_mode="stretch_width", name="banner")
+        self.facts = pn.pane.HTML("", width=380, name="facts")
+        self.verdict = pn.pane.HTML("", sizing_mode="stretch_width", name="diagnosis")
+        self.notice = pn.pane.HTML("", sizing_mode="stretch_width", name="notice")
+        self.play = pn.widgets.Toggle(name="pause", value=True, width=90, button_type="primary")
+        self.play.param.watch(self._on_play, "value")
+        self.speed = pn.widgets.Select(name="speed", options={"0.5x": 0.5, "1x": 1.0, "2x": 2.0, "5x": 5.0,
+                                                              "10x": 10.0, "50x": 50.0},
+                                       value=self.settings.speed if self.settings.speed in
+                                       (0.5, 1.0, 2.0, 5.0, 10.0, 50.0) else 1.0, width=90)
+        self.slider = pn.widgets.FloatSlider(name="time [s]", start=0.0, end=1.0, value=0.0, step=0.01,
+                                             sizing_mode="stretch_width")
+        self.slider.param.watch(self._on_slider, "value_throttled")
+        self.follow = pn.widgets.Checkbox(name="follow the newest row", value=True, width=170)
+        self.follow.param.watch(self._on_follow, "value")
+        controls = pn.Row(self.play, self.speed, self.follow, self.slider, sizing_mode="stretch_width")
+        left = pn.Column(self.mechanism, self.facts)
+        right = pn.Column(self.banner, controls, self.signal_plot, self.stat_plot, self.overview, self.verdict,
+                          self.notice, sizing_mode="stretch_width")
+        self.layout = pn.Row(left, right, sizing_mode="stretch_width")
+
+    def servable(self):
+        """The layout, with this session's periodic update attached."""
+        self.tick()
+        self.pn.state.add_periodic_callback(self.tick, period=self.settings.poll_ms)
+        return self.layout
+
+    # -- controls -----------------------------------------------------------------------
+    def _on_play(self, event) -> None:
+        self.playing = bool(event.new)
+        self.play.name = "pause" if self.playing else "play"
+        self._wall = _time.monotonic()
+
+    def _on_follow(self, event) -> None:
+        self.live = bool(event.new)
+
+    def _on_slider(self, event) -> None:
+        if event.new is None:
+            return
+        self.live = False
+        self.follow.value = False
+        self.clock = float(event.new)
+        self._wall = _time.monotonic()
+
+    # -- one tick -------------------------------------------------------------------------
+    def tick(self) -> None:
+        """Read what is new, move the clock, send the browser what changed."""
+        update = self.folder.poll()
+        tl = self.timeline
+        tl.feed(update)
+        if tl.generation != self.generation:
+            self._reset()
+        if update.record is not None:
+            self._set_facts()
+        self._set_notice()
+        last = tl.last_time
+        if last is None:
+            return
+        if self.geometry is None and tl.record is not None and tl.record.drawing is not None and tl.rows is not None:
+            geometry = Geometry(tl.record.drawing)
+            if not geometry.lacking(tl.rows.columns):
+                self.geometry = geometry
+        self._advance_clock(last)
+        self._show(self.clock)
+        self.slider.end = max(last, self.slider.start + 1e-9)
+        if self.live or self.playing:
+            self.slider.value = min(self.clock, self.slider.end)
+
+    def _advance_clock(self, last: float) -> None:
+        now = _time.monotonic()
+        running = self.timeline.record is not None and not self.timeline.record.ended
+        if self.clock is None:
+            first = self.timeline.first_time or 0.0
+            self.clock = last if (running and self.live) else first
+        elif self.live:
+            self.clock = last if running else (self.clock if not self.playing else
+                                               min(last, self.clock + (now - self._wall) * float(self.speed.value)))
+        elif self.playing:
+            self.clock = min(last, self.clock + (now - self._wall) * float(self.speed.value))
+        self._wall = now
+
+    def _reset(self) -> None:
+        self.generation = self.timeline.generation
+        for name in ("signal_recent", "forecast_recent", "statistic", "signal_overview", "bodies", "joints"):
+            self.src[name].data = {k: [] for k in self.src[name].data}
+        self.shown_t, self.clock, self.geometry, self.scene, self._overview_bin = None, None, None, None, -1
+
+    # -- what the browser gets ---------------------------------------------------------
+    def _window_rows(self, series) -> int:
+        if series is None or series.n < 2:
+            return 10_000
+        step = max(float(np.median(np.diff(series.time[-50:]))), 1e-9)
+        return int(math.ceil(self.settings.window_s / step)) + 1
+
+    def _show(self, t: float) -> None:
+        tl = self.timeline
+        signal = tl.signals[0] if tl.signals else None
+        if signal != self._signal:
+            self._signal = signal
+            self.signal_plot.title.text = f"{signal}: signal and forecast, last {self.settings.window_s:g} s"
+            self.shown_t = None
+        jump = self.shown_t is None or t < self.shown_t or t - self.shown_t > self.settings.window_s
+        t0 = max(t - self.settings.window_s, -math.inf) if jump else self.shown_t
+        if signal is not None:
+            if signal in tl.forecasts:
+                fc = tl.forecasts[signal]
+                part = fc.between(t0, t, ("value", "forecast"))
+                self._send("signal_recent", {"time": part["time"], "value": part["value"]}, jump,
+                           self._window_rows(fc))
+                keep = np.isfinite(part["forecast"])
+                self._send("forecast_recent", {"time": part["time"][keep], "forecast": part["forecast"][keep]},
+                           jump, self._window_rows(fc))
+            elif tl.rows is not None and signal in tl.rows.columns:
+                part = tl.rows.between(t0, t, (signal,))
+                self._send("signal_recent", {"time": part["time"], "value": part[signal]}, jump,
+                           self._window_rows(tl.rows))
+        ev = tl.evaluations.between(t0, t, ("statistic", "threshold"))
+        self._send("statistic", ev, jump, self._window_rows(tl.evaluations))
+        self._overview(signal, t)
+        self._marks(t)
+        self._mechanism(t)
+        self.shown_t = t
+
+    def _send(self, name: str, data: dict, replace: bool, rollover: int) -> None:
+        source = self.src[name]
+        if replace:
+            source.data = {k: np.asarray(v)[-rollover:] for k, v in data.items()}
+        elif len(data["time"]):
+            n = min(len(data["time"]), self.settings.max_stream)
+            source.stream({k: np.asarray(v)[-n:] for k, v in data.items()}, rollover=rollover)
+
+    def _overview(self, signal: str | None, t: float) -> None:
+        tl = self.timeline
+        if signal is None:
+            return
+        series = tl.forecasts.get(signal)
+        column = "value"
+        if series is None:
+            series, column = tl.rows, signal
+        if series is None or column not in series.columns:
+            return
+        bin_s = self._bin_s()
+        current = int(t // bin_s)
+        if current != self._overview_bin:
+            self._overview_bin = current
+            self.src["signal_overview"].data = series.envelope(column, t, bin_s)
+
+    def _bin_s(self) -> float:
+        """The whole-run plot's bin: the run's span in ``overview_bins`` bins, at least one row."""
+        r = self.timeline.record
+        if r is None or r.experiment is None:
+            return self.settings.bin_s
+        span = r.experiment.stop - r.experiment.start
+        return max(r.experiment.step, span / self.settings.overview_bins)
+
+    def _marks(self, t: float) -> None:
+        tl = self.timeline
+        state = tl.state_at(t)
+        colour, text = BANNER[state.state]
+        if state.state == "ALARM":
+            text = f"ALARM at t = {state.alarm_time:.2f} s: {html.escape(state.message or 'alarm')}"
+        if tl.writer_gone:
+            colour, text = "#6c757d", text + " — the run's writer stopped (run.json says running, nobody writes)"
+        self.banner.object = (f'<div id="state" data-state="{state.state}" style="background:{colour};color:white;'
+                              f'padding:8px 12px;border-radius:4px;font-size:16px">'
+                              f't = {t:.2f} s &nbsp; {text}</div>')
+        for box in (self.train_box, self.overview_train):
+            if state.train is not None:
+                box.left, box.right, box.visible = state.train[0], state.train[1], True
+        fault = tl.record.fault_time if tl.record is not None else None
+        for mark in self.fault_marks:
+            if fault is not None:
+                mark.location, mark.visible = fault, True
+        for mark in self.alarm_marks:
+            if state.alarm_time is not None:
+                mark.location, mark.visible = state.alarm_time, True
+        d = tl.diagnosis
+        if d is not None:
+            self.verdict.object = (f'<div id="verdict" data-verdict="{html.escape(d.verdict)}" style="border-left:6px '
+                                   f'solid #444;padding:6px 10px"><b>diagnosis</b>: {html.escape(d.message)}</div>')
+
+    def _mechanism(self, t: float) -> None:
+        tl = self.timeline
+        if self.geometry is None or tl.rows is None:
+            self.mechanism.title.text = ("mechanism: not drawn — " + self._why_no_drawing()) if tl.rows is not None \
+                else "mechanism"
+            return
+        i = tl.rows.index_at(t)
+        if i < 0:
+            return
+        if self.scene is None or (tl.record is not None and not tl.record.ended and i % 500 == 0):
+            import pandas as pd
+
+            frame = pd.DataFrame({c: tl.rows.column(c)[:i + 1] for c in tl.rows.columns})
+            self.scene = self.geometry.scene(frame)
+            self.src["guides"].data = {"xs": [list(g[0]) for g in self.scene.guides],
+                                       "ys": [list(g[1]) for g in self.scene.guides]}
+            self.src["ground"].data = {"x": [g[0] for g in self.scene.ground], "y": [g[1] for g in self.scene.ground]}
+        row = {c: tl.rows.column(c)[i] for c in tl.rows.columns}
+        frame = self.geometry.frame(row, self.scene.block_size)
+        faulted = set()
+        if tl.record is not None:
+            faulted = faulted_bodies(self.geometry.drawing, [e.variable for e in tl.record.events if e.first_time <= t])
+        self.src["bodies"].data = {"xs": [list(b.xs) for b in frame.bodies], "ys": [list(b.ys) for b in frame.bodies],
+                                   "colour": [COLOURS["faulted" if b.name in faulted else "body"] for b in frame.bodies],
+                                   "name": [b.name for b in frame.bodies]}
+        self.src["joints"].data = {"x": [j[1] for j in frame.joints], "y": [j[2] for j in frame.joints],
+                                   "name": [j[0] for j in frame.joints]}
+        self.mechanism.title.text = f"{self.geometry.drawing.mechanism} at t = {t:.2f} s"
+
+    def _why_no_drawing(self) -> str:
+        r = self.timeline.record
+        if r is None:
+            return "run.json could not be read"
+        if r.drawing is None:
+            return "the run recorded no joint positions (its FMU declares no drawing, or [outputs] drawing = false)"
+        return "exchange.csv lacks the drawing's columns"
+
+    def _set_facts(self) -> None:
+        r = self.timeline.record
+        if r is None:
+            return
+        events = "".join(f"<li>{html.escape(_event_text(e))}</li>" for e in r.events) or "<li>none</li>"
+        fmu = r.fmu.model_name if r.fmu is not None else "?"
+        self.facts.object = (f'<div id="facts"><b>case</b> {html.escape(r.case or "?")}<br>'
+                             f'{html.escape(r.description or "")}<br><b>FMU</b> {html.escape(fmu)}<br>'
+                             f'<b>status</b> <span id="status">{html.escape(r.status)}</span>, '
+                             f'{r.rows_written or 0} rows written<br><b>events</b><ul>{events}</ul></div>')
+
+    def _set_notice(self) -> None:
+        tl = self.timeline
+        lines = []
+        if tl.record_problem:
+            lines.append(tl.record_problem)
+        if tl.record is not None and tl.record.status == "failed":
+            lines.append(f"the run failed: {tl.record.error}")
+        if tl.writer_gone:
+            lines.append("the run's writer is gone: run.json still says running, but no process writes it")
+        lines.extend(tl.warnings[-3:])
+        self.notice.object = ('<div id="notice" style="color:#8a4b00">' + "<br>".join(html.escape(x) for x in lines)
+                              + "</div>") if lines else ""
+
+
+def _event_text(e) -> str:
+    if hasattr(e, "value"):
+        return f"t = {e.time:g} s: {e.variable} -> {e.value}"
+    return f"{e.start:g}-{e.end:g} s: {e.variable} {e.from_:g} -> {e.to:g} (ramp)"
