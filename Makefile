@@ -7,6 +7,8 @@ STAMP  := $(VENV)/.installed
 FMU    := build/FourBar.fmu
 REALTIME ?= 0
 SPEEDUP  ?= 10
+# VIEW=0 runs the demo without its live browser view (fourbar-view).
+VIEW     ?= 1
 # REALTIME=1 runs the demo at wall-clock pace (the paper's live setting).
 DEMO_SPEED := $(if $(filter 1,$(REALTIME)),1,$(SPEEDUP))
 # What the FMUs are built from: the generated code lives only in the build (and build/generated/).
@@ -14,17 +16,19 @@ FMU_SOURCES := build_fmu.py $(wildcard fmu_src/*.py fmu_src/mechanism/*.py fmu_s
                fmu_src/mechanisms/*.toml fmu_src/native/*.[ch])
 MECHANISMS  := $(basename $(notdir $(wildcard fmu_src/mechanisms/*.toml)))
 
-.PHONY: demo test check fmu mechanisms benchmarks figures clean help
+.PHONY: demo test check fmu mechanisms browser benchmarks figures clean help
 
 help:
 	@echo "make demo       build the FMU, run Case 2 with orchestrator and monitor, print the verdict"
 	@echo "make demo REALTIME=1   the same at wall-clock pace (100 s)"
+	@echo "make demo VIEW=0       without the live browser view (fourbar-view)"
 	@echo "make test       run the test suite (all of it; what CI runs)"
 	@echo "make check      the fast lane: every test not marked slow (about a minute)"
 	@echo "make benchmarks measure speed and accuracy (writes docs/benchmarks.md figures to stdout)"
 	@echo "make figures    compare the detection/accuracy figures quoted in README and docs with a fresh run"
 	@echo "make fmu        build $(FMU) and build/FourBarNative.fmu (when a C compiler exists)"
 	@echo "make mechanisms build the FMUs of every mechanism in fmu_src/mechanisms/ into build/"
+	@echo "make browser    install Debian's chromium for the browser tests (make test does it)"
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -47,12 +51,25 @@ $(MECH_STAMP): $(FMU) $(FMU_SOURCES)
 mechanisms: $(MECH_STAMP)
 
 demo: $(FMU)
-	$(BIN)/python scripts/demo.py --speedup $(DEMO_SPEED)
+	$(BIN)/python scripts/demo.py --speedup $(DEMO_SPEED) $(if $(filter 0,$(VIEW)),--no-view,)
+
+# The browser tests of fourbar-view drive Debian's Chromium (Playwright with the system
+# browser; its own browser download is not used).  Installed here when missing and run as root.
+browser:
+	@command -v chromium >/dev/null 2>&1 || { \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    echo "make browser: installing Debian's chromium for the browser tests"; \
+	    DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium >/dev/null 2>&1 || \
+	    { apt-get update -q >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium >/dev/null; } || \
+	    echo "make browser: could not install chromium; the browser tests will be skipped"; \
+	  else \
+	    echo "make browser: no chromium; install Debian's chromium (apt-get install chromium) to run the browser tests"; \
+	  fi; }
 
 # The suite runs on two workers (pytest-xdist; TEST_WORKERS=0 runs it in one process) and
 # finds every mechanism's FMUs in build/, built once here rather than once per worker.
 TEST_WORKERS ?= 2
-test: $(FMU) $(MECH_STAMP)
+test: $(FMU) $(MECH_STAMP) browser
 	$(BIN)/python -m pytest -q $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist worksteal)
 
 check: $(FMU)

@@ -6,7 +6,12 @@
 watches the rest.  They share nothing but the files.  The verdict comes from the
 monitor's summary.json; after an alarm ``fourbar-diagnose`` names the changed parameter.
 
-Usage: python scripts/demo.py [--speedup 10] [--case cases/case2_fault_L2.toml] [--model prophet]
+With the view (default; --no-view skips it) ``fourbar-view`` serves the run folder on
+127.0.0.1 from the moment the run starts and prints its URL: the mechanism moving, the
+signal with its forecast, the detector and the verdict, live.  At the end the view stays up
+until Enter or Ctrl-C when the demo runs in a terminal, and stops otherwise.
+
+Usage: python scripts/demo.py [--speedup 10] [--case cases/case2_fault_L2.toml] [--model prophet] [--no-view]
        (--speedup 1 runs at wall-clock pace, as in the paper)
 """
 from __future__ import annotations
@@ -30,6 +35,7 @@ def main(argv=None) -> int:
                         help="simulated seconds per wall-clock second (default %(default)s; 1 = real time)")
     parser.add_argument("--model", default="prophet", choices=["prophet", "harmonic"])
     parser.add_argument("--out", default=None, help="output folder (default out/<case name>)")
+    parser.add_argument("--no-view", action="store_true", help="do not serve the live browser view")
     args = parser.parse_args(argv)
     if args.speedup <= 0:
         parser.error("--speedup must be positive")
@@ -50,17 +56,57 @@ def main(argv=None) -> int:
     time.sleep(0.5)
     runner = subprocess.Popen(
         [str(BIN / "fourbar-run"), str(case), "--out", str(out), "--realtime", f"{args.speedup:g}"])
+    view = None if args.no_view else _start_view(out, runner)
     try:
-        run_code = runner.wait()
-        monitor_code = monitor.wait(timeout=300)
+        code = _finish(runner, monitor, out, monitor_out)
+        if view is not None:
+            _linger(view, out)
+        return code
     except KeyboardInterrupt:
-        for proc in (runner, monitor):
-            proc.terminate()
         return 130
     finally:
-        for proc in (runner, monitor):
-            if proc.poll() is None:
-                proc.kill()
+        for proc in (runner, monitor, view):
+            if proc is not None and proc.poll() is None:
+                proc.terminate()
+                try:
+                    proc.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+
+
+def _start_view(out: Path, runner: subprocess.Popen) -> subprocess.Popen | None:
+    """fourbar-view on the run folder once fourbar-run has created it; prints the URL."""
+    deadline = time.monotonic() + 30
+    while not (out / "run.json").exists():
+        if runner.poll() is not None or time.monotonic() > deadline:
+            return None
+        time.sleep(0.05)
+    view = subprocess.Popen([str(BIN / "fourbar-view"), str(out), "--quiet"], stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, text=True)
+    url = view.stdout.readline().strip()
+    if not url:
+        print("demo: the live view did not start (run `fourbar-view` on the folder to see why)", file=sys.stderr)
+        return None
+    print(f"demo: live view at {url}  (open it in a browser)", flush=True)
+    return view
+
+
+def _linger(view: subprocess.Popen, out: Path) -> None:
+    """Keep the view up for a user at a terminal; stop it otherwise."""
+    shown = _shown(out)
+    if sys.stdin.isatty():
+        print(f"\ndemo: the view stays up for replay; press Enter (or Ctrl-C) to stop it. Later: fourbar-view {shown}")
+        try:
+            input()
+        except EOFError:
+            pass
+    else:
+        print(f"\ndemo: view stopped; replay it any time with: fourbar-view {shown}")
+
+
+def _finish(runner: subprocess.Popen, monitor: subprocess.Popen, out: Path, monitor_out: Path) -> int:
+    run_code = runner.wait()
+    monitor_code = monitor.wait(timeout=300)
 
     summary_path = monitor_out / "summary.json"
     if run_code != 0 or not summary_path.exists():
