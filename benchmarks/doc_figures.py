@@ -579,7 +579,8 @@ def main(argv: list[str] | None = None) -> int:
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--check", action="store_true", help="compare the quotes with fresh figures (exit 1 if stale)")
     mode.add_argument("--write", action="store_true", help="write the fresh figures into the files "
-                      f"(and make demo's history plot into {DEMO_IMAGE})")
+                      f"(and make demo's history plot into {DEMO_IMAGE}, its animation and live-page "
+                      "screenshot into docs/img/case2.gif and docs/img/view.png)")
     parser.add_argument("--copied", action="store_true",
                         help="only the figures copied from generated files and sweep files (no runs; a second)")
     parser.add_argument("--data", type=Path, help="folder for the runs (reused when present); default: a temp dir")
@@ -591,6 +592,9 @@ def main(argv: list[str] | None = None) -> int:
         if not args.copied:
             if args.write:
                 shutil.copyfile(data / "demo" / "monitor" / "history.png", REPO / DEMO_IMAGE)
+                # the README's animation and live-page screenshot, from the same demo run
+                subprocess.run([sys.executable, str(REPO / "scripts" / "readme_media.py"), str(data / "demo")],
+                               check=True)
     findings = compare(figures, partial=args.copied)
     if args.write:
         missing = [f for f in findings if f.quoted is None]

@@ -31,6 +31,7 @@ SECTIONS = [
     ("monitor_replay", "Monitor replay speed and detection against the paper (issue 4)",
      ["benchmarks/monitor_replay.py"]),
     ("sweep_scaling", "Sweep throughput on Dask, 1 and 2 workers (issue 6)", ["benchmarks/sweep_scaling.py"]),
+    ("view_load", "Live view following an hour-long run at 100 Hz (issue 25)", ["benchmarks/view_load.py"]),
 ]
 
 

@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 import psutil                  # a dependency of dask.distributed
 import pytest
@@ -175,3 +177,20 @@ def test_sweep_scaling_benchmark(native_fmu):
     # speed-ups against the only (base) worker count are 1 by construction; cold rate, task
     # wall and CPU seconds are positive
     assert row[2] == row[4] == "1.00" and all(float(c) > 0 for c in (row[3], row[5], row[6])), row
+
+
+def test_view_load_benchmark(tmp_path):
+    """``--quick``: 60 s of run written at 20x real time while fourbar-view and a headless
+    Chromium page follow it; the table's figures are read back and must be plausible."""
+    if not Path(os.environ.get("CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium").exists():
+        pytest.skip("no Chromium: `make browser` installs it (make test does)")
+    out = _bench("view_load.py", "--quick", "--out", str(tmp_path))
+    (memory,) = _rows(out, "server resident memory (MB)")
+    (held,) = _rows(out, "rows held by the page's plots")
+    # a Panel server is ~100-300 MB resident; the page holds at most the recent window
+    # (20 s at 100 Hz, signal and forecast) plus the statistic and 1,500 bins
+    assert 50 < float(memory[3]) < 1000, memory
+    assert 0 < int(held[3].replace(",", "")) <= 2 * 2001 + 201 + 1500, held
+    latency = re.search(r"median (\d+) ms, 95th percentile (\d+) ms, largest (\d+) ms", out)
+    assert latency and int(latency[1]) < 5000, out       # drawn within seconds, not never
+    assert "Page errors: 0." in out, out

@@ -15,6 +15,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 
 from support import FOURBAR_MONITOR, FOURBAR_RUN, case_file
@@ -125,6 +127,14 @@ def test_a_finished_run_replays_with_mechanism_alarm_and_diagnosis(browser, fini
         # the mechanism: three links (Table 1's crank, coupler, rocker), four joints; after the
         # fault the crank (L2's body) is drawn in the fault colour, the others not
         assert view.rows("bodies") == 3 and view.rows("joints") == 4
+        # the drawn joints are the exchange file's positions at the drawn time, exactly (the
+        # browser holds float64 arrays: the CSV's 17 digits round-trip)
+        page_time = view.column("joints", "time")[0]
+        rows = pd.read_csv(finished_case2 / "exchange.csv")
+        row = rows.iloc[int(np.argmin(np.abs(rows["time"].to_numpy() - page_time)))]
+        assert row["time"] == page_time
+        for name, x, y in zip(view.column("joints", "name"), view.column("joints", "x"), view.column("joints", "y")):
+            assert (x, y) == (row[f"{name}_x"], row[f"{name}_y"]), name
         colours = dict(zip(view.column("bodies", "name"), view.column("bodies", "colour")))
         assert colours["crank"] != colours["coupler"] == colours["rocker"], colours
         # the crank is drawn at its length: |A - O2| = L2 = 1.1 m after the fault (1e-6 m:
@@ -137,6 +147,10 @@ def test_a_finished_run_replays_with_mechanism_alarm_and_diagnosis(browser, fini
         assert 0 < view.rows("signal_recent") <= 20 / 0.01 + 1
         assert view.rows("forecast_recent") > 0 and view.rows("statistic") > 0
         assert view.errors == [], view.errors
+        # a screenshot to look at (kept in pytest's temporary folder; VIEW_SCREENSHOT names another)
+        shot = Path(os.environ.get("VIEW_SCREENSHOT") or finished_case2.parent / "view.png")
+        view.page.screenshot(path=str(shot))
+        assert shot.stat().st_size > 20_000
     finally:
         code, err = view.close()
     assert code == 143 and "Traceback" not in err, err

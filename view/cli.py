@@ -71,6 +71,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--speed", type=_positive, default=1.0,
                         help="replay speed of a finished run (and of --animate): simulated seconds per "
                              "second (default 1)")
+    parser.add_argument("--at", type=float, metavar="SECONDS",
+                        help="open the page paused at this run time (default: follow a running run, replay a "
+                             "finished one from its start)")
     parser.add_argument("--window", type=_positive, default=20.0,
                         help="seconds of signal and forecast shown at full resolution (default 20)")
     parser.add_argument("--animate", metavar="OUT", help="write an animation (.gif, or .mp4 when ffmpeg exists) "
@@ -136,11 +139,11 @@ def _main(argv: Sequence[str] | None) -> int:
     if problem is not None:
         print(f"fourbar-view: error: {problem}", file=sys.stderr)
         return 2
-    return serve(folder, port=args.port, speed=args.speed, window=args.window, quiet=args.quiet)
+    return serve(folder, port=args.port, speed=args.speed, window=args.window, at=args.at, quiet=args.quiet)
 
 
-def serve(folder: Path, *, port: int = 0, speed: float = 1.0, window: float = 20.0, quiet: bool = False,
-          on_ready=None) -> int:
+def serve(folder: Path, *, port: int = 0, speed: float = 1.0, window: float = 20.0, at: float | None = None,
+          quiet: bool = False, on_ready=None) -> int:
     """Serve the page of ``folder`` on 127.0.0.1:``port`` until Ctrl-C / SIGTERM; prints the URL."""
     import logging
 
@@ -148,7 +151,7 @@ def serve(folder: Path, *, port: int = 0, speed: float = 1.0, window: float = 20
 
     from .page import PageSettings, RunPage
 
-    settings = PageSettings(speed=speed, window_s=window)
+    settings = PageSettings(speed=speed, window_s=window, at=at)
     for name in ("bokeh", "tornado", "panel"):
         logging.getLogger(name).setLevel(logging.ERROR)
 

@@ -47,6 +47,7 @@ class PageSettings:
     overview_bins: int = 1500      # whole-run plot: bins over the run's span (an hour: 2.4 s each)
     speed: float = 1.0             # replay: run seconds per wall second
     max_stream: int = 20_000       # rows sent in one tick at most (a jump re-sends the window)
+    at: float | None = None        # open paused at this run time (None: follow, or play from the start)
 
 
 class RunPage:
@@ -65,8 +66,8 @@ class RunPage:
         self.shown_t: float | None = None          # the clock value the plots show
         self.generation = -1
         self.clock: float | None = None
-        self.playing = True
-        self.live = True
+        self.playing = settings.at is None
+        self.live = settings.at is None
         self._wall = _time.monotonic()
         self._overview_bin = -1
         self._signal: str | None = None
@@ -77,7 +78,7 @@ class RunPage:
             "statistic": ColumnDataSource({"time": [], "statistic": [], "threshold": []}, name="statistic"),
             "signal_overview": ColumnDataSource({"time": [], "low": [], "high": []}, name="signal_overview"),
             "bodies": ColumnDataSource({"xs": [], "ys": [], "colour": [], "name": []}, name="bodies"),
-            "joints": ColumnDataSource({"x": [], "y": [], "name": []}, name="joints"),
+            "joints": ColumnDataSource({"x": [], "y": [], "name": [], "time": []}, name="joints"),
             "ground": ColumnDataSource({"x": [], "y": []}, name="ground"),
             "guides": ColumnDataSource({"xs": [], "ys": []}, name="guides"),
         }
@@ -113,7 +114,9 @@ class RunPage:
         self.overview = figure(title="whole run (min/max per bin)", height=160, sizing_mode="stretch_width",
                                x_axis_label="time [s]", tools="pan,xwheel_zoom,reset")
         self.overview.varea("time", "low", "high", source=s["signal_overview"], fill_color=COLOURS["signal"],
-                            fill_alpha=0.5)
+                            fill_alpha=0.35)
+        for edge in ("low", "high"):       # a bin of one row has low == high: the lines still show it
+            self.overview.line("time", edge, source=s["signal_overview"], color=COLOURS["signal"], line_width=1)
         self.overview_train = BoxAnnotation(fill_alpha=0.12, fill_color="#1f6fb2", visible=False)
         self.overview.add_layout(self.overview_train)
         self.fault_marks = []
@@ -140,16 +143,16 @@ class RunPage:
         self.facts = pn.pane.HTML("", width=380, name="facts")
         self.verdict = pn.pane.HTML("", sizing_mode="stretch_width", name="diagnosis")
         self.notice = pn.pane.HTML("", sizing_mode="stretch_width", name="notice")
-        self.play = pn.widgets.Toggle(name="pause", value=True, width=90, button_type="primary")
+        self.play = pn.widgets.Toggle(name="pause" if self.playing else "play", value=self.playing, width=90,
+                                      button_type="primary")
         self.play.param.watch(self._on_play, "value")
-        self.speed = pn.widgets.Select(name="speed", options={"0.5x": 0.5, "1x": 1.0, "2x": 2.0, "5x": 5.0,
-                                                              "10x": 10.0, "50x": 50.0},
-                                       value=self.settings.speed if self.settings.speed in
-                                       (0.5, 1.0, 2.0, 5.0, 10.0, 50.0) else 1.0, width=90)
+        speeds = sorted({0.5, 1.0, 2.0, 5.0, 10.0, 50.0, float(self.settings.speed)})
+        self.speed = pn.widgets.Select(name="speed", options={f"{v:g}x": v for v in speeds},
+                                       value=float(self.settings.speed), width=90)
         self.slider = pn.widgets.FloatSlider(name="time [s]", start=0.0, end=1.0, value=0.0, step=0.01,
                                              sizing_mode="stretch_width")
         self.slider.param.watch(self._on_slider, "value_throttled")
-        self.follow = pn.widgets.Checkbox(name="follow the newest row", value=True, width=170)
+        self.follow = pn.widgets.Checkbox(name="follow the newest row", value=self.live, width=170)
         self.follow.param.watch(self._on_follow, "value")
         controls = pn.Row(self.play, self.speed, self.follow, self.slider, sizing_mode="stretch_width")
         left = pn.Column(self.mechanism, self.facts)
@@ -193,6 +196,9 @@ class RunPage:
         self._set_notice()
         last = tl.last_time
         if last is None:
+            self.banner.object = ('<div id="state" data-state="WAITING" style="background:#6c757d;color:white;'
+                                  'padding:8px 12px;border-radius:4px;font-size:16px">waiting for the first rows '
+                                  'of exchange.csv</div>')
             return
         if self.geometry is None and tl.record is not None and tl.record.drawing is not None and tl.rows is not None:
             geometry = Geometry(tl.record.drawing)
@@ -201,15 +207,17 @@ class RunPage:
         self._advance_clock(last)
         self._show(self.clock)
         self.slider.end = max(last, self.slider.start + 1e-9)
-        if self.live or self.playing:
-            self.slider.value = min(self.clock, self.slider.end)
+        self.slider.value = min(self.clock, self.slider.end)      # value_throttled (a user's drag) stays
 
     def _advance_clock(self, last: float) -> None:
         now = _time.monotonic()
         running = self.timeline.record is not None and not self.timeline.record.ended
         if self.clock is None:
             first = self.timeline.first_time or 0.0
-            self.clock = last if (running and self.live) else first
+            if self.settings.at is not None:
+                self.clock = min(max(self.settings.at, first), last)
+            else:
+                self.clock = last if (running and self.live) else first
         elif self.live:
             self.clock = last if running else (self.clock if not self.playing else
                                                min(last, self.clock + (now - self._wall) * float(self.speed.value)))
@@ -343,7 +351,7 @@ class RunPage:
                                    "colour": [COLOURS["faulted" if b.name in faulted else "body"] for b in frame.bodies],
                                    "name": [b.name for b in frame.bodies]}
         self.src["joints"].data = {"x": [j[1] for j in frame.joints], "y": [j[2] for j in frame.joints],
-                                   "name": [j[0] for j in frame.joints]}
+                                   "name": [j[0] for j in frame.joints], "time": [frame.time] * len(frame.joints)}
         self.mechanism.title.text = f"{self.geometry.drawing.mechanism} at t = {t:.2f} s"
 
     def _why_no_drawing(self) -> str:
