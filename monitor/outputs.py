@@ -53,7 +53,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .summary import MonitorResult
 
 __all__ = ["FORECAST_HEADER", "OUTPUT_FILES", "OutputWriters", "PLOT_FILES", "checked_default_out_dir",
-           "checked_out_dir", "default_out_dir", "jsonable", "write_plots"]
+           "checked_out_dir", "default_out_dir", "jsonable", "plot_figures", "write_plots", "zoom_window"]
 
 PLOT_FILES = ("history.png", "statistic.png", "spectrum.png")
 #: Every file the monitor writes into its output folder.
@@ -200,19 +200,39 @@ class OutputWriters:
             fh.close()
 
 
-def write_plots(result: "MonitorResult", out_dir: str | os.PathLike[str]) -> list[Path]:
-    """Write history.png, statistic.png and spectrum.png for ``result``; return their paths."""
-    import matplotlib
+#: The history zoom shows this many periods of the signal before the earlier of the fault and
+#: the first alarm, and this many after the later (never starting inside a training window).
+ZOOM_PERIODS_BEFORE = 2.0
+ZOOM_PERIODS_AFTER = 3.0
 
-    matplotlib.use("Agg", force=False)
+
+def plot_figures(result: "MonitorResult") -> dict[str, Any]:
+    """history.png, statistic.png and spectrum.png as matplotlib Figures (Agg canvas, no pyplot), by file name.
+
+    The artists a reader may look for carry a gid: ``fault`` and ``alarm`` (the lines of the
+    fault time and the first alarm, in the history and statistic plots), ``zoom`` (the zoomed
+    axes), ``statistic`` (the statistic's line), ``alarm-latched`` (the shading of a latched
+    alarm, from its alarm event to its clear event or the end), ``forecast-band`` (the
+    forecast ± the detector's noise scale, cusum only).
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+    figures = {}
+    for name, fn in zip(PLOT_FILES, (_plot_history, _plot_statistic, _plot_spectrum)):
+        fig = Figure(figsize=(10, 6.8), dpi=100)
+        FigureCanvasAgg(fig)
+        fn(fig, result)
+        figures[name] = fig
+    return figures
+
+
+def write_plots(result: "MonitorResult", out_dir: str | os.PathLike[str]) -> list[Path]:
+    """Write history.png, statistic.png and spectrum.png for ``result``; return their paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
-    for name, fn in zip(PLOT_FILES, (_plot_history, _plot_statistic, _plot_spectrum)):
-        fig = Figure(figsize=(10, 6.8), dpi=100)
-        fn(fig, result)
+    for name, fig in plot_figures(result).items():
         path = out / name
         fig.savefig(path)
         paths.append(path)
@@ -230,15 +250,63 @@ def _label(result: "MonitorResult", what: str) -> str:
     return f"{what} ({unit})" if unit else what
 
 
-def _marks(ax: Any, result: "MonitorResult", label: bool = True) -> None:
+def zoom_window(result: "MonitorResult") -> tuple[float, float]:
+    """The history plot's zoom (s): ``ZOOM_PERIODS_BEFORE`` periods before the earlier of the
+    fault and the first alarm to ``ZOOM_PERIODS_AFTER`` after the later (without either: after
+    the training window), starting no earlier than the end of a training window that began
+    before them, and cut to the data."""
     s = result.summary
-    if s.fault_time is not None:
-        ax.axvline(s.fault_time, color="0.3", ls="--", lw=1.0,
-                   label=f"fault (run.json) {s.fault_time:g} s" if label else None)
+    fit = result.fits[0]
+    period = fit.period or fit.estimate.period
+    marks = [m for m in (s.fault_time, s.first_alarm_time) if m is not None]
+    a, b = (min(marks), max(marks)) if marks else (fit.end, fit.end)
+    lo, hi = a - ZOOM_PERIODS_BEFORE * period, b + ZOOM_PERIODS_AFTER * period
+    for ft in result.fits:
+        # a training window before the marks: start after it, but at least a tenth of a period before a mark
+        if ft.start < a:
+            lo = max(lo, min(ft.end, a - 0.1 * period))
+    t = result.history["time"].to_numpy()
+    if t.size:
+        lo, hi = max(lo, float(t[0])), min(hi, float(t[-1]))
+    return (lo, hi) if hi > lo else (lo, lo + period)
+
+
+def _noise_scale(result: "MonitorResult") -> Any:
+    """The detector's noise scale of the plotted signal (a :class:`~monitor.sequential.NoiseScale`),
+    None when the detector has none (mae)."""
+    sig = result.options.signals[0]
+    for s in result.fits[0].signals:
+        if getattr(s, "name", None) == sig and getattr(s, "scale", None) is not None:
+            return s.scale
+    return None
+
+
+def _marks(ax: Any, result: "MonitorResult", label: bool = True, names: bool = False) -> None:
+    """The fault time (black dashes, on top) and the alarms (red, wider, beneath): 0.01 s apart in
+    Case 2, so both stay visible; their times are in the legend and, with ``names``, on the axes."""
+    s = result.summary
+    fault = s.fault_time
     times = [e.time for e in s.alarm_events]
-    for i, t in enumerate(times[:50]):
-        ax.axvline(t, color="red", lw=1.2 if i == 0 else 0.6, alpha=1.0 if i == 0 else 0.4,
-                   label=(f"first alarm {t:g} s" if i == 0 else None) if label else None)
+    if times:
+        first = times[0]
+        after = f", {s.detection_latency:.3g} s after the fault" if s.detection_latency is not None else ""
+        ax.axvline(first, color="red", lw=3.0, alpha=0.55, zorder=5, gid="alarm",
+                   label=f"first alarm {first:g} s{after}" if label else None)
+        for i, t in enumerate(times[1:50]):
+            ax.axvline(t, color="red", lw=0.8, alpha=0.4, zorder=5,
+                       label=("later alarm episodes" if i == 0 else None) if label else None)
+    if fault is not None:
+        ax.axvline(fault, color="black", ls=(0, (4, 2)), lw=1.3, zorder=6, gid="fault",
+                   label=f"fault {fault:g} s (run.json)" if label else None)
+    if names:
+        tr = ax.get_xaxis_transform()
+        both = fault is not None and times
+        if fault is not None:
+            ax.text(fault, 1.01, f"fault {fault:g} s ", transform=tr, fontsize=8, va="bottom",
+                    ha="right" if both and fault <= times[0] else "left")
+        if times:
+            ax.text(times[0], 1.01, f" alarm {times[0]:g} s", transform=tr, fontsize=8, va="bottom", color="red",
+                    ha="left" if not both or fault <= times[0] else "right")
 
 
 def _plot_history(fig: Any, result: "MonitorResult") -> None:
@@ -250,40 +318,76 @@ def _plot_history(fig: Any, result: "MonitorResult") -> None:
     x = h[sig].to_numpy()
     f = h["forecast"].to_numpy()
     s = result.summary
-    first = s.first_alarm_time
-    fault = s.fault_time
     forecast_name = result.options.detector_class.plot_text(result.options, fit).forecast
-    if first is not None:
-        lo = fit.start
-        hi = max(first, fault or first) + 4.0
-    else:
-        lo, hi = fit.start, fit.end + 11.0
+    lo, hi = zoom_window(result)
     # in-sample fit over the training window, for the paper's Fig. 9 view
     train = (t >= fit.start) & (t <= fit.end)
     fitted = np.full(t.size, np.nan)
     if train.any():
         fitted[train] = fit.forecaster.predict(t[train])
+    scale = _noise_scale(result)
+    unit = _unit(result)
     for ax, (a, b), title in ((axes[0], (t[0] if t.size else 0, t[-1] if t.size else 1), "whole run"),
-                              (axes[1], (lo, hi), "zoom")):
+                              (axes[1], (lo, hi), f"zoom {lo:.4g}–{hi:.4g} s")):
+        zoom = ax is axes[1]
         m = (t >= a) & (t <= b)
         ax.plot(t[m], x[m], color="tab:blue", lw=0.9, zorder=3, label=f"{sig} (exchange file)")
         ax.plot(t[m], fitted[m], color="tab:green", lw=1.2, ls="--", zorder=4, label="model on training data")
         ax.plot(t[m], f[m], color="tab:orange", lw=1.2, ls="--", zorder=4,
                 label=f"{forecast_name} ({fit.forecaster.kind})")
+        if zoom and scale is not None:
+            floor = ", at its floor" if scale.at_floor else ""
+            ax.fill_between(t[m], f[m] - scale.sigma, f[m] + scale.sigma, color="tab:orange", alpha=0.25, lw=0,
+                            zorder=2, gid="forecast-band",
+                            label=f"forecast ± σ: the detector's noise scale σ = {scale.sigma:.3g}"
+                                  f"{' ' + unit if unit else ''}{floor}")
         for i, ft in enumerate(result.fits):
             ax.axvspan(ft.start, ft.end, color="tab:green", alpha=0.12,
                        label=f"training {ft.start:g}–{ft.end:g} s" if i == 0 else None)
-        _marks(ax, result)
+        _marks(ax, result, names=zoom)
         ax.set_xlim(a, b)
         ax.set_xlabel("time (s)")
         ax.set_ylabel(_label(result, sig))
         ax.grid(alpha=0.3)
-        ax.set_title(f"{sig}: data and forecast — {title}", fontsize=10)
+        ax.set_title(f"{sig}: data and forecast — {title}", fontsize=10, pad=14 if zoom else 6)
+    axes[1].set_gid("zoom")
     handles, labels = axes[1].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", fontsize=8, ncol=4, frameon=False)
-    fig.subplots_adjust(left=0.08, right=0.98, top=0.9, bottom=0.15, hspace=0.45)
+    fig.legend(handles, labels, loc="lower center", fontsize=8, ncol=3, frameon=False)
+    fig.subplots_adjust(left=0.08, right=0.98, top=0.9, bottom=0.17, hspace=0.5)
     fig.suptitle(f"{s.case}: {fit.forecaster.kind} model, period {fit.estimate.period:.6g} s, "
                  f"Fourier order {fit.forecaster.order}", fontsize=11)
+
+
+def _alarm_spans(result: "MonitorResult", end: float) -> list[tuple[float, float]]:
+    """(alarm event time, its clear event time or ``end``) for each alarm episode."""
+    spans, start = [], None
+    for e in result.events:
+        if e.get("event") == "alarm" and start is None:
+            start = float(e["time"])
+        elif e.get("event") == "clear" and start is not None:
+            spans.append((start, float(e["time"])))
+            start = None
+    if start is not None:
+        spans.append((start, max(start, end)))
+    return spans
+
+
+def _interval_maximum(result: "MonitorResult") -> bool:
+    """The statistic recorded at ``t`` is the largest of the interval ``(t - every, t]`` (cusum):
+    drawn as steps over its interval, so an alarm inside it falls where the statistic is high.
+    (A field of :class:`~monitor.detector.StatisticPlot` would be this fact's better home.)"""
+    return result.options.detector == "cusum"
+
+
+def _statistic_scale(stat: np.ndarray, thr: np.ndarray) -> tuple[str, float | None]:
+    """("log", None) when every value is positive, else ("symlog", linthresh): a statistic of 0
+    (a CUSUM at rest) is drawn at 0, linear up to a tenth of the limit's decade, log above."""
+    finite = stat[np.isfinite(stat)]
+    if finite.size and finite.min() > 0:
+        return "log", None
+    limits = thr[np.isfinite(thr) & (thr > 0)]
+    ref = float(limits.min()) if limits.size else (float(finite.max()) if finite.size and finite.max() > 0 else 1.0)
+    return "symlog", 10.0 ** (math.floor(math.log10(ref)) - 1)
 
 
 def _plot_statistic(fig: Any, result: "MonitorResult") -> None:
@@ -295,34 +399,44 @@ def _plot_statistic(fig: Any, result: "MonitorResult") -> None:
     axes = fig.subplots(2, 1, height_ratios=[1.4, 1])
     first = s.first_alarm_time
     t = ev["time"].to_numpy()
-    stat = ev["statistic"].to_numpy()
-    thr = ev["threshold"].to_numpy()
+    stat = ev["statistic"].to_numpy(dtype=float)
+    thr = ev["threshold"].to_numpy(dtype=float)
     if first is not None:
         zoom = (first - 3.0, first + 2.0)
     else:
         zoom = (t[0] - 0.5, t[0] + 10.0) if t.size else (0.0, 1.0)
     what, limit = look.what, look.limit
     ylabel = _label(result, look.ylabel) if look.ylabel_in_signal_units else look.ylabel
+    scale, linthresh = _statistic_scale(stat, thr)
+    if scale == "symlog":
+        ylabel += f"\n(linear 0–{linthresh:g}, log above)"
+    steps = "steps-pre" if _interval_maximum(result) else "default"
+    end = float(t[-1]) if t.size else (s.last_time or 0.0)
+    spans = _alarm_spans(result, end) if look.shade_alarm else []
     for ax, span, title in ((axes[0], None, "whole run"), (axes[1], zoom, "zoom")):
         m = np.ones(t.size, bool) if span is None else (t >= span[0]) & (t <= span[1])
-        floor = look.floor
-        ax.semilogy(t[m], np.maximum(stat[m], floor), color="tab:blue", lw=1.0, marker="." if span else None,
-                    ms=3, label=what)
-        ax.semilogy(t[m], thr[m], color="red", ls="--", lw=1.2, label=limit)
+        ax.plot(t[m], stat[m], color="tab:blue", lw=1.0, marker="." if span else None, ms=3, drawstyle=steps,
+                gid="statistic", label=what)
+        ax.plot(t[m], thr[m], color="red", ls="--", lw=1.2, label=limit)
         above = m & (stat > thr)
-        ax.semilogy(t[above], stat[above], "o", ms=2.5, color="red", label="above the limit")
-        if look.shade_alarm:
-            alarm = m & (ev["state"].to_numpy() == "ALARM")
-            if alarm.any():
-                ax.fill_between(t[m], 0, 1, where=alarm[m], transform=ax.get_xaxis_transform(), color="red",
-                                alpha=0.08, label="alarm latched")
+        ax.plot(t[above], stat[above], "o", ms=2.5, color="red", label="above the limit")
+        for i, (a, b) in enumerate(spans):
+            ax.axvspan(a, b, color="red", alpha=0.08, lw=0, gid="alarm-latched",
+                       label="alarm latched (alarm to clear)" if i == 0 else None)
         _marks(ax, result)
+        if scale == "symlog":
+            ax.set_yscale("symlog", linthresh=linthresh, linscale=0.5)
+            if np.nanmin(stat) >= 0:
+                ax.set_ylim(bottom=0.0)
+        else:
+            ax.set_yscale("log")
         if span is not None:
             ax.set_xlim(*span)
         ax.set_xlabel("time (s)")
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3, which="both")
         ax.set_title(f"detector statistic against its limit — {title}", fontsize=10)
+    axes[1].set_gid("zoom")
     if first is not None:
         txt = (f"t = {first:g} s    {cls.label}: {s.first_alarm.statistic:.4g} > limit {s.first_alarm.threshold:.4g}\n"
                f"{ALARM_MESSAGE}")
@@ -335,8 +449,8 @@ def _plot_statistic(fig: Any, result: "MonitorResult") -> None:
     # below the axes, so it never hides the threshold line; the legend sits beside it
     fig.text(0.99, 0.015, txt, fontsize=8, ha="right", va="bottom", bbox=box)
     handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower left", bbox_to_anchor=(0.01, 0.0), fontsize=8, ncol=2, frameon=False)
-    fig.subplots_adjust(left=0.11, right=0.98, top=0.9, bottom=0.24, hspace=0.45)
+    fig.legend(handles, labels, loc="lower left", bbox_to_anchor=(0.01, 0.0), fontsize=7.5, ncol=1, frameon=False)
+    fig.subplots_adjust(left=0.11, right=0.98, top=0.9, bottom=0.26, hspace=0.45)
     fig.suptitle(f"{s.case}: {o.signal}, {result.fits[0].forecaster.kind} model, detector {o.detector}",
                  fontsize=11)
 
