@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import secrets
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -19,7 +20,7 @@ from fourbar_common import replace_atomically, write_json_atomic
 from .diagnosis import Diagnosis
 from .errors import DiagnoseError
 
-__all__ = ["OUTPUT_FILES", "OutputError", "prepare_out_dir", "remove_empty", "write_outputs"]
+__all__ = ["OUTPUT_FILES", "OutputError", "diagnosis_figure", "prepare_out_dir", "remove_empty", "write_outputs"]
 
 #: The files a diagnosis writes into its output folder (the plot unless --no-plot).
 OUTPUT_FILES = ("diagnosis.json", "diagnosis.png")
@@ -124,16 +125,23 @@ def write_outputs(diagnosis: Diagnosis, out_dir: str | Path, plot: bool = True) 
     return written
 
 
-def _plot(d: Diagnosis, path: Path) -> Path:
-    import matplotlib
+def diagnosis_figure(d: Diagnosis) -> Any:
+    """diagnosis.png as a matplotlib Figure (Agg canvas, no pyplot); ``d.curves`` must be set.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    One panel per fitted column (data, healthy model, best explanation) and one of the
+    residuals.  The estimated change time (red dots, on top) and the first alarm (black,
+    wider, beneath) are drawn on every panel and named with their times in the legend, which
+    sits to the right of the panels so it never covers the data.  Artists carry gids:
+    ``change`` and ``alarm`` (the lines), ``legend``.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     c = d.curves
     ncol = len(d.columns)
-    fig, axes = plt.subplots(ncol + 1, 1, figsize=(10, 2.0 * ncol + 3.2), sharex=True, squeeze=False)
-    axes = axes[:, 0]
+    fig = Figure(figsize=(12.5, 2.0 * ncol + 3.2))
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(ncol + 1, 1, sharex=True, squeeze=False)[:, 0]
     for i, name in enumerate(d.columns):
         ax = axes[i]
         unit = d.units.get(name, "")
@@ -141,7 +149,7 @@ def _plot(d: Diagnosis, path: Path) -> Path:
         ax.plot(c.time, c.healthy[:, i], "-", lw=1.0, color="tab:blue", label="healthy model (run.json)")
         if d.best is not None:
             ax.plot(c.time, c.model[:, i], "-", lw=1.2, color="tab:red", label=f"best explanation: {d.best.parameter}")
-        ax.set_ylabel(f"{name} [{unit}]" if unit else name)
+        ax.set_ylabel(f"{name} ({unit})" if unit else name)
     # Residuals against the healthy model and the best explanation, scaled by the noise.
     sigma = np.array([d.noise[n] for n in d.columns])
     ax = axes[-1]
@@ -151,30 +159,38 @@ def _plot(d: Diagnosis, path: Path) -> Path:
             label="data − best explanation")
     ax.set_yscale("log")
     ax.set_ylabel("residual / noise\n(RMS over columns)")
-    ax.set_xlabel("time [s]")
-    for ax in axes:
-        ax.axvline(d.alarm_time, color="k", ls="--", lw=0.8)
-        ax.axvspan(c.time[0], c.fit_from, color="0.92", lw=0)
-        if d.best is not None:
-            ax.axvline(d.best.change_time, color="tab:red", ls=":", lw=1.0)
-            if d.best.kind == "ramp":
-                ax.axvspan(d.best.change_time, d.best.end_time, color="tab:red", alpha=0.08, lw=0)
-    axes[0].legend(loc="upper left", fontsize=8, ncol=3)
-    axes[-1].legend(loc="upper left", fontsize=8)
-    axes[0].text(d.alarm_time, 1.02, " alarm", transform=axes[0].get_xaxis_transform(), fontsize=8)
-    axes[0].text(c.time[0], 1.02, " noise estimate", transform=axes[0].get_xaxis_transform(), fontsize=8)
+    ax.set_xlabel("time (s)")
+    best = d.best
+    for i, ax in enumerate(axes):
+        first = i == 0
+        ax.axvline(d.alarm_time, color="k", lw=2.4, alpha=0.45, zorder=5, gid="alarm",
+                   label=f"first alarm {d.alarm_time:g} s" if first else None)
+        ax.axvspan(c.time[0], c.fit_from, color="0.92", lw=0,
+                   label=f"noise estimate {c.time[0]:g}–{c.fit_from:g} s" if first else None)
+        if best is not None:
+            ax.axvline(best.change_time, color="tab:red", ls=(0, (2, 1.5)), lw=1.4, zorder=6, gid="change",
+                       label=f"estimated change {best.change_time:.2f} s" if first else None)
+            if best.kind == "ramp":
+                ax.axvspan(best.change_time, best.end_time, color="tab:red", alpha=0.08, lw=0,
+                           label=f"ramp {best.change_time:.2f}–{best.end_time:.2f} s" if first else None)
+    # the legends beside the panels (outside the axes), never on the data
+    legend = axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+    legend.set_gid("legend")
+    axes[-1].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     title = {"explained": "Diagnosis", "unexplained": "Not explained by one parameter",
              "no_change": "No change found"}[d.verdict]
     fig.suptitle(f"{title} — {d.case}\n{_wrap(d.message)}", fontsize=9)
     fig.tight_layout(rect=(0, 0, 1, 0.97))
-    try:
-        replace_atomically(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    finally:
-        plt.close(fig)
+    return fig
+
+
+def _plot(d: Diagnosis, path: Path) -> Path:
+    fig = diagnosis_figure(d)
+    replace_atomically(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
     return path
 
 
-def _wrap(text: str, width: int = 150) -> str:
+def _wrap(text: str, width: int = 160) -> str:
     import textwrap
 
     return "\n".join(textwrap.wrap(text, width))
