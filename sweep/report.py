@@ -19,21 +19,84 @@ finished scenario's pre-fault span (``score_pre``; for a fault-free scenario the
 run); positives: every fault scenario's first ``latency_limit`` seconds after the fault
 (``score_early``; 0 when no evaluation fell in them).  Sweeping ``c`` traces the curve;
 the marked point is ``c = 1``, the threshold actually used.
+
+Delay against ARL0 (cusum only, :func:`delay_curves`): for each false-alarm level the
+delay the same run would have had with the CUSUM limit ``h(ARL0)``.  At the designed
+ARL0 (the run's own ``h``) that is the run's alarm latency, sample by sample -- the
+latency detection.png shows.  Below it the statistic is known only as the largest value
+of each evaluation interval (``every``, 0.1 s), so the delay is the first evaluation
+after the fault at or above ``h(ARL0)``, or the alarm when that is earlier (a limit below
+``h`` is reached no later than ``h``): exact within one evaluation interval, never early.
+(:func:`sweep.scenario.delays_at_arl0` gives the evaluation-grid delays, which alone put
+Case 2's designed-ARL0 delay at 0.1 s against an alarm latency of 0.01 s.)
+
+Series are labelled by the detector actually used (:class:`DetectorDesign`): the CUSUM
+with its limit ``h`` and designed ARL0, or the MAE rule with its threshold.
 """
 from __future__ import annotations
 
 import math
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, Mapping
 
-__all__ = ["MAX_EXACT_SIZES", "delay_curves", "plot_delay_arl0", "plot_detection", "plot_roc", "series_of",
-           "summarize"]
+__all__ = ["DetectorDesign", "MAX_EXACT_SIZES", "delay_arl0_figure", "delay_curves", "detection_figure",
+           "plot_delay_arl0", "plot_detection", "plot_roc", "run_delays", "series_of", "summarize"]
 
 MAX_EXACT_SIZES = 12
 _GROUP = ("noise_std", "model", "threshold")
 _FAULT_EXTRA = ("variable", "kind", "ramp_duration")
 
 
-def _label_parts(key: dict[str, Any], unit: str = "") -> str:
+@dataclass(frozen=True)
+class DetectorDesign:
+    """The detector a sweep's monitor ran, for labels: ``name`` (``cusum``, ``mae``, ...),
+    ``arl0_hours`` (cusum: the designed mean hours between false alarms, 1 / false_alarm_rate)
+    and ``every`` (s between evaluations)."""
+
+    name: str
+    arl0_hours: float | None = None
+    every: float | None = None
+
+    @classmethod
+    def from_options(cls, options: Mapping[str, Any]) -> "DetectorDesign":
+        """From a sweep's fixed monitor options (``MonitorSpec.options``; defaults from
+        :class:`monitor.MonitorOptions` for what it does not set)."""
+        from monitor import MonitorOptions
+
+        name = str(options.get("detector", MonitorOptions.detector))
+        every = float(options.get("every", MonitorOptions.every))
+        if name != "cusum":
+            return cls(name, None, every)
+        rate = float(options.get("false_alarm_rate", MonitorOptions.false_alarm_rate))
+        return cls(name, 1.0 / rate, every)
+
+    @classmethod
+    def inferred(cls, table) -> "DetectorDesign | None":
+        """Without the options: the cusum when a row has a delay-vs-ARL0 value (only the cusum
+        writes them), else unknown (None)."""
+        from .scenario import ARL0_HOURS, delay_column
+
+        cols = [delay_column(h) for h in ARL0_HOURS if delay_column(h) in table.columns]
+        if cols and table[cols].notna().any().any():
+            return cls("cusum")
+        return None
+
+
+def _detector_text(design: DetectorDesign | None, threshold: Any, limits, unit: str = "") -> str:
+    """The series' detector: ``CUSUM h 30.86 (ARL0 100 h)``, ``MAE threshold auto``, ..."""
+    if design is None:
+        return f"threshold {threshold}"
+    if design.name == "cusum":
+        h = sorted({round(float(v), 4) for v in limits if v is not None and math.isfinite(float(v))})
+        text = "CUSUM" + (f" h {h[0]:.4g}" if len(h) == 1 else f" h {h[0]:.4g}–{h[-1]:.4g}" if h else "")
+        return text + (f" (ARL0 {design.arl0_hours:.3g} h)" if design.arl0_hours else "")
+    if design.name == "mae":
+        shown = threshold if threshold == "auto" or not unit else f"{threshold} {unit}"
+        return f"MAE threshold {shown}"
+    return f"{design.name}, threshold {threshold}"
+
+
+def _label_parts(key: dict[str, Any], unit: str = "", detector: str | None = None) -> str:
     parts = []
     if key.get("variable") is not None:
         parts.append(str(key["variable"]))
@@ -49,7 +112,7 @@ def _label_parts(key: dict[str, Any], unit: str = "") -> str:
         parts.append(f"noise σ = {std * 1000:g} mm")
     else:
         parts.append(f"noise σ = {std:g}{' ' + unit if unit else ''}")
-    parts.append(f"{key['model']}, threshold {key['threshold']}")
+    parts.append(f"{key['model']}, {detector or 'threshold ' + str(key['threshold'])}")
     return ", ".join(parts)
 
 
@@ -114,18 +177,29 @@ def _match(df, key: dict[str, Any]):
     return mask
 
 
-def summarize(table, latency_limit: float, *, unit: str = "") -> dict[str, Any]:
+def _series_label(key: dict[str, Any], rows, unit: str, design: DetectorDesign | None) -> str:
+    limits = rows["threshold_base"].tolist() if "threshold_base" in rows.columns else []
+    return _label_parts(key, unit, _detector_text(design, key.get("threshold"), limits, unit))
+
+
+def _design(table, detector: DetectorDesign | None) -> DetectorDesign | None:
+    return detector if detector is not None else DetectorDesign.inferred(table)
+
+
+def summarize(table, latency_limit: float, *, unit: str = "", detector: DetectorDesign | None = None) -> dict[str, Any]:
     """Per-series detection figures and the headline (definitions in the module docstring).
 
-    ``unit`` is the monitored signal's unit (for the series labels).
+    ``unit`` is the monitored signal's unit (for the series labels); ``detector`` the sweep's
+    detector (:meth:`DetectorDesign.from_options`; without it, inferred from the table).
     """
     import numpy as np
 
+    design = _design(table, detector)
     variables = [str(v) for v in table["variable"].dropna().unique()] if len(table) else []
     groups = []
     for key, faults, clean, nfail in _groups(table):
-        entry: dict[str, Any] = {"series": _label_parts(key, unit), **{k: _py(v) for k, v in key.items()},
-                                 "failed": nfail}
+        entry: dict[str, Any] = {"series": _series_label(key, faults if len(faults) else clean, unit, design),
+                                 **{k: _py(v) for k, v in key.items()}, "failed": nfail}
         sizes = np.abs(faults["relative_change"].to_numpy(dtype=float))
         per_size = []
         reliable_from = None
@@ -161,7 +235,10 @@ def summarize(table, latency_limit: float, *, unit: str = "") -> dict[str, Any]:
                              "alarms": int(alarms.sum())}
         groups.append(entry)
     counts = table["status"].value_counts().to_dict()
-    return {"variable": variables[0] if len(variables) == 1 else None, "variables": variables, "unit": unit, "latency_limit": latency_limit, "scenarios": int(len(table)),
+    return {"variable": variables[0] if len(variables) == 1 else None, "variables": variables, "unit": unit,
+            "detector": None if design is None else {"name": design.name, "arl0_hours": design.arl0_hours,
+                                                     "every": design.every},
+            "latency_limit": latency_limit, "scenarios": int(len(table)),
             "ok": int(counts.get("ok", 0)), "failed": int(len(table) - counts.get("ok", 0)), "series": groups}
 
 
@@ -232,7 +309,14 @@ def _key(series: dict[str, Any]) -> dict[str, Any]:
 
 
 def plot_detection(summary: dict[str, Any], path, *, title: str = "") -> Any:
-    """Detection probability (left) and median latency (right) against the fault size."""
+    """Detection probability (left) and median latency (right) against the fault size; written to ``path``."""
+    detection_figure(summary, title=title).savefig(path, dpi=120, bbox_inches="tight")
+    return path
+
+
+def detection_figure(summary: dict[str, Any], *, title: str = "") -> Any:
+    """:func:`plot_detection`'s Figure: the series legend (below the panels) names each series'
+    detector; the right panel's line of a series' median alarm latencies has gid ``latency: <series>``."""
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
     rc, fig, (ax_p, ax_l) = _figure(2)
@@ -256,7 +340,7 @@ def plot_detection(summary: dict[str, Any], path, *, title: str = "") -> Any:
         lat = [(xi, e["median_latency"]) for xi, e in zip(x, s["sizes"]) if e["median_latency"] is not None]
         if lat:
             any_latency = True
-            ax_l.plot(*zip(*lat), "-", marker=marker, color=color, **layer, **hollow)
+            ax_l.plot(*zip(*lat), "-", marker=marker, color=color, gid=f"latency: {s['series']}", **layer, **hollow)
     plain = FuncFormatter(lambda v, _: f"{v:g}")
     for ax in (ax_p, ax_l):
         ax.set_xscale("log")
@@ -269,7 +353,7 @@ def plot_detection(summary: dict[str, Any], path, *, title: str = "") -> Any:
     ax_p.set_ylim(-0.03, 1.03)
     ax_p.set_ylabel("fraction of runs")
     ax_p.set_title(f"detected at all (solid), detected within {limit:g} s (dashed)", fontsize=10)
-    ax_l.set_ylabel("median detection latency (s)")
+    ax_l.set_ylabel("median alarm latency after the fault (s)")
     ax_l.set_title(f"latency of the detected runs (dotted: {limit:g} s)", fontsize=10)
     ax_l.axhline(limit, color="grey", lw=1, ls=":")
     if any_latency:
@@ -284,15 +368,15 @@ def plot_detection(summary: dict[str, Any], path, *, title: str = "") -> Any:
     if handles:
         fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=1, fontsize=8,
                    frameon=False)
-    fig.savefig(path, dpi=120, bbox_inches="tight")
-    return path
+    return fig
 
 
-def roc_points(table, unit: str = "") -> list[dict[str, Any]]:
+def roc_points(table, unit: str = "", detector: DetectorDesign | None = None) -> list[dict[str, Any]]:
     """Per series: (fpr, tpr, auc, operating point at c = 1, counts) from sklearn's roc_curve."""
     import numpy as np
     from sklearn.metrics import auc, roc_curve
 
+    design = _design(table, detector)
     out = []
     for key, faults, clean, _ in _groups(table):
         neg = np.concatenate([faults["score_pre"].to_numpy(dtype=float), clean["score_pre"].to_numpy(dtype=float)])
@@ -304,16 +388,17 @@ def roc_points(table, unit: str = "") -> list[dict[str, Any]]:
         y = np.concatenate([np.zeros(neg.size), np.ones(pos.size)])
         scores = np.concatenate([neg, pos])
         fpr, tpr, thr = roc_curve(y, scores)
-        out.append({"series": _label_parts(key, unit), "key": key, "fpr": fpr, "tpr": tpr, "c": thr,
+        out.append({"series": _series_label(key, faults, unit, design), "key": key, "fpr": fpr, "tpr": tpr, "c": thr,
                     "auc": float(auc(fpr, tpr)), "n_neg": int(neg.size), "n_pos": int(pos.size),
                     "operating": (float((neg > 1).mean()), float((pos > 1).mean()))})
     return out
 
 
-def plot_roc(table, path, *, title: str = "", unit: str = "", latency_limit: float | None = None) -> Any:
+def plot_roc(table, path, *, title: str = "", unit: str = "", latency_limit: float | None = None,
+             detector: DetectorDesign | None = None) -> Any:
     """ROC curves over threshold multipliers (construction in the module docstring)."""
     rc, fig, (ax,) = _figure(1, width=7.0)
-    curves = roc_points(table, unit)
+    curves = roc_points(table, unit, detector)
     styles = _Styles(rc, [dict(r["key"]) for r in curves])
     for i, r in enumerate(curves):
         key = dict(r["key"])
@@ -341,10 +426,26 @@ def plot_roc(table, path, *, title: str = "", unit: str = "", latency_limit: flo
     return path
 
 
-def delay_curves(table, unit: str = "") -> list[dict[str, Any]]:
-    """Per series and fault size: the median detection delay at each ARL0 level (``delay_arl0_*h``).
+def run_delays(table) -> Any:
+    """The delay-vs-ARL0 columns of ``table`` as defined in the module docstring: each
+    evaluation-grid delay capped by the run's alarm latency (a DataFrame, same index and columns;
+    None where the grid has none).  At the run's designed ARL0 this is the alarm latency."""
+    import numpy as np
+    import pandas as pd
 
-    Only the cusum detector fills those columns (:func:`sweep.scenario.delays_at_arl0`);
+    from .scenario import ARL0_HOURS, delay_column
+
+    cols = [delay_column(h) for h in ARL0_HOURS if delay_column(h) in table.columns]
+    grid = table[cols].astype(float)
+    latency = table["latency"].astype(float).to_numpy() if "latency" in table.columns else np.full(len(table), np.nan)
+    capped = np.fmin(grid.to_numpy(), latency[:, None])           # fmin: a missing latency leaves the grid value
+    return pd.DataFrame(np.where(np.isfinite(grid.to_numpy()), capped, np.nan), index=grid.index, columns=cols)
+
+
+def delay_curves(table, unit: str = "", detector: DetectorDesign | None = None) -> list[dict[str, Any]]:
+    """Per series and fault size: the median detection delay at each ARL0 level (:func:`run_delays`).
+
+    Only the cusum detector fills the delay columns (:func:`sweep.scenario.delays_at_arl0`);
     a level where fewer than half the runs of a size detected the fault after it (missed,
     or alarmed before it) has no median and is left out.
     """
@@ -355,6 +456,8 @@ def delay_curves(table, unit: str = "") -> list[dict[str, Any]]:
     cols = [delay_column(h) for h in ARL0_HOURS]
     if not set(cols) <= set(table.columns):
         return []
+    design = _design(table, detector)
+    delays_all = run_delays(table)
     out = []
     for key, faults, _, _ in _groups(table):
         if faults.empty or faults[cols].isna().all().all():
@@ -367,21 +470,32 @@ def delay_curves(table, unit: str = "") -> list[dict[str, Any]]:
                 continue
             hours, delays = [], []
             for h, c in zip(ARL0_HOURS, cols):
-                d = sel[c].to_numpy(dtype=float)
+                d = delays_all.loc[sel.index, c].to_numpy(dtype=float)
                 if np.isfinite(d).sum() * 2 > d.size:
                     hours.append(h)
                     delays.append(float(np.median(np.where(np.isfinite(d), d, np.inf))))
             if hours:
-                out.append({"series": _label_parts(key, unit), "key": key, "relative_change": float(center),
-                            "arl0_hours": hours, "median_delay": delays, "n": int(len(sel))})
+                out.append({"series": _series_label(key, faults, unit, design), "key": key,
+                            "relative_change": float(center), "arl0_hours": hours, "median_delay": delays,
+                            "n": int(len(sel))})
     return out
 
 
-def plot_delay_arl0(table, path, *, title: str = "", unit: str = "") -> Any:
-    """Median detection delay against the false-alarm level (ARL0, hours), one line per fault size."""
+def plot_delay_arl0(table, path, *, title: str = "", unit: str = "", detector: DetectorDesign | None = None) -> Any:
+    """Median detection delay against the false-alarm level (ARL0, hours), one line per fault size;
+    the designed ARL0 (``detector``) is marked: its delays are detection.png's latencies."""
+    delay_arl0_figure(table, title=title, unit=unit, detector=detector).savefig(path, dpi=120)
+    return path
+
+
+def delay_arl0_figure(table, *, title: str = "", unit: str = "", detector: DetectorDesign | None = None) -> Any:
+    """:func:`plot_delay_arl0`'s Figure: one panel per series (titled with its label), one line
+    per fault size (gid ``delay: <relative change>``), the designed ARL0 a vertical line (gid
+    ``designed-arl0``)."""
     import matplotlib
 
-    curves = delay_curves(table, unit)
+    design = _design(table, detector)
+    curves = delay_curves(table, unit, design)
     series = []
     for c in curves:
         if c["series"] not in series:
@@ -393,6 +507,7 @@ def plot_delay_arl0(table, path, *, title: str = "", unit: str = "") -> Any:
         ax.set_visible(False)
     sizes = sorted({c["relative_change"] for c in curves})
     cmap = matplotlib.colormaps["viridis"]
+    every = f"{design.every:g} s" if design is not None and design.every else "one evaluation interval"
     for ax, name in zip(axes, series or [""]):
         mine = [c for c in curves if c["series"] == name]
         for j, c in enumerate(mine):
@@ -400,23 +515,27 @@ def plot_delay_arl0(table, path, *, title: str = "", unit: str = "") -> Any:
             color = cmap(i / max(1, len(sizes) - 1))
             layer = _Styles.layer(j, len(mine))      # equal curves stay visible as nested lines
             ax.plot(c["arl0_hours"], c["median_delay"], marker="o", color=color, lw=layer["lw"] / 1.5,
-                    markersize=layer["markersize"] / 2, zorder=layer["zorder"],
+                    markersize=layer["markersize"] / 2, zorder=layer["zorder"], gid=f"delay: {c['relative_change']!r}",
                     label=f"{100 * c['relative_change']:.3g} % (n = {c['n']})")
+        if curves and design is not None and design.arl0_hours:
+            ax.axvline(design.arl0_hours, color="grey", ls=":", lw=1.2, gid="designed-arl0",
+                       label=f"designed ARL0 {design.arl0_hours:.3g} h: the alarm latency (detection.png)")
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("ARL0: mean hours of healthy operation between false alarms")
-        ax.set_ylabel("median detection delay (s)")
+        ax.set_ylabel(f"median detection delay (s)\nbelow the designed ARL0: at most {every} late")
         ax.set_title(name or "no delay curves (cusum detector only)", fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
         if curves:
-            ax.legend(fontsize=7, title="fault size", title_fontsize=7, loc="best")
+            # below the axes: inside, it hid curves (they span the whole panel)
+            ax.legend(fontsize=7, title="fault size", title_fontsize=7, loc="upper center",
+                      bbox_to_anchor=(0.5, -0.2), ncol=2, frameon=False)
         else:
             ax.text(0.5, 0.5, "needs fault runs monitored by the cusum detector", ha="center", va="center",
                     transform=ax.transAxes)
     fig.suptitle(title or "detection delay against false-alarm rate (the CUSUM limit set for each ARL0)", fontsize=10)
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.04 / nrows))      # room for the title above the top row
-    fig.savefig(path, dpi=120)
-    return path
+    return fig
 
 
 def classification(table) -> list[dict[str, Any]]:
