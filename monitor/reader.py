@@ -587,17 +587,8 @@ class RunInfo:
     def writer_alive(self) -> bool | None:
         """Whether the writing process still exists: None when it cannot be checked from here
         (another host, or a run.json without writer); a pid reused within a run is not detected."""
-        import socket
-
-        if self.writer_pid is None or self.writer_host != socket.gethostname():
-            return None
-        try:
-            os.kill(self.writer_pid, 0)
-        except ProcessLookupError:
-            return False
-        except PermissionError:          # exists, owned by someone else
-            return True
-        return True
+        writer = self.record.writer if self.record is not None else None
+        return writer.alive() if writer is not None else None
 
 
 def read_run_info(exchange_path: str | os.PathLike[str]) -> RunInfo | None:
