@@ -252,15 +252,20 @@ def _label(result: "MonitorResult", what: str) -> str:
 
 def zoom_window(result: "MonitorResult") -> tuple[float, float]:
     """The history plot's zoom (s): ``ZOOM_PERIODS_BEFORE`` periods before the earlier of the
-    fault and the first alarm to ``ZOOM_PERIODS_AFTER`` after the later (without either: after
-    the training window), starting no earlier than the end of a training window that began
-    before them, and cut to the data."""
+    fault and the first alarm to ``ZOOM_PERIODS_AFTER`` after the later (without either: as
+    many periods from the end of the training window), starting no earlier than the end of a
+    training window that began before them (or a tenth of a period before the earlier mark,
+    when that is earlier), and cut to the data."""
     s = result.summary
     fit = result.fits[0]
     period = fit.period or fit.estimate.period
     marks = [m for m in (s.fault_time, s.first_alarm_time) if m is not None]
-    a, b = (min(marks), max(marks)) if marks else (fit.end, fit.end)
-    lo, hi = a - ZOOM_PERIODS_BEFORE * period, b + ZOOM_PERIODS_AFTER * period
+    if marks:
+        a, b = min(marks), max(marks)
+        lo, hi = a - ZOOM_PERIODS_BEFORE * period, b + ZOOM_PERIODS_AFTER * period
+    else:                       # the first periods judged
+        a = lo = fit.end
+        hi = lo + (ZOOM_PERIODS_BEFORE + ZOOM_PERIODS_AFTER) * period
     for ft in result.fits:
         # a training window before the marks: start after it, but at least a tenth of a period before a mark
         if ft.start < a:
@@ -426,8 +431,8 @@ def _plot_statistic(fig: Any, result: "MonitorResult") -> None:
         _marks(ax, result)
         if scale == "symlog":
             ax.set_yscale("symlog", linthresh=linthresh, linscale=0.5)
-            if np.nanmin(stat) >= 0:
-                ax.set_ylim(bottom=0.0)
+            if np.nanmin(stat) >= 0:       # 0 just above the bottom spine, so a statistic at rest is seen
+                ax.set_ylim(bottom=-0.08 * linthresh)
         else:
             ax.set_yscale("log")
         if span is not None:

@@ -93,6 +93,20 @@ def test_history_zooms_on_the_alarm_not_the_training(case2, figures):
     assert hi - lo <= 6 * fit.estimate.period              # a few periods, not the run
 
 
+def test_history_zoom_without_fault_or_alarm_follows_the_training(case2):
+    from dataclasses import replace
+
+    from monitor.outputs import ZOOM_PERIODS_AFTER, ZOOM_PERIODS_BEFORE, zoom_window
+
+    result = case2[0]
+    healthy = replace(result, summary=replace(result.summary, alarm_events=(), run=None))   # no alarm, no fault time
+    fit = result.fits[0]
+    lo, hi = zoom_window(healthy)
+    assert lo == pytest.approx(fit.end, abs=TIME_TOL)
+    wanted = fit.end + (ZOOM_PERIODS_BEFORE + ZOOM_PERIODS_AFTER) * fit.estimate.period   # 24.3 s: one signal's period
+    assert hi == pytest.approx(min(wanted, float(result.history["time"].iloc[-1])), rel=1e-12)  # cut to the data (20 s)
+
+
 def test_history_band_is_the_detectors_noise_scale(case2, figures):
     result = case2[0]
     sigma = next(e for e in result.events if e["event"] == "trained")["noise_sigma"]["x2"]
