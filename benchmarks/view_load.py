@@ -33,9 +33,6 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
-CHROMIUM = os.environ.get("CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--no-first-run", "--disable-quic"]
 
 
 def native_fmu(out: Path) -> Path:
@@ -160,8 +157,10 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.quick:
         args.hours, args.pace = 60 / 3600, 20.0
-    if not Path(CHROMIUM).exists():
-        print(f"view_load: no Chromium at {CHROMIUM} (`make browser` installs it)", file=sys.stderr)
+    from view.headless import chromium_path, launch
+
+    if chromium_path() is None:
+        print("view_load: no Chromium (`make browser` installs it)", file=sys.stderr)
         return 2
     import psutil
     from playwright.sync_api import sync_playwright
@@ -185,7 +184,7 @@ def main(argv=None) -> int:
     proc = psutil.Process(server.pid)
     samples = []
     with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        browser = launch(p)
         page = browser.new_page(viewport={"width": 1400, "height": 1000})
         errors = []
         page.on("pageerror", lambda e: errors.append(str(e)))

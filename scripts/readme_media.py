@@ -11,8 +11,6 @@ Usage: python scripts/readme_media.py RUN_DIR [--at 10.5] [--gif docs/img/case2.
 from __future__ import annotations
 
 import argparse
-import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -21,13 +19,12 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
-CHROMIUM = os.environ.get("CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--no-first-run", "--disable-quic"]
 
 
 def screenshot(run_dir: Path, png: Path, at: float) -> None:
     from playwright.sync_api import sync_playwright
+
+    from view.headless import launch
 
     server = subprocess.Popen([str(BIN / "fourbar-view"), str(run_dir), "--quiet", "--at", f"{at:g}"],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -36,7 +33,7 @@ def screenshot(run_dir: Path, png: Path, at: float) -> None:
         if not url:
             raise SystemExit(f"readme_media: fourbar-view did not start: {server.stderr.read()}")
         with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+            browser = launch(p)
             page = browser.new_page(viewport={"width": 1400, "height": 900})
             page.goto(url)
             page.wait_for_selector("#verdict", timeout=60_000)      # everything read, diagnosis included

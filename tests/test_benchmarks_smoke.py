@@ -13,13 +13,11 @@ from __future__ import annotations
 
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 import psutil                  # a dependency of dask.distributed
 import pytest
@@ -182,7 +180,9 @@ def test_sweep_scaling_benchmark(native_fmu):
 def test_view_load_benchmark(tmp_path):
     """``--quick``: 60 s of run written at 20x real time while fourbar-view and a headless
     Chromium page follow it; the table's figures are read back and must be plausible."""
-    if not Path(os.environ.get("CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium").exists():
+    from view.headless import chromium_path
+
+    if chromium_path() is None:
         pytest.skip("no Chromium: `make browser` installs it (make test does)")
     out = _bench("view_load.py", "--quick", "--out", str(tmp_path))
     (memory,) = _rows(out, "server resident memory (MB)")

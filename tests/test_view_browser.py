@@ -20,25 +20,22 @@ import pandas as pd
 import pytest
 
 from support import FOURBAR_MONITOR, FOURBAR_RUN, case_file
+from view.headless import chromium_path, launch
 
 pytestmark = pytest.mark.slow
 
 FOURBAR_VIEW = str(Path(sys.executable).parent / "fourbar-view")
 FOURBAR_DIAGNOSE = str(Path(sys.executable).parent / "fourbar-diagnose")
-CHROMIUM = os.environ.get("CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
-#: Chromium on a machine without network: no background connections, no sandbox as root.
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--no-first-run", "--disable-quic"]
 
 
 @pytest.fixture(scope="module")
 def browser():
-    if not Path(CHROMIUM).exists():
-        pytest.skip(f"no Chromium at {CHROMIUM}: `make browser` installs Debian's chromium (make test does it)")
+    if chromium_path() is None:
+        pytest.skip("no Chromium: `make browser` installs Debian's chromium (make test does it)")
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        b = launch(p)
         yield b
         b.close()
 
