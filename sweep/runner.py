@@ -340,14 +340,15 @@ def _run_on(client, sweep: Sweep, pending: list[Scenario], out: Path, store: Res
 
 def _finish(sweep: Sweep, out: Path, store: ResultsStore, rows: list[dict], plan, *, skipped: int, ran: int,
             interrupted: bool, wall0: float, notes: list[str]) -> SweepResult:
-    from .report import classification, plot_delay_arl0, plot_detection, plot_roc, summarize
+    from .report import DetectorDesign, classification, plot_delay_arl0, plot_detection, plot_roc, summarize
 
     store.rewrite(rows)
     store.close()
     table = table_from_rows(rows)
     store.write_parquet(table)
     unit = sweep.monitor.unit
-    summary = summarize(table, sweep.latency_limit, unit=unit)
+    design = DetectorDesign.from_options(sweep.monitor.options)
+    summary = summarize(table, sweep.latency_limit, unit=unit, detector=design)
     files = {"csv": store.csv_path, "parquet": store.parquet_path}
     plots = out / "plots"
     plots.mkdir(exist_ok=True)
@@ -355,8 +356,9 @@ def _finish(sweep: Sweep, out: Path, store: ResultsStore, rows: list[dict], plan
              f"stop {sweep.stop:g} s")
     if summary["ok"]:
         files["detection_plot"] = plot_detection(summary, plots / "detection.png", title=title)
-        files["roc_plot"] = plot_roc(table, plots / "roc.png", unit=unit, latency_limit=sweep.latency_limit)
-        files["delay_plot"] = plot_delay_arl0(table, plots / "delay_arl0.png", unit=unit)
+        files["roc_plot"] = plot_roc(table, plots / "roc.png", unit=unit, latency_limit=sweep.latency_limit,
+                                     detector=design)
+        files["delay_plot"] = plot_delay_arl0(table, plots / "delay_arl0.png", unit=unit, detector=design)
     if sweep.diagnose:
         summary["classification"] = classification(table)
     summary.update(name=sweep.name, planned=len(plan), skipped=skipped, ran=ran, interrupted=interrupted,
