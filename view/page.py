@@ -71,6 +71,7 @@ class RunPage:
         self._wall = _time.monotonic()
         self._overview_bin = -1
         self._signal: str | None = None
+        self._rollover: dict[int, int] = {}       # per timeline series: its recent plot's rollover
 
         self.src = {
             "signal_recent": ColumnDataSource({"time": [], "value": []}, name="signal_recent"),
@@ -216,11 +217,14 @@ class RunPage:
             first = self.timeline.first_time or 0.0
             if self.settings.at is not None:
                 self.clock = min(max(self.settings.at, first), last)
-            else:
-                self.clock = last if (running and self.live) else first
-        elif self.live:
-            self.clock = last if running else (self.clock if not self.playing else
-                                               min(last, self.clock + (now - self._wall) * float(self.speed.value)))
+            elif running and self.live:
+                self.clock = last
+            else:                          # a finished run: replay it from its start
+                self.clock = first
+                self.live = False
+                self.follow.value = False
+        elif self.live:                    # follow the newest row, also once the run has ended
+            self.clock = last
         elif self.playing:
             self.clock = min(last, self.clock + (now - self._wall) * float(self.speed.value))
         self._wall = now
@@ -230,13 +234,20 @@ class RunPage:
         for name in ("signal_recent", "forecast_recent", "statistic", "signal_overview", "bodies", "joints"):
             self.src[name].data = {k: [] for k in self.src[name].data}
         self.shown_t, self.clock, self.geometry, self.scene, self._overview_bin = None, None, None, None, -1
+        self._rollover.clear()
 
     # -- what the browser gets ---------------------------------------------------------
     def _window_rows(self, series) -> int:
-        if series is None or series.n < 2:
-            return 10_000
-        step = max(float(np.median(np.diff(series.time[-50:]))), 1e-9)
-        return int(math.ceil(self.settings.window_s / step)) + 1
+        """A recent plot's rollover: the rows in ``window_s`` at the series' sample step, fixed
+        once known.  It must not change between two streams to one source: BokehJS then keeps
+        its arrays out of time order (seen: a 2001/2002 flip froze the line's end)."""
+        key = id(series)
+        if key not in self._rollover:
+            if series is None or series.n < 2:
+                return 10_000
+            step = max(float(np.median(np.diff(series.time[-50:]))), 1e-9)
+            self._rollover[key] = int(round(self.settings.window_s / step)) + 1
+        return self._rollover[key]
 
     def _show(self, t: float) -> None:
         tl = self.timeline
