@@ -195,3 +195,21 @@ def test_an_interrupted_animation_leaves_no_partial_file_and_keeps_the_old_one(c
         animate(case2_run, out, fps=2, speed=5, progress=stop_at_third)
     assert out.read_bytes() == b"the previous animation"
     assert [p.name for p in tmp_path.iterdir()] == ["a.gif"]
+
+
+def test_an_mp4_when_ffmpeg_exists(case2_run, tmp_path):
+    """With ffmpeg on the machine (Debian's ffmpeg; CI has none, so this skips there) .mp4 is
+    written through matplotlib's FFmpeg writer: ffprobe reads back its frames and size."""
+    import shutil
+    import subprocess
+
+    from matplotlib import animation
+    if not animation.writers.is_available("ffmpeg") or shutil.which("ffprobe") is None:
+        pytest.skip("no ffmpeg/ffprobe: .mp4 needs them (apt-get install ffmpeg)")
+    result = animate(case2_run, tmp_path / "x.mp4", start=5.0, stop=7.0, fps=10)
+    assert result.frames == 21                            # 2 s at 10 frames per run second, both ends
+    probe = subprocess.run(["ffprobe", "-v", "error", "-count_frames", "-select_streams", "v:0", "-show_entries",
+                            "stream=nb_read_frames,width,height", "-of", "csv=p=0", str(result.path)],
+                           capture_output=True, text=True, check=True)
+    width, height, frames = (int(v) for v in probe.stdout.strip().split(","))
+    assert (width, height, frames) == (640, 320, 21), probe.stdout
