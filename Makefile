@@ -23,7 +23,7 @@ help:
 	@echo "make demo REALTIME=1   the same at wall-clock pace (100 s)"
 	@echo "make demo VIEW=0       without the live browser view (fourbar-view)"
 	@echo "make test       run the test suite (all of it; what CI runs)"
-	@echo "make check      the fast lane: every test not marked slow (about a minute)"
+	@echo "make check      the fast lane: every test not marked slow (about 2 minutes on 2 cores)"
 	@echo "make benchmarks measure speed and accuracy (writes docs/benchmarks.md figures to stdout)"
 	@echo "make figures    compare the detection/accuracy figures quoted in README and docs with a fresh run"
 	@echo "make fmu        build $(FMU) and build/FourBarNative.fmu (when a C compiler exists)"
@@ -73,7 +73,7 @@ test: $(FMU) $(MECH_STAMP) browser
 	$(BIN)/python -m pytest -q $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist worksteal)
 
 check: $(FMU)
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -m "not slow" $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist worksteal)
 
 benchmarks: $(FMU)
 	$(BIN)/python benchmarks/run_all.py --write docs/benchmarks.md
