@@ -189,6 +189,32 @@ def test_the_plotted_rows_grow_while_a_run_is_written(browser, native_fmu, tmp_p
     assert code == 143 and "Traceback" not in err, err
 
 
+def test_another_mechanism_is_drawn_with_its_guide(browser, mechanism_fmus, tmp_path):
+    """The slider-crank (a prismatic joint): three bodies, a ground mark under the crank pivot
+    only, and the slider's guide drawn along y = e over the whole travel of the slider pin."""
+    fmu = mechanism_fmus.get("slider_crank", "native")
+    out = _run("slider_crank_fault_L3", fmu, tmp_path, "--stop", "12")     # the L3 fault at 10 s
+    view = Viewer(browser, out, "--at", "11")
+    try:
+        view.wait_text("#facts", "slider_crank")
+        deadline = time.monotonic() + 20
+        while view.rows("guides") < 1 and time.monotonic() < deadline:
+            time.sleep(0.25)
+        rows = pd.read_csv(out / "exchange.csv")
+        assert view.rows("bodies") == 3 and view.rows("ground") == 1, (view.rows("bodies"), view.rows("ground"))
+        (xs,), (ys,) = view.column("guides", "xs"), view.column("guides", "ys")
+        # the guide runs through its ground point along its angle (0 here: y = e = 0), and
+        # covers every position of the slider's pin in the run, with a margin
+        assert ys[0] == ys[1] == pytest.approx(rows["P_gy"].iloc[0], abs=1e-12)
+        assert min(xs) < rows["P_x"].min() and max(xs) > rows["P_x"].max(), (xs, rows["P_x"].min(), rows["P_x"].max())
+        # at 11 s, after L3's fault at 10 s, the connecting rod (L3's body) is the changed one
+        colours = dict(zip(view.column("bodies", "name"), view.column("bodies", "colour")))
+        assert colours["rod"] != colours["crank"] == colours["slider"], colours
+        assert view.errors == [], view.errors
+    finally:
+        view.close()
+
+
 def test_a_writer_that_dies_is_shown(browser, native_fmu, tmp_path):
     """fourbar-run killed with SIGKILL leaves run.json saying running: the page says the
     writer is gone."""

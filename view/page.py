@@ -31,6 +31,8 @@ from .timeline import Timeline
 
 __all__ = ["PageSettings", "RunPage"]
 
+#: s of run between two recomputations of the guides and ground marks while a run is written.
+SCENE_EVERY_S = 5.0
 COLOURS = {"body": "#1f4e79", "faulted": "#c0392b", "joint": "#222222", "ground": "#7f7f7f",
            "signal": "#1f77b4", "forecast": "#d62728", "statistic": "#2ca02c", "limit": "#d62728"}
 BANNER = {"WAITING": ("#6c757d", "waiting for the monitor (no monitor outputs yet)"),
@@ -72,6 +74,7 @@ class RunPage:
         self._overview_bin = -1
         self._signal: str | None = None
         self._rollover: dict[int, int] = {}       # per timeline series: its recent plot's rollover
+        self._scene_t = -math.inf                 # run time of the last row the scene was made from
 
         self.src = {
             "signal_recent": ColumnDataSource({"time": [], "value": []}, name="signal_recent"),
@@ -234,6 +237,7 @@ class RunPage:
         for name in ("signal_recent", "forecast_recent", "statistic", "signal_overview", "bodies", "joints"):
             self.src[name].data = {k: [] for k in self.src[name].data}
         self.shown_t, self.clock, self.geometry, self.scene, self._overview_bin = None, None, None, None, -1
+        self._scene_t = -math.inf
         self._rollover.clear()
 
     # -- what the browser gets ---------------------------------------------------------
@@ -345,11 +349,16 @@ class RunPage:
         i = tl.rows.index_at(t)
         if i < 0:
             return
-        if self.scene is None or (tl.record is not None and not tl.record.ended and i % 500 == 0):
+        # guides and ground marks span what the joints reach: from every row read (a sample of at
+        # most ~5,000 of them), again every SCENE_EVERY_S of run while the run is written
+        if self.scene is None or (tl.record is not None and not tl.record.ended
+                                  and tl.rows.last_time - self._scene_t >= SCENE_EVERY_S):
             import pandas as pd
 
-            frame = pd.DataFrame({c: tl.rows.column(c)[:i + 1] for c in tl.rows.columns})
-            self.scene = self.geometry.scene(frame)
+            n = tl.rows.n
+            take = np.unique(np.r_[np.arange(0, n, max(1, n // 5000)), n - 1])
+            self.scene = self.geometry.scene(pd.DataFrame({c: tl.rows.column(c)[take] for c in tl.rows.columns}))
+            self._scene_t = tl.rows.last_time
             self.src["guides"].data = {"xs": [list(g[0]) for g in self.scene.guides],
                                        "ys": [list(g[1]) for g in self.scene.guides]}
             self.src["ground"].data = {"x": [g[0] for g in self.scene.ground], "y": [g[1] for g in self.scene.ground]}
