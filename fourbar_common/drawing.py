@@ -79,9 +79,6 @@ class Drawing:
         """Every column the drawing needs, joint by joint in the annotation's order."""
         return tuple(c for j in self.joints for c in j.columns)
 
-    def joint(self, name: str) -> DrawnJoint:
-        return next(j for j in self.joints if j.name == name)
-
     def bodies_changed_by(self, parameter: str) -> tuple[DrawnBody, ...]:
         """The bodies whose geometry or inertia ``parameter`` enters."""
         return tuple(b for b in self.bodies if parameter in b.parameters)

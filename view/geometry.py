@@ -64,10 +64,7 @@ class Geometry:
     """Frames and the scene of one drawing, from a DataFrame with its joint columns."""
 
     def __init__(self, drawing: Drawing):
-        self.drawing = drawing
-        missing_kind = [b.name for b in drawing.bodies if b.kind not in ("rod", "block")]
-        if missing_kind:
-            raise ValueError(f"cannot draw bodies {missing_kind}: unknown kind")
+        self.drawing = drawing           # checked where it was read (Drawing.from_json)
 
     def lacking(self, columns) -> list[str]:
         """The drawing's columns that ``columns`` lacks (empty: every joint can be placed)."""

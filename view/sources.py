@@ -18,6 +18,7 @@ import io
 import json
 import math
 import os
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,7 +27,7 @@ import pandas as pd
 
 from fourbar_common import RunRecord, RunRecordError, read_run_record
 
-__all__ = ["Alarm", "Diagnosis", "MonitorEvent", "RunFolder", "RunFolderError", "Update", "check_run_folder"]
+__all__ = ["Diagnosis", "MonitorEvent", "RunFolder", "RunFolderError", "Update", "check_run_folder"]
 
 #: A writer that has not touched run.json for this many heartbeats is taken as stopped.
 STALE_HEARTBEATS = 5.0
@@ -68,12 +69,6 @@ class MonitorEvent:
 
 
 @dataclass(frozen=True)
-class Alarm:
-    time: float
-    message: str
-
-
-@dataclass(frozen=True)
 class Diagnosis:
     """What diagnosis.json says, as a view shows it."""
 
@@ -97,22 +92,19 @@ class Update:
     events: list[MonitorEvent] = field(default_factory=list)
     diagnosis: Diagnosis | None = None         # diagnosis.json when it changed
     restarted: bool = False                    # the run was replaced: drop what was shown
+    monitor_restarted: bool = False            # a new monitor session: drop the monitor's outputs only
     writer_gone: bool = False                  # run.json says running, but nobody writes it
     warnings: list[str] = field(default_factory=list)
 
-    @property
-    def empty(self) -> bool:
-        return (self.record is None and self.record_problem is None and self.rows is None
-                and self.evaluations is None and self.forecast is None and not self.events
-                and self.diagnosis is None and not self.restarted and not self.writer_gone and not self.warnings)
 
 
 class _LineTail:
     """The complete lines appended to a text file since the last read; notices a file that
     was replaced (shorter than what was read, or another inode) and starts it again."""
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, has_header: bool = True):
         self.path = path
+        self.has_header = has_header
         self.offset = 0
         self.inode: int | None = None
         self.header: str | None = None
@@ -143,7 +135,7 @@ class _LineTail:
             return [], restarted
         self.offset += end + 1
         lines = chunk[:end].decode("utf-8", errors="replace").split("\n")
-        if self.header is None and lines:
+        if self.has_header and self.header is None and lines:
             self.header = lines.pop(0).strip()
         return [line for line in lines if line.strip()], restarted
 
@@ -187,25 +179,33 @@ class RunFolder:
         monitor = self.folder / "monitor"
         self.evaluations = _CsvTail(monitor / "evaluations.csv", ("time", "statistic", "threshold"))
         self.forecast = _CsvTail(monitor / "forecast.csv", ("time", "value", "forecast"))
-        self.events = _LineTail(monitor / "events.jsonl")
-        self.events.header = ""        # JSON lines: no header line
+        self.events = _LineTail(monitor / "events.jsonl", has_header=False)       # JSON lines
         self.record: RunRecord | None = None
-        self._record_stamp: tuple[int, int] | None = None
-        self._diagnosis_stamp: tuple[int, int] | None = None
+        self._stamps: dict[Path, tuple[int, int]] = {}
         self._warned_skips = 0
+
+    def _changed(self, path: Path) -> bool | None:
+        """Whether ``path`` changed since the last call that saw it (None: there is no such file)."""
+        try:
+            st = path.stat()
+        except FileNotFoundError:
+            self._stamps.pop(path, None)
+            return None
+        stamp = (st.st_mtime_ns, st.st_size)
+        if self._stamps.get(path) == stamp:
+            return False
+        self._stamps[path] = stamp
+        return True
 
     # -- run.json -----------------------------------------------------------------------
     def _read_record(self, update: Update) -> None:
         path = self.folder / "run.json"
-        try:
-            st = path.stat()
-        except FileNotFoundError:
+        changed = self._changed(path)
+        if changed is None:
             update.record_problem = f"{path}: missing (the run folder was emptied)"
             return
-        stamp = (st.st_mtime_ns, st.st_size)
-        if stamp == self._record_stamp:
+        if not changed:
             return
-        self._record_stamp = stamp
         try:
             record = read_run_record(path)
         except (RunRecordError, FileNotFoundError) as exc:
@@ -226,7 +226,7 @@ class RunFolder:
         if alive is False:
             return True
         try:
-            age = max(0.0, _now() - (self.folder / "run.json").stat().st_mtime)
+            age = max(0.0, time.time() - (self.folder / "run.json").stat().st_mtime)
         except FileNotFoundError:
             return True
         return alive is None and age > STALE_HEARTBEATS * r.writer.heartbeat_s
@@ -234,9 +234,7 @@ class RunFolder:
     # -- the monitor and the diagnosis ---------------------------------------------------
     def _read_events(self, update: Update) -> None:
         lines, restarted = self.events.read()
-        self.events.header = ""
-        if restarted:
-            update.restarted = update.restarted or False
+        update.monitor_restarted = update.monitor_restarted or restarted
         for line in lines:
             try:
                 data = json.loads(line)
@@ -253,14 +251,8 @@ class RunFolder:
 
     def _read_diagnosis(self, update: Update) -> None:
         path = self.folder / "diagnosis" / "diagnosis.json"
-        try:
-            st = path.stat()
-        except FileNotFoundError:
+        if not self._changed(path):
             return
-        stamp = (st.st_mtime_ns, st.st_size)
-        if stamp == self._diagnosis_stamp:
-            return
-        self._diagnosis_stamp = stamp
         try:
             data = json.loads(path.read_text(encoding="utf-8"))
             best = data.get("best") or {}
@@ -281,8 +273,7 @@ class RunFolder:
         update.rows = rows
         update.evaluations, again = self.evaluations.frame()
         update.forecast, again2 = self.forecast.frame()
-        if again or again2:
-            update.restarted = True
+        update.monitor_restarted = again or again2
         self._read_events(update)
         self._read_diagnosis(update)
         if self.exchange.skipped > self._warned_skips:
@@ -292,8 +283,3 @@ class RunFolder:
         update.writer_gone = self.writer_gone()
         return update
 
-
-def _now() -> float:
-    import time
-
-    return time.time()

@@ -120,10 +120,11 @@ class Timeline:
     def feed(self, update: Update) -> None:
         if update.restarted:
             self.rows = None
+            self.diagnosis = None
+        if update.restarted or update.monitor_restarted:
             self.evaluations = Series(("time", "statistic", "threshold"))
             self.forecasts = {}
             self.events = []
-            self.diagnosis = None
             self.generation += 1
         if update.record is not None:
             self.record = update.record
@@ -175,15 +176,5 @@ class Timeline:
                 state.state, state.message = "ALARM", e.message
                 state.alarm_time = state.alarm_time if state.alarm_time is not None else e.time
             elif e.event in ("trained", "stable", "clear", "refit"):
-                state.state, state.message = ("STABLE" if e.state.upper() != "ALARM" else "ALARM"), state.message
-        if state.state == "WAITING" and self.events:
-            state.state = "TRAINING"
+                state.state = "ALARM" if e.state.upper() == "ALARM" else "STABLE"
         return state
-
-    def fault_events(self) -> list:
-        return list(self.record.events) if self.record is not None else []
-
-    @property
-    def nbytes(self) -> int:
-        total = self.evaluations.nbytes + sum(s.nbytes for s in self.forecasts.values())
-        return total + (self.rows.nbytes if self.rows is not None else 0)
