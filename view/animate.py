@@ -334,8 +334,8 @@ class _Picture:
         ax.set_xlim(start, stop if stop > start else start + 1.0)
         ax.set_ylim(lo - pad, hi + pad)
         unit = run.record.units.get(signal.name, "") if run.record.units else ""
-        ax.set_ylabel(f"{signal.name} [{unit}]" if unit else signal.name, fontsize=8, color=INK)
-        ax.set_xlabel("time [s]", fontsize=8, color=INK)
+        ax.set_ylabel(f"{signal.name} ({unit})" if unit else signal.name, fontsize=8, color=INK)
+        ax.set_xlabel("time (s)", fontsize=8, color=INK)
         ax.tick_params(labelsize=7, colors=INK)
         for spine in ax.spines.values():
             spine.set_color(GROUND_COLOUR)

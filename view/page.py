@@ -95,7 +95,7 @@ class RunPage:
 
         s = self.src
         self.mechanism = figure(title="mechanism", height=380, width=380, match_aspect=True,
-                                x_axis_label="x [m]", y_axis_label="y [m]", tools="pan,wheel_zoom,reset")
+                                x_axis_label="x (m)", y_axis_label="y (m)", tools="pan,wheel_zoom,reset")
         self.mechanism.multi_line("xs", "ys", source=s["guides"], line_color=COLOURS["ground"], line_width=1,
                                   line_dash="dashed")
         self.mechanism.scatter("x", "y", source=s["ground"], marker="triangle", size=16, color=COLOURS["ground"])
@@ -106,7 +106,7 @@ class RunPage:
         # the recent plots' x range follows the newest data (annotations outside it do not widen it)
         recent = dict(follow="end", follow_interval=self.settings.window_s, range_padding=0.0)
         self.signal_plot = figure(title="signal and forecast (recent)", height=250, sizing_mode="stretch_width",
-                                  x_axis_label="time [s]", tools="pan,xwheel_zoom,reset",
+                                  x_axis_label="time (s)", tools="pan,xwheel_zoom,reset",
                                   x_range=DataRange1d(**recent))
         self.signal_plot.line("time", "value", source=s["signal_recent"], color=COLOURS["signal"], legend_label="signal")
         self.signal_plot.line("time", "forecast", source=s["forecast_recent"], color=COLOURS["forecast"],
@@ -116,7 +116,7 @@ class RunPage:
         self.signal_plot.add_layout(self.train_box)
 
         self.overview = figure(title="whole run (min/max per bin)", height=160, sizing_mode="stretch_width",
-                               x_axis_label="time [s]", tools="pan,xwheel_zoom,reset")
+                               x_axis_label="time (s)", tools="pan,xwheel_zoom,reset")
         self.overview.varea("time", "low", "high", source=s["signal_overview"], fill_color=COLOURS["signal"],
                             fill_alpha=0.35)
         for edge in ("low", "high"):       # a bin of one row has low == high: the lines still show it
@@ -135,7 +135,7 @@ class RunPage:
             self.alarm_marks.append(mark)
 
         self.stat_plot = figure(title="detector statistic and its limit", height=200, sizing_mode="stretch_width",
-                                x_axis_label="time [s]", tools="pan,xwheel_zoom,reset",
+                                x_axis_label="time (s)", tools="pan,xwheel_zoom,reset",
                                 x_range=DataRange1d(**recent))
         self.stat_plot.line("time", "statistic", source=s["statistic"], color=COLOURS["statistic"],
                             legend_label="statistic")
@@ -153,7 +153,7 @@ class RunPage:
         speeds = sorted({0.5, 1.0, 2.0, 5.0, 10.0, 50.0, float(self.settings.speed)})
         self.speed = pn.widgets.Select(name="speed", options={f"{v:g}x": v for v in speeds},
                                        value=float(self.settings.speed), width=90)
-        self.slider = pn.widgets.FloatSlider(name="time [s]", start=0.0, end=1.0, value=0.0, step=0.01,
+        self.slider = pn.widgets.FloatSlider(name="time (s)", start=0.0, end=1.0, value=0.0, step=0.01,
                                              sizing_mode="stretch_width")
         self.slider.param.watch(self._on_slider, "value_throttled")
         self.follow = pn.widgets.Checkbox(name="follow the newest row", value=self.live, width=170)
