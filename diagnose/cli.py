@@ -71,6 +71,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="s before the first alarm where the change may lie (default %(default)s)")
     p.add_argument("--horizon", type=float, default=defaults.horizon, metavar="S",
                    help="s of data after the first alarm used by the fit (default %(default)s)")
+    p.add_argument("--max-horizon", type=float, default=defaults.max_horizon, metavar="S",
+                   help="a step whose value's standard error is above %s of it is fitted again on twice the "
+                        "horizon, and again, up to S s after the first alarm (default %%(default)s; equal to "
+                        "--horizon: never)" % f"{100 * defaults.precision:g} %%")
     p.add_argument("--noise-span", type=float, default=defaults.noise_span, metavar="S",
                    help="s of healthy data before the lookback that give the noise level (default %(default)s)")
     p.add_argument("--no-ramp", action="store_true", help="fit steps only")
@@ -101,12 +105,16 @@ def _main(argv: list[str] | None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:
         return int(exc.code or 0)
-    for name in ("lookback", "horizon", "noise_span"):
+    for name in ("lookback", "horizon", "max_horizon", "noise_span"):
         value = getattr(args, name)
         if not value > 0:
             print(f"fourbar-diagnose: error: --{name.replace('_', '-')} {value!r}: expected a positive number of "
                   f"seconds", file=sys.stderr)
             return 2
+    if args.max_horizon < args.horizon:
+        print(f"fourbar-diagnose: error: --max-horizon {args.max_horizon:g} is shorter than --horizon "
+              f"{args.horizon:g}: give at least the horizon (equal: the value is never fitted again)", file=sys.stderr)
+        return 2
     from fourbar_common.signals import deferred, exit_code, signal_of, stop_reason
 
     from .diagnosis import DiagnoseOptions, change_text, diagnose_inputs
@@ -116,8 +124,8 @@ def _main(argv: list[str] | None) -> int:
 
     columns = [c.strip() for c in args.columns.split(",") if c.strip()] if args.columns else None
     out = Path(args.out) if args.out else Path(args.run_dir) / "diagnosis"
-    options = DiagnoseOptions(lookback=args.lookback, horizon=args.horizon, noise_span=args.noise_span,
-                              ramp=not args.no_ramp)
+    options = DiagnoseOptions(lookback=args.lookback, horizon=args.horizon, max_horizon=args.max_horizon,
+                              noise_span=args.noise_span, ramp=not args.no_ramp)
     created: list[Path] = []
     d = failure = None
     with warnings.catch_warnings(record=True) as caught:
@@ -155,6 +163,10 @@ def _main(argv: list[str] | None) -> int:
     if not args.quiet:
         print(f"  fitted {', '.join(d.columns)} over t = {d.window[0]:.2f}..{d.window[1]:.2f} s "
               f"(first alarm {d.alarm_time:.2f} s); noise {', '.join(f'{k} {v:.2g}' for k, v in d.noise.items())}")
+        if d.sharpened:
+            f0, unit = d.first_fit, d.units.get(d.best.parameter, "")
+            print(f"  {d.best.parameter} fitted again over t = {d.value_window[0]:.2f}..{d.value_window[1]:.2f} s: "
+                  f"over the first window it was {f0.value:.6g} ± {f0.stderr:.2g} {unit} at {f0.change_time:.2f} s")
         print(f"  {'hypothesis':<10} {'new value':>14} {'change':>9} {'at t [s]':>9} {'residual RMS':>13}")
         for f in d.ranking:       # relative changes; absolute (with the unit) where the healthy value is 0
             change = change_text(f, d.units.get(f.parameter, ""), 3)
