@@ -55,6 +55,8 @@ __all__ = [
 
 #: The schema :meth:`RunRecord.to_json` writes.
 SCHEMA_VERSION = 2
+#: The exchange file's name in a run folder (beside run.json).
+EXCHANGE_NAME = "exchange.csv"
 #: The schemas :meth:`RunRecord.from_json` reads.
 READABLE_SCHEMAS = (1, 2)
 #: ``status``: ``running`` while the writer lives, then one of the other three.

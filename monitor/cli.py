@@ -86,7 +86,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Watch a signal of a fourbar-cosim exchange file and alarm when it stops "
                     "following its periodic forecast (FFT period + Prophet, as in the paper).",
         epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("exchange", metavar="EXCHANGE.csv", help="exchange file written by fourbar-run")
+    p.add_argument("exchange", metavar="EXCHANGE.csv",
+                   help="exchange file written by fourbar-run, or the run folder holding it (exchange.csv)")
     p.add_argument("--follow", action="store_true",
                    help="follow the run writing the file: the one running now, or else the next one to start "
                         "(a folder whose run has ended is not re-read: replay it without --follow); stop when "
@@ -225,7 +226,6 @@ def _main(argv: Sequence[str] | None, stop: Any) -> int:
     if args.status_every is None:
         args.status_every = 1.0 if args.follow else 10.0
     printer = _Printer(args, out, err)
-    exchange = Path(args.exchange)
     settings = {f.name: getattr(args, f.name) for f in fields(MonitorOptions) if hasattr(args, f.name)}
     from .errors import MonitorError
 
@@ -233,8 +233,10 @@ def _main(argv: Sequence[str] | None, stop: Any) -> int:
     try:
         from .options import merged
         from .outputs import checked_default_out_dir, checked_out_dir
+        from .reader import exchange_file
         from .session import follow, replay
 
+        exchange = exchange_file(args.exchange, later=args.follow)      # a run folder: its exchange.csv
         options = merged(MonitorOptions(), settings)   # inconsistent options are refused before anything is read
         printer.detector = options.detector_class
         out_dir = checked_out_dir(args.out) if args.out is not None else checked_default_out_dir(exchange)

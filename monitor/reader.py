@@ -38,6 +38,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from fourbar_common import Event, RunRecord, RunRecordError, read_run_record
+from fourbar_common.run_record import EXCHANGE_NAME
 
 from .errors import ExchangeFormatError, ExchangeMissingError
 
@@ -466,6 +467,18 @@ class ExchangeReader:
         return f"{self.path}: " + "; ".join(parts)
 
 
+def exchange_file(path: str | Path, *, later: bool = False) -> Path:
+    """The exchange file ``path`` names: itself, or a run folder's exchange.csv (which, with
+    ``later``, may not exist yet).  A folder without one raises :class:`ExchangeMissingError`."""
+    p = Path(path)
+    if p.is_dir():
+        if later or (p / EXCHANGE_NAME).is_file():
+            return p / EXCHANGE_NAME
+        raise ExchangeMissingError(f"{p}: is a directory with no {EXCHANGE_NAME} in it: give an exchange file or "
+                                   f"a run folder")
+    return p
+
+
 def read_exchange(path: str | os.PathLike[str], columns: Sequence[str] | None = None) -> "pd.DataFrame":
     """Read a finished exchange file into a DataFrame (``time`` first, then ``columns``).
 
@@ -479,11 +492,9 @@ def read_exchange(path: str | os.PathLike[str], columns: Sequence[str] | None = 
     """
     import pandas as pd
 
-    p = Path(path)
+    p = exchange_file(path)
     if not p.exists():
         raise ExchangeMissingError(f"{p}: exchange file not found")
-    if p.is_dir():
-        raise ExchangeMissingError(f"{p}: is a directory, expected an exchange CSV file")
     with ExchangeReader(p, columns) as reader:
         batch = reader.read_to_end()
         reader.check_finished()

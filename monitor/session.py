@@ -30,7 +30,7 @@ from .detector import Event, State
 from .errors import ExchangeFormatError, ExchangeMissingError
 from .options import FollowOptions, MonitorOptions, merged
 from .outputs import OutputWriters
-from .reader import ExchangeReader, RunInfo, read_run_info
+from .reader import ExchangeReader, RunInfo, exchange_file, read_run_info
 from .stream import Monitor
 from .summary import MonitorResult, Summary, Timing, before_fault, score_alarms
 
@@ -207,11 +207,9 @@ def replay(exchange_path: str | os.PathLike[str], *, options: MonitorOptions | N
     window, constant signal) and :class:`~monitor.errors.OptionError`.
     """
     opts = merged(options or MonitorOptions(), settings)
-    path = Path(exchange_path)
+    path = exchange_file(exchange_path)
     if not path.exists():
         raise ExchangeMissingError(f"{path}: exchange file not found (use --follow to wait for it)")
-    if path.is_dir():
-        raise ExchangeMissingError(f"{path}: is a directory, expected an exchange CSV file")
     run = read_run_info(path)
     session = _Session(path, opts, out_dir, on_event, on_evaluation, on_warning)
     try:
@@ -263,9 +261,7 @@ def follow(exchange_path: str | os.PathLike[str], *, options: MonitorOptions | N
     """
     opts = merged(options or MonitorOptions(), settings)
     fopts = merged(FollowOptions(), {"poll": poll, "timeout": timeout})
-    path = Path(exchange_path)
-    if path.is_dir():
-        raise ExchangeMissingError(f"{path}: is a directory, expected an exchange CSV file")
+    path = exchange_file(exchange_path, later=True)
     say = on_wait or (lambda message: None)
     warm_up(opts.model)
     session = _Session(path, opts, out_dir, on_event, on_evaluation, on_warning)

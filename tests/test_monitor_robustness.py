@@ -104,7 +104,18 @@ def test_replay_of_a_missing_file_or_a_directory(tmp_path, capsys):
     code, _, err = cli([str(tmp_path / "nothing.csv")], capsys)
     assert code == 2 and "nothing.csv: exchange file not found" in err
     code, _, err = cli([str(tmp_path)], capsys)
-    assert code == 2 and "is a directory" in err
+    assert code == 2 and "is a directory with no exchange.csv in it" in err
+
+
+def test_a_run_folder_is_read_as_its_exchange_file(case2, reference, tmp_path, capsys):
+    """fourbar-monitor RUN_DIR, as fourbar-diagnose and fourbar-view take it: its exchange.csv,
+    outputs in RUN_DIR/monitor; the library's replay alike."""
+    copy_run(case2, tmp_path / "run")
+    code, out, err = cli([str(tmp_path / "run"), "--model", "harmonic", "--no-plots"], capsys)
+    assert code == 1, err                   # Case 2 alarms
+    summary = json.loads((tmp_path / "run" / "monitor" / "summary.json").read_text())
+    assert summary["first_alarm_time"] == reference.first_alarm_time
+    assert replay(tmp_path / "run", out_dir=tmp_path / "lib", **FAST).first_alarm_time == reference.first_alarm_time
 
 
 # -- empty, header only, partial lines ----------------------------------------------------------
