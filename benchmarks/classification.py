@@ -156,8 +156,9 @@ def main(argv: list[str] | None = None) -> int:
         *identifiability(six, x2), "",
         "What x2 alone named instead:", "", *confusions(x2_table), "",
         "## Ramps (Case 3: L2 1.0 -> 1.05 m over 20-30 s, 5 mm on x2)", "",
-        "Truth: start 20.00 s, rate 5.00 mm/s. The fit uses 3 s of data after the alarm, so the ramp is still "
-        "under way at the end of the fitted rows: its end and final value there are lower bounds.", "",
+        "Truth: start 20.00 s, end 30.00 s, rate 5.00 mm/s. The runs stop at 32 s; a ramp is fitted again on "
+        "the rows up to --max-horizon (12 s) after the alarm that the run holds, about 10 s here "
+        "(docs/diagnose.md, step 6).", "",
         *ramps(out), "",
     ]
     text = "\n".join(lines)

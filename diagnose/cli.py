@@ -117,7 +117,7 @@ def _main(argv: list[str] | None) -> int:
         return 2
     from fourbar_common.signals import deferred, exit_code, signal_of, stop_reason
 
-    from .diagnosis import DiagnoseOptions, change_text, diagnose_inputs
+    from .diagnosis import DiagnoseOptions, change_text, diagnose_inputs, fit_text
     from .errors import DiagnoseError, NoAlarm
     from .inputs import read_inputs
     from .outputs import OutputError, prepare_out_dir, remove_empty, write_outputs
@@ -164,9 +164,8 @@ def _main(argv: list[str] | None) -> int:
         print(f"  fitted {', '.join(d.columns)} over t = {d.window[0]:.2f}..{d.window[1]:.2f} s "
               f"(first alarm {d.alarm_time:.2f} s); noise {', '.join(f'{k} {v:.2g}' for k, v in d.noise.items())}")
         if d.sharpened:
-            f0, unit = d.first_fit, d.units.get(d.best.parameter, "")
-            print(f"  {d.best.parameter} fitted again over t = {d.value_window[0]:.2f}..{d.value_window[1]:.2f} s: "
-                  f"over the first window it was {f0.value:.6g} ± {f0.stderr:.2g} {unit} at {f0.change_time:.2f} s")
+            print(f"  {d.best.parameter} fitted again over t = {d.value_window[0]:.2f}..{d.value_window[1]:.2f} s; "
+                  f"over the first window: {fit_text(d.first_fit, d.units.get(d.best.parameter, ''))}")
         print(f"  {'hypothesis':<10} {'new value':>14} {'change':>9} {'at t [s]':>9} {'residual RMS':>13}")
         for f in d.ranking:       # relative changes; absolute (with the unit) where the healthy value is 0
             change = change_text(f, d.units.get(f.parameter, ""), 3)

@@ -411,8 +411,11 @@ def _probe_near(change: float) -> float:
     return float(np.clip(change, -0.5, 1.0))
 
 
-def fit_ramp(problem: Problem, step: Fit, duration0: float = 2.0) -> Fit:
-    """Best linear ramp of ``step.parameter``, started from that step's fit.
+def fit_ramp(problem: Problem, step: Fit, duration0: float = 2.0,
+             start: tuple[float, float, float] | None = None) -> Fit:
+    """Best linear ramp of ``step.parameter``, started from that step's fit (a ramp of
+    ``duration0`` s centred on its change time to its value), or from ``start`` =
+    ``(t_start, duration, final value)`` when given.
 
     Fitted as ``(rate, t_start, duration)`` with the rate in changes ``u`` per second (relative
     to the healthy value, or in units of the parameter's scale when that is 0; module
@@ -438,8 +441,11 @@ def fit_ramp(problem: Problem, step: Fit, duration0: float = 2.0) -> Fit:
             refused.append(str(exc))
             return np.full(problem.rows * problem.sigma.size, _REFUSED)
 
-    t0 = min(max(step.change_time - duration0 / 2.0, t_lo), t_hi - grid.step)
-    x0 = [change_of(v0, scale, step.value) / duration0, t0, duration0]
+    if start is None:
+        start = (step.change_time - duration0 / 2.0, duration0, step.value)
+    t0 = min(max(start[0], t_lo), t_hi - grid.step)
+    d0 = min(max(start[1], grid.step), t_hi - t0)
+    x0 = [change_of(v0, scale, start[2]) / d0, t0, d0]
     lower, upper = [-100.0, t_lo, 0.0], [100.0, t_hi, t_hi - t_lo]
     result = least_squares(residuals, x0, bounds=(lower, upper), x_scale=[0.01, 0.1, 0.1],
                            diff_step=[1e-3, 1e-5, 1e-3], method="trf", max_nfev=120)
