@@ -2,7 +2,8 @@
  * FMI functions, with no host in between.  Linked with the FMU's shipped sources by
  * benchmarks/native_fmu.py.  Prints one line per case:
  *   case wall_ms rhs_evaluations integrator_starts x2_at_100s
- * Arguments: [repeat (5)] [rtol = atol (0: Table 1's rtol 1e-9, atol 1e-6)]
+ * Arguments: [repeat (5)] [rtol = atol (0: Table 1's rtol 1e-9, atol 1e-6)] [cases (12: both; 1: Case 1 only,
+ * e.g. under callgrind)]
  */
 #define _POSIX_C_SOURCE 199309L   /* clock_gettime */
 #include <stdio.h>
@@ -70,5 +71,6 @@ int main(int argc, char **argv)
 {
     int repeat = argc > 1 ? atoi(argv[1]) : 5;
     double tol = argc > 2 ? atof(argv[2]) : 0.0;    /* rtol = atol; 0: Table 1's (not the FMU's defaults) */
-    return run(0, repeat, tol) || run(1, repeat, tol);
+    const int case2 = argc > 3 ? atoi(argv[3]) != 1 : 1;
+    return run(0, repeat, tol) || (case2 && run(1, repeat, tol));
 }

@@ -55,7 +55,10 @@
  *   same way;
  * - Phi_q's constant entries are written only where the generic code reads the whole matrix
  *   (a dense LU, the partition's review); the outputs are computed when a host reads them,
- *   a group at a time (fmi2Functions.c);
+ *   a group at a time (fmi2Functions.c), the state's from the cos and sin the reported state was
+ *   solved with (ModelState.tr) rather than libm's again;
+ * - the partition's review (at every communication point) finds the LU pivots through bit masks
+ *   of where the block may be nonzero (linalg.h: lu_pivot_ratio_sparse);
  * - the small dense kernels are unrolled and inlined (linalg.h).
  * Results agree with dae.py's to round-off: tests/test_fmu_native.py.
  */
@@ -185,11 +188,12 @@ static void trig_rotate(const double *q_old, const double *tr_old, const double 
             tr[2 * a + 1] = sin(q_new[i]);
             continue;
         }
+        /* Horner's scheme in delta^2 with the Taylor coefficients (-1)^k / (2k)! and (-1)^k / (2k+1)! */
         const double d2 = delta * delta;
-        const double c = 1.0 - d2 * (1.0 / 2.0) * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0) * (1.0 - d2
-            * (1.0 / 56.0) * (1.0 - d2 * (1.0 / 90.0) * (1.0 - d2 * (1.0 / 132.0) * (1.0 - d2 * (1.0 / 182.0)))))));
-        const double sn = delta * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0)
-            * (1.0 - d2 * (1.0 / 72.0) * (1.0 - d2 * (1.0 / 110.0) * (1.0 - d2 * (1.0 / 156.0)))))));
+        const double c = 1.0 + d2 * (-1.0 / 2.0 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 * (1.0 / 40320.0
+            + d2 * (-1.0 / 3628800.0 + d2 * (1.0 / 479001600.0 + d2 * (-1.0 / 87178291200.0)))))));
+        const double sn = delta + delta * d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 * (1.0
+            / 362880.0 + d2 * (-1.0 / 39916800.0 + d2 * (1.0 / 6227020800.0))))));
         const double c0 = tr_old[2 * a], s0 = tr_old[2 * a + 1];
         tr[2 * a] = c0 * c - s0 * sn;
         tr[2 * a + 1] = s0 * c + c0 * sn;
@@ -683,6 +687,7 @@ int dae_assemble(ModelState *s, double t, const double *guess, const double *rat
     mass_inverse(s->p, c.q, c.tr, s->mass, s->minv);
     s->t = t;
     memcpy(s->q, c.q, sizeof s->q);
+    memcpy(s->tr, c.tr, sizeof s->tr);
     memcpy(s->qd, c.qd, sizeof s->qd);
     memset(s->work, 0, sizeof s->work);
     return DAE_OK;
@@ -769,6 +774,7 @@ int dae_change_parameters(ModelState *s, const double *p)
     memcpy(s->p, p, sizeof s->p);
     memcpy(s->d, d, sizeof s->d);
     memcpy(s->q, c.q, sizeof s->q);
+    memcpy(s->tr, c.tr, sizeof s->tr);
     memcpy(s->qd, c.qd, sizeof s->qd);
     mass_inverse(s->p, c.q, c.tr, s->mass, s->minv);
     return DAE_OK;
@@ -866,6 +872,7 @@ static int review_at_accepted(ModelState *s, int *result)
     if (!better_partition(s, J, independent, dependent)) return 0;
     s->t = b->t;
     memcpy(s->q, b->q, sizeof s->q);
+    memcpy(s->tr, b->tr, sizeof s->tr);
     memcpy(s->qd, b->qd, sizeof s->qd);
     for (int k = 0; k < N_DRIVERS; k++) s->work[k] = s->solver.y[2 * K + k];
     set_partition(s, independent, dependent);
@@ -950,6 +957,7 @@ int dae_advance(ModelState *s, double t_end)
     s->last_step = t_end - t_start;
     s->t = t_end;
     memcpy(s->q, c.q, sizeof s->q);
+    memcpy(s->tr, c.tr, sizeof s->tr);
     memcpy(s->qd, c.qd, sizeof s->qd);
     for (int k = 0; k < N_DRIVERS; k++) s->work[k] = y[2 * K + k];
     return check_partition(s, &c);
@@ -957,11 +965,12 @@ int dae_advance(ModelState *s, double t_end)
 
 /* -- outputs ------------------------------------------------------------------------------- */
 
-void dae_outputs_state(const double *p, const double *d, double t, const double *q, const double *qd,
-                       const double *work, double *out)
+void dae_outputs_state(const double *p, const double *d, double t, const double *q, const double *tr_q,
+                       const double *qd, const double *work, double *out)
 {
     double tr[TRIG], values[MECH_ALLOC(MECH_N_STATE_OUTPUTS)];
-    eq_trig(q, tr);
+    if (tr_q) memcpy(tr, tr_q, sizeof tr);
+    else eq_trig(q, tr);
     eq_outputs_state(q, tr, qd, t, p, d, values);
     for (int k = 0; k < MECH_N_OUTPUTS; k++)
         switch (OUTPUT_KINDS[k]) {

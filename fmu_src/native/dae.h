@@ -58,9 +58,9 @@ int dae_change_parameters(ModelState *s, const double *p);
 /* The outputs of a consistent state with parameters p and drivers d, into out (MECH_N_OUTPUTS,
    in output order), in three groups: those of kinds STATE and WORK; the RESIDUAL; those of kind
    FORCE (they need the multipliers: DAE_INTEGRATION with a message when eq. (11) cannot be
-   solved there). */
-void dae_outputs_state(const double *p, const double *d, double t, const double *q, const double *qd,
-                       const double *work, double *out);
+   solved there).  tr: cos and sin of q's angles (ModelState's), or NULL to compute them. */
+void dae_outputs_state(const double *p, const double *d, double t, const double *q, const double *tr,
+                       const double *qd, const double *work, double *out);
 void dae_outputs_residual(const double *p, const double *d, double t, const double *q, const double *qd,
                           double *out);
 int dae_outputs_force(const double *p, const double *d, double t, const double *q, const double *qd, double *out,

@@ -144,7 +144,7 @@ void model_preview_outputs(ModelInstance *m, int groups)
         parameters_from_values(&scratch, scratch.p);
         start_configuration(&scratch, guess, rates);
         if (dae_assemble(&scratch, dae_snap_time(scratch.start_time), guess, rates)) return;
-        dae_outputs_state(scratch.p, scratch.d, scratch.t, scratch.q, scratch.qd, scratch.work, out);
+        dae_outputs_state(scratch.p, scratch.d, scratch.t, scratch.q, scratch.tr, scratch.qd, scratch.work, out);
         dae_outputs_residual(scratch.p, scratch.d, scratch.t, scratch.q, scratch.qd, out);
         if (dae_outputs_force(scratch.p, scratch.d, scratch.t, scratch.q, scratch.qd, out, scratch.rhs_message))
             return;
@@ -153,7 +153,7 @@ void model_preview_outputs(ModelInstance *m, int groups)
     }
     groups &= s->outputs_pending;
     if (groups & FB_GROUP_STATE) {
-        dae_outputs_state(s->p, s->d, s->t, s->q, s->qd, s->work, out);
+        dae_outputs_state(s->p, s->d, s->t, s->q, s->tr, s->qd, s->work, out);
         store_outputs(s, out, MECH_OUTPUT_STATE);
         s->outputs_pending &= ~FB_GROUP_STATE;
     }

@@ -44,6 +44,8 @@ typedef struct {
     int dependent[MECH_ALLOC(MECH_M)];
     double t;                                   /* model time, on the 1 ns grid */
     double q[MECH_N], qd[MECH_N];               /* consistent: Phi(q, t) = 0, Phi_q qd = nu */
+    double tr[MECH_ALLOC(MECH_N_TRIG)];          /* cos and sin of q's angles (eq_trig's, to round-off): dae.c sets
+                                                   them with q */
     double work[MECH_ALLOC(MECH_N_DRIVERS)];    /* each driver's work since the start, J */
     int declared;                               /* the partition's dependent coordinates are the file's */
     double mass[MECH_N], minv[MECH_N];          /* diagonal of M and its inverse for p (MECH_MASS_IS_CONSTANT) */
