@@ -315,9 +315,10 @@ def main(argv=None) -> int:
     parser.add_argument("--mechanisms", default=None,
                         help="comma-separated shipped mechanisms for the every-mechanism table (default: all; "
                              "fourbar with --quick)")
-    parser.add_argument("--vanderpol", type=Path, default=None, metavar="PATH",
+    parser.add_argument("--vanderpol", type=Path, default=os.environ.get("FOURBAR_VANDERPOL") or None, metavar="PATH",
                         help="the Reference-FMUs' VanDerPol.fmu (benchmarks/native/build_vanderpol.sh SRC_DIR PATH) "
-                             "as a second floor of the every-mechanism table: issue 24's")
+                             "as a second floor of the every-mechanism table: issue 24's (default: the "
+                             "FOURBAR_VANDERPOL environment variable, so that run_all.py passes it on)")
     parser.add_argument("--quick", action="store_true",
                         help=f"smoke setting, not the benchmark: one round, FMPy runs of {QUICK_STOP:g} s, tolerance "
                              f"search over {', '.join(f'{t:g}' for t in QUICK_SEARCH)} only (every table but the "
