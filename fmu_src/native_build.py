@@ -38,7 +38,7 @@ from .mechanism.check import prepare_mechanism
 from .mechanism.derivation import MechanismEquations
 from .mechanism.description import Mechanism
 from .mechanism.drawing import drawing_of
-from .mechanism.table import variable_table
+from .mechanism.table import model_exchange_states, native_variable_table
 
 __all__ = ["NativeBuildResult", "CompilerNotFound", "build_native_fmu", "find_compiler", "model_identifier",
            "native_sources", "MODEL_IDENTIFIER", "HAND_WRITTEN", "GENERATED"]
@@ -125,7 +125,7 @@ def _guid(eqs: MechanismEquations, replace: Mapping[str, bytes] | None = None) -
     digest = hashlib.sha256()
     for name, data in sorted(native_sources(eqs, "GUID", replace).items()):
         digest.update(name.encode() + b"\0" + data + b"\0")
-    digest.update(repr(variable_table(eqs)).encode())
+    digest.update(repr(native_variable_table(eqs)).encode())
     digest.update(ET.tostring(drawing_of(eqs.mechanism).to_annotation()))
     return str(uuid.UUID(bytes=digest.digest()[:16], version=5))
 
@@ -138,8 +138,8 @@ def model_description(eqs: MechanismEquations, guid: str, source_files) -> bytes
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "2.0", "modelName": identifier, "guid": guid,
         "description": f"{mech.description}: Lagrange-multiplier DAE derived with sympy and printed as C, "
-                       f"coordinate partitioning, DOP853/RK45 in C, parameters tunable for fault injection; "
-                       f"needs no Python",
+                       f"coordinate partitioning, DOP853/RK45 in C (co-simulation) or the host's solver (model "
+                       f"exchange), parameters tunable for fault injection; needs no Python",
         "author": "fourbar-cosim developers", "license": "MIT", "version": "0.2.0",
         "generationTool": "fourbar-cosim build_fmu.py (sympy C printer)",
         "variableNamingConvention": "structured", "numberOfEventIndicators": "0"})
@@ -150,9 +150,14 @@ def model_description(eqs: MechanismEquations, guid: str, source_files) -> bytes
         "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
         "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true",
         "providesDirectionalDerivative": "false"})
-    files = ET.SubElement(cs, "SourceFiles")
-    for name in source_files:
-        ET.SubElement(files, "File", {"name": name})
+    me = ET.SubElement(root, "ModelExchange", {
+        "modelIdentifier": identifier, "needsExecutionTool": "false", "completedIntegratorStepNotNeeded": "false",
+        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
+        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true", "providesDirectionalDerivative": "false"})
+    for element in (cs, me):
+        files = ET.SubElement(element, "SourceFiles")
+        for name in source_files:
+            ET.SubElement(files, "File", {"name": name})
     root.append(unit_definitions())
     categories = ET.SubElement(root, "LogCategories")
     for name, text in (("logStatusWarning", "Messages with fmi2Warning status."),
@@ -165,12 +170,17 @@ def model_description(eqs: MechanismEquations, guid: str, source_files) -> bytes
                                               "tolerance": "1e-09"})
     root.append(drawing_of(mech).to_annotation())
     variables = ET.SubElement(root, "ModelVariables")
-    outputs = []
-    for vr, var in enumerate(variable_table(eqs)):
+    table = native_variable_table(eqs)
+    index = {var.name: vr + 1 for vr, var in enumerate(table)}          # ScalarVariable indices (1-based)
+    states = [name for name, _, _ in model_exchange_states(eqs)]
+    outputs, initial = [], []
+    for vr, var in enumerate(table):
         sv = ET.SubElement(variables, "ScalarVariable", {
             "name": var.name, "valueReference": str(vr), "description": var.description,
             "causality": var.causality, "variability": var.variability})
         attrs = {}
+        if var.name.startswith("der(") and var.name[4:-1] in index:
+            attrs["derivative"] = str(index[var.name[4:-1]])
         if var.start is not None:
             attrs["start"] = repr(float(var.start)) if var.type == "Real" else str(var.start)
         if var.unit:
@@ -184,11 +194,23 @@ def model_description(eqs: MechanismEquations, guid: str, source_files) -> bytes
         ET.SubElement(sv, var.type, attrs)
         if var.causality == "output":
             outputs.append(vr + 1)
+        if var.causality == "output" or var.name in states or var.name.startswith("der("):
+            initial.append(vr + 1)
     structure = ET.SubElement(root, "ModelStructure")
-    for tag in ("Outputs", "InitialUnknowns"):
-        group = ET.SubElement(structure, tag)
-        for index in outputs:
-            ET.SubElement(group, "Unknown", {"index": str(index)})
+    group = ET.SubElement(structure, "Outputs")
+    for i in outputs:
+        ET.SubElement(group, "Unknown", {"index": str(i)})
+    # A coordinate's derivative is its rate, exactly; a rate's (and a driver's power) depends on every state.
+    group = ET.SubElement(structure, "Derivatives")
+    n_coordinates = len(eqs.mechanism.independent)
+    for k, name in enumerate(states):
+        attrs = {"index": str(index[f"der({name})"])}
+        if k < n_coordinates:
+            attrs.update(dependencies=str(index[states[n_coordinates + k]]), dependenciesKind="fixed")
+        ET.SubElement(group, "Unknown", attrs)
+    group = ET.SubElement(structure, "InitialUnknowns")
+    for i in initial:
+        ET.SubElement(group, "Unknown", {"index": str(i)})
     ET.indent(root)
     return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
 

@@ -178,12 +178,18 @@ def test_fmpy_validate_finds_no_problem(native_fmu):
 
 
 def test_same_variables_as_the_pythonfmu_fmu(native_fmu, fourbar_fmu):
+    """The pythonfmu FMU's variables, value references included, then only what Model Exchange
+    adds: the states' derivatives (theta2 and omega2 are outputs already)."""
     def table(path):
         md = read_model_description(str(path))
         return [(v.name, v.valueReference, v.type, v.causality, v.variability, v.initial,
                  float(v.start) if v.type == "Real" and v.start is not None else v.start,
                  v.unit, v.displayUnit, v.description) for v in md.modelVariables]
-    assert table(native_fmu) == table(fourbar_fmu)
+    python = table(fourbar_fmu)
+    native = table(native_fmu)
+    assert native[:len(python)] == python
+    assert [(v[0], v[3], v[7]) for v in native[len(python):]] == [("der(theta2)", "local", "rad/s"),
+                                                                  ("der(omega2)", "local", "rad/s2")]
 
 
 def test_ships_its_sources_and_needs_no_python(native_fmu):
@@ -230,10 +236,11 @@ def test_keeps_todays_variables(native_fmu, today_fmu):
                  v.min) for v in md.modelVariables]
     now, today = table(native_fmu), table(today_fmu)
     # today's 27 variables exactly; the joint reactions the mechanism file adds come after them,
-    # then the joints' positions (tests/test_fmu_drawing.py)
+    # then the joints' positions (tests/test_fmu_drawing.py), then Model Exchange's derivatives
     assert now[:len(today)] == today
     assert [v[0] for v in now[len(today):]] == ["O2_Fx", "O2_Fy", "A_Fx", "A_Fy", "B_Fx", "B_Fy", "O4_Fx", "O4_Fy",
-                                                "O2_x", "O2_y", "A_x", "A_y", "B_x", "B_y", "O4_x", "O4_y"]
+                                                "O2_x", "O2_y", "A_x", "A_y", "B_x", "B_y", "O4_x", "O4_y",
+                                                "der(theta2)", "der(omega2)"]
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ from __future__ import annotations
 from ..mechanism_model.variables import POSITIVE, Variable
 from .derivation import MechanismEquations
 
-__all__ = ["variable_table", "DEFAULT_TOLERANCE"]
+__all__ = ["variable_table", "native_variable_table", "model_exchange_states", "DEFAULT_TOLERANCE"]
 
 #: rtol = atol of the Runge-Kutta error control when the case does not set them.  Table 1 gives
 #: 1e-9 and 1e-6 (its case files set them).  At those values the integrator's energy error moves
@@ -47,4 +47,39 @@ def variable_table(eqs: MechanismEquations) -> tuple[Variable, ...]:
         from .description import MechanismError
         raise MechanismError(f"{mech.source}: the variable name{'s' if len(clash) > 1 else ''} "
                              f"{', '.join(clash)} would be used twice (a parameter named like an output?)")
+    return tuple(rows)
+
+
+#: The unit of a state's time derivative (Model Exchange's ``der(...)`` variables).
+_RATE_UNITS = {"rad": "rad/s", "rad/s": "rad/s2", "m": "m/s", "m/s": "m/s2", "J": "W"}
+
+
+def model_exchange_states(eqs: MechanismEquations) -> tuple[tuple[str, str, str], ...]:
+    """The native FMU's continuous states for Model Exchange, in the C state vector's order
+    (dae.c's y): the file's independent coordinates, their rates, then each driver's work;
+    per state ``(name, unit, description)``."""
+    mech = eqs.mechanism
+    coordinates, rates = mech.start[::2], mech.start[1::2]
+    states = [(s.coordinate, s.unit, f"Independent coordinate {s.coordinate} (a continuous state)")
+              for s in coordinates]
+    states += [(s.coordinate, s.unit, f"Rate {s.coordinate} of {c.coordinate} (a continuous state)")
+               for c, s in zip(coordinates, rates)]
+    states += [(f"{d.name}_work", "J", f"Work done by driver {d.name} since the start (a continuous state)")
+               for d in mech.drivers]
+    return tuple(states)
+
+
+def native_variable_table(eqs: MechanismEquations) -> tuple[Variable, ...]:
+    """The native FMU's variables: :func:`variable_table`'s (same value references), then what
+    Model Exchange adds: each continuous state that is not an output already, as a local
+    variable, and each state's derivative ``der(<state>)``."""
+    table = variable_table(eqs)
+    names = {v.name for v in table}
+    rows = list(table)
+    for name, unit, description in model_exchange_states(eqs):
+        if name not in names:
+            rows.append(Variable(name, "Real", "local", "continuous", None, unit, description))
+    for name, unit, description in model_exchange_states(eqs):
+        rows.append(Variable(f"der({name})", "Real", "local", "continuous", None, _RATE_UNITS[unit],
+                             f"Time derivative of {name}"))
     return tuple(rows)

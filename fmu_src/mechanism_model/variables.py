@@ -20,7 +20,7 @@ class Variable(NamedTuple):
 
     name: str
     type: str               # "Real" or "String"
-    causality: str          # "parameter" or "output"
+    causality: str          # "parameter", "output" or "local" (the native FMU's Model Exchange states)
     variability: str        # "tunable", "fixed" or "continuous"
     start: float | str | None   # start value (parameters only)
     unit: str | None        # a unit of UNITS (Real only)
@@ -45,9 +45,11 @@ UNITS = {
     "m/s2": ({"m": "1", "s": "-2"}, []),
     "rad": ({"rad": "1"}, [("deg", 57.29577951308232)]),
     "rad/s": ({"rad": "1", "s": "-1"}, [("deg/s", 57.29577951308232)]),
+    "rad/s2": ({"rad": "1", "s": "-2"}, []),
     "N": ({"kg": "1", "m": "1", "s": "-2"}, []),
     "N.m": ({"kg": "1", "m": "2", "s": "-2"}, []),
     "J": ({"kg": "1", "m": "2", "s": "-2"}, []),
+    "W": ({"kg": "1", "m": "2", "s": "-3"}, []),
     "s": ({"s": "1"}, []),
     "1": ({}, []),
 }

@@ -589,6 +589,93 @@ static int rhs(void *context, double t, const double *y, double *f)
     return RK_FUNCTION_OK;
 }
 
+/* -- Model Exchange ------------------------------------------------------------------------ */
+
+void dae_states(const ModelState *s, double *y)
+{
+    for (int j = 0; j < K; j++) {
+        y[j] = s->q[s->independent[j]];
+        y[K + j] = s->qd[s->independent[j]];
+    }
+    for (int k = 0; k < N_DRIVERS; k++) y[2 * K + k] = s->work[k];
+}
+
+/* The current state as the predictor's base, its accelerations from one evaluation there (what
+   dae_start has the integrator's first evaluation do). */
+int dae_me_start(ModelState *s)
+{
+    double y[RK_N], f[RK_N], tr[TRIG], J[MA * N], block[MA * MA], inv_diag[MA];
+    int piv[MA];
+    DaePoint e;
+    e.t = s->t;
+    memcpy(e.q, s->q, sizeof e.q);
+    memcpy(e.qd, s->qd, sizeof e.qd);
+    memset(e.qdd, 0, sizeof e.qdd);
+    eq_trig(s->q, tr);
+    memcpy(e.tr, tr, sizeof e.tr);
+    eq_jacobian(s->q, tr, s->p, J);
+    dependent_block(J, s->dependent, block);
+    dense_factor(block, piv, inv_diag);
+    e.sign = lu_det_sign(M, piv, inv_diag);
+    s->base = s->last = e;
+    s->before.t = NAN;
+    memset(y, 0, sizeof y);
+    dae_states(s, y);
+    s->rhs_failed = 0;
+    s->starts++;
+    return dae_me_evaluate(s, s->t, y, f);
+}
+
+int dae_me_evaluate(ModelState *s, double t, const double *y, double *f)
+{
+    double yy[RK_N], ff[RK_N];
+    memset(yy, 0, sizeof yy);
+    memcpy(yy, y, DAE_N_STATES * sizeof *y);
+    s->rhs_failed = 0;
+    const int r = rhs(s, t, yy, ff);
+    if (r != RK_FUNCTION_OK) {
+        const int failed = s->rhs_failed ? s->rhs_failed : DAE_INTEGRATION;
+        if (failed == DAE_ASSEMBLY && s->rhs_message[0] == '\0')
+            snprintf(s->rhs_message, MODEL_MESSAGE, "Phi = 0 cannot be solved at t = %.9g s", t);
+        return failed;
+    }
+    s->t = t;
+    memcpy(s->q, s->last.q, sizeof s->q);
+    memcpy(s->qd, s->last.qd, sizeof s->qd);
+    memcpy(s->tr, s->last.tr, sizeof s->tr);
+    for (int k = 0; k < N_DRIVERS; k++) s->work[k] = y[2 * K + k];
+    memcpy(f, ff, DAE_N_STATES * sizeof *f);
+    return DAE_OK;
+}
+
+void dae_me_accept(ModelState *s)
+{
+    if (!(s->last.t == s->last.t) || s->last.t == s->base.t) return;   /* nothing new since the base */
+    s->before = s->base;
+    s->base = s->last;
+}
+
+int dae_derivatives(ModelState *s, double *f)
+{
+    const DaePoint base = s->base, last = s->last;
+    const unsigned long counts[4] = {s->rhs_evaluations, s->newton_iterations, s->continuations,
+                                     s->failed_evaluations};
+    double y[RK_N], ff[RK_N];
+    memset(y, 0, sizeof y);
+    dae_states(s, y);
+    s->rhs_failed = 0;
+    const int r = rhs(s, s->t, y, ff);
+    s->base = base;
+    s->last = last;
+    s->rhs_evaluations = counts[0];
+    s->newton_iterations = counts[1];
+    s->continuations = counts[2];
+    s->failed_evaluations = counts[3];
+    if (r != RK_FUNCTION_OK) return s->rhs_failed ? s->rhs_failed : DAE_INTEGRATION;
+    memcpy(f, ff, DAE_N_STATES * sizeof *f);
+    return DAE_OK;
+}
+
 /* -- set-up -------------------------------------------------------------------------------- */
 
 /* c->q at parameters p1 (drivers d1 when given, else at their start values at t) and independent

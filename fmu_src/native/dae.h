@@ -61,6 +61,22 @@ int dae_change_parameters(ModelState *s, const double *p);
    solved there).  tr: cos and sin of q's angles (ModelState's), or NULL to compute them. */
 void dae_outputs_state(const double *p, const double *d, double t, const double *q, const double *tr,
                        const double *qd, const double *work, double *out);
+/* Model Exchange: the host integrates y = (q[independent], qd[independent], work) of the file's
+   partition, which never changes (DAE_N_STATES values, the Runge-Kutta's y without its filler).
+   dae_states: y of the current consistent state.  dae_me_start: after assembly or a parameter
+   change, the current state becomes the predictor's base (with its accelerations).
+   dae_me_evaluate: the consistent state at (t, y) becomes the current one (s->t, q, qd, tr, work)
+   and f its derivatives; DAE_ASSEMBLY or DAE_INTEGRATION with the message, the state unchanged.
+   dae_me_accept: the current state (the last evaluation) becomes the predictor's base, the old
+   base its second point (fmi2CompletedIntegratorStep).  dae_derivatives: f at the current
+   consistent state without touching the integrator's bookkeeping (a co-simulation host reading
+   der(...) between steps). */
+#define DAE_N_STATES (2 * MECH_K + MECH_N_DRIVERS)
+void dae_states(const ModelState *s, double *y);
+int dae_me_start(ModelState *s);
+int dae_me_evaluate(ModelState *s, double t, const double *y, double *f);
+void dae_me_accept(ModelState *s);
+int dae_derivatives(ModelState *s, double *f);
 void dae_outputs_residual(const double *p, const double *d, double t, const double *q, const double *qd,
                           double *out);
 int dae_outputs_force(const double *p, const double *d, double t, const double *q, const double *qd, double *out,

@@ -1,4 +1,4 @@
-/* FMI 2.0 co-simulation interface of a mechanism's native FMU (any mechanism: model.h).
+/* FMI 2.0 co-simulation and model exchange interface of a mechanism's native FMU (any mechanism: model.h).
  *
  * A thin layer over model.h: it checks each call, maps value references to the model's
  * variables, and implements the FMU state functions as copies of the instance's pointer-free
@@ -29,12 +29,12 @@ static const int KINDS[FB_N_VARIABLES] = FB_VARIABLE_KINDS;
 static const char *const NAMES[FB_N_VARIABLES] = FB_VARIABLE_NAMES;
 static const char *const INTEGRATORS[FB_N_INTEGRATORS] = FB_INTEGRATOR_NAMES;
 static const int READ_COMPUTED[FB_N_VARIABLES] = FB_READ_COMPUTED;
-enum { KIND_TUNABLE = 0, KIND_FIXED = 1, KIND_STRING = 2, KIND_OUTPUT = 3 };
+enum { KIND_TUNABLE = 0, KIND_FIXED = 1, KIND_STRING = 2, KIND_OUTPUT = 3, KIND_LOCAL = 4 };
 static const char *const KIND_TEXT[] = {"a tunable Real parameter", "a fixed Real parameter", "a String parameter",
-                                        "a Real output"};
+                                        "a Real output", "a Real local variable"};
 #define KIND(k) (1 << (k))
 
-/* -- the FMI 2.0 co-simulation state machine ----------------------------------------- */
+/* -- the FMI 2.0 state machines (co-simulation and model exchange) --------------------- */
 
 /* fmi2DoStep is synchronous, so the state stepInProgress is never entered; it is named
    because fmi2CancelStep and the status inquiries are defined for it.  The state fatal is
@@ -44,16 +44,20 @@ static const char *const KIND_TEXT[] = {"a tunable Real parameter", "a fixed Rea
 static const struct { int mode; const char *name; } STATES[] = {
     {MODE_INSTANTIATED, "instantiated"}, {MODE_INITIALIZATION, "initializationMode"},
     {MODE_STEP_COMPLETE, "stepComplete"}, {MODE_STEP_IN_PROGRESS, "stepInProgress"},
-    {MODE_STEP_FAILED, "stepFailed"}, {MODE_TERMINATED, "terminated"}, {MODE_ERROR, "error"}};
+    {MODE_STEP_FAILED, "stepFailed"}, {MODE_EVENT, "eventMode"}, {MODE_CONTINUOUS, "continuousTimeMode"},
+    {MODE_TERMINATED, "terminated"}, {MODE_ERROR, "error"}};
 #define N_STATES (sizeof STATES / sizeof *STATES)
 
-/* Where each group of calls is allowed (FMI 2.0, section 4.2.4; as the Reference-FMUs, except
-   that no value can be read in the error state). */
+/* Where each group of calls is allowed (FMI 2.0, sections 3.2.3 and 4.2.4; as the Reference-FMUs,
+   except that no value can be read in the error state).  An instance is in the states of its
+   type only (co-simulation: stepComplete; model exchange: eventMode, continuousTimeMode). */
 #define ALL_STATES (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_STEP_FAILED | \
-                    MODE_TERMINATED | MODE_ERROR)
-#define INITIALIZED (MODE_STEP_COMPLETE | MODE_STEP_FAILED | MODE_TERMINATED)
+                    MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED | MODE_ERROR)
+#define INITIALIZED (MODE_STEP_COMPLETE | MODE_STEP_FAILED | MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED)
 #define READABLE (MODE_INITIALIZATION | INITIALIZED)                       /* fmi2GetXXX */
-#define SETTABLE (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE)   /* fmi2SetXXX */
+/* fmi2SetXXX: parameters (the FMU has no inputs), so not in continuousTimeMode */
+#define SETTABLE (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_EVENT)
+#define ME_READABLE (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED)
 #define STATUS_STATES (MODE_STEP_COMPLETE | MODE_STEP_IN_PROGRESS | MODE_STEP_FAILED | MODE_TERMINATED)
 
 /* Serialized FMU state: this header, then the ModelState's bytes. */
@@ -123,6 +127,18 @@ static int present(ModelInstance *m, const char *function, const void *p, const 
     return 0;
 }
 
+/* 1 when the instance is of the type `function` belongs to (model_exchange 0 or 1); else logs it. */
+static int of_type(ModelInstance *m, const char *function, int model_exchange)
+{
+    if (m->model_exchange == model_exchange) return 1;
+    model_log(m, fmi2Error, "logStatusError", "%s is a %s function; this instance was instantiated for %s", function,
+              model_exchange ? "model exchange" : "co-simulation", m->model_exchange ? "model exchange" : "co-simulation");
+    return 0;
+}
+
+#define CS_ONLY if (!of_type(m, __func__, 0)) return fmi2Error
+#define ME_ONLY if (!of_type(m, __func__, 1)) return fmi2Error
+
 #define REQUIRE(p) if (!present(m, __func__, (const void *)(p), #p, 0)) return fmi2Error
 #define REQUIRE_ARRAY(p, n) if ((n) > 0 && !present(m, __func__, (const void *)(p), #p, (n))) return fmi2Error
 
@@ -161,7 +177,7 @@ static int check_refs(ModelInstance *m, const char *function, const fmi2ValueRef
 /* Fixed parameters (and the String integrator) can be set only before initialization ends. */
 static int settable_now(ModelInstance *m, const char *function, const fmi2ValueReference vr[], size_t nvr)
 {
-    if (m->state.mode != MODE_STEP_COMPLETE) return 1;
+    if (m->state.mode != MODE_STEP_COMPLETE && m->state.mode != MODE_EVENT) return 1;
     for (size_t i = 0; i < nvr; i++)
         if (KINDS[vr[i]] == KIND_FIXED || KINDS[vr[i]] == KIND_STRING) {
             model_log(m, fmi2Error, "logStatusError", "%s: %s is a fixed parameter; it can only be set before "
@@ -222,9 +238,9 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         model_log(&probe, fmi2Error, "logStatusError", "fmi2Instantiate: the instance name must not be empty");
         return NULL;
     }
-    if (fmuType != fmi2CoSimulation) {
-        model_log(&probe, fmi2Error, "logStatusError", "fmi2Instantiate: %s is a co-simulation FMU only",
-                  FB_MODEL_IDENTIFIER);
+    if (fmuType != fmi2CoSimulation && fmuType != fmi2ModelExchange) {
+        model_log(&probe, fmi2Error, "logStatusError", "fmi2Instantiate: unknown fmuType %d (fmi2ModelExchange %d "
+                  "or fmi2CoSimulation %d)", (int)fmuType, (int)fmi2ModelExchange, (int)fmi2CoSimulation);
         return NULL;
     }
     if (!fmuGUID || strcmp(fmuGUID, FB_GUID) != 0) {
@@ -244,6 +260,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     m->environment = functions->componentEnvironment;
     m->instance_name = strcpy(copy, name);
     m->logging_on = loggingOn ? 1 : 0;
+    m->model_exchange = fmuType == fmi2ModelExchange;
     model_reset(m);
     return m;
 }
@@ -287,13 +304,13 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c)
         m->state.mode = MODE_ERROR;
         return fmi2Error;
     }
-    m->state.mode = MODE_STEP_COMPLETE;
+    m->state.mode = m->model_exchange ? MODE_EVENT : MODE_STEP_COMPLETE;
     return fmi2OK;
 }
 
 fmi2Status fmi2Terminate(fmi2Component c)
 {
-    ENTER(MODE_STEP_COMPLETE | MODE_STEP_FAILED);
+    ENTER(MODE_STEP_COMPLETE | MODE_STEP_FAILED | MODE_EVENT | MODE_CONTINUOUS);
     m->state.mode = MODE_TERMINATED;
     /* the integration's statistics (with logging on: a host that wants to know how hard it was) */
     model_log(m, fmi2OK, "logAll", "statistics at t = %.9g s: %lu right-hand-side evaluations, %lu by "
@@ -326,7 +343,8 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     ENTER(READABLE);
     REQUIRE_ARRAY(vr, nvr);
     REQUIRE_ARRAY(value, nvr);
-    if (!check_refs(m, __func__, vr, nvr, KIND(KIND_TUNABLE) | KIND(KIND_FIXED) | KIND(KIND_OUTPUT), "a Real"))
+    if (!check_refs(m, __func__, vr, nvr, KIND(KIND_TUNABLE) | KIND(KIND_FIXED) | KIND(KIND_OUTPUT) | KIND(KIND_LOCAL),
+                    "a Real"))
         return fmi2Error;
     const int groups = nvr > 0 ? groups_read(vr, nvr) & m->state.outputs_pending : 0;
     if (nvr > 0 && (m->state.mode == MODE_INITIALIZATION || groups)) {
@@ -536,6 +554,7 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference
                                        const fmi2Integer order[], const fmi2Real value[])
 {
     ENTER(SETTABLE);
+    CS_ONLY;
     REQUIRE_ARRAY(vr, nvr);
     REQUIRE_ARRAY(order, nvr);
     REQUIRE_ARRAY(value, nvr);
@@ -549,6 +568,7 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
                                         const fmi2Integer order[], fmi2Real value[])
 {
     ENTER(INITIALIZED);
+    CS_ONLY;
     REQUIRE_ARRAY(vr, nvr);
     REQUIRE_ARRAY(order, nvr);
     REQUIRE_ARRAY(value, nvr);
@@ -563,6 +583,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
     ENTER(MODE_STEP_COMPLETE);
+    CS_ONLY;
     (void)noSetFMUStatePriorToCurrentPoint;
     if (!(communicationStepSize > 0.0) || !isfinite(currentCommunicationPoint)) {
         model_log(m, fmi2Error, "logStatusError", "fmi2DoStep: the step size must be positive (got %g s at t = %g s)",
@@ -637,4 +658,154 @@ fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2Stri
     ENTER(STATUS_STATES);
     REQUIRE(value);
     return no_status(m, __func__, s);
+}
+
+/* -- model exchange ------------------------------------------------------------------ */
+
+/* The continuous states are the file's independent coordinates, their rates and the drivers' work
+   (dae.h), in the order of FB_STATE_VRS; the FMU has no event indicators and no time events: a
+   parameter set in event mode is applied by fmi2NewDiscreteStates (re-assembly keeping the
+   states).  An evaluation that fails (the loop cannot be closed at the states the host set)
+   leaves the instance in the error state. */
+
+static int count_is(ModelInstance *m, const char *function, size_t n, size_t expected, const char *what)
+{
+    if (n == expected) return 1;
+    model_log(m, fmi2Error, "logStatusError", "%s: %u %s given; this FMU has %u", function, (unsigned)n, what,
+              (unsigned)expected);
+    return 0;
+}
+
+fmi2Status fmi2EnterEventMode(fmi2Component c)
+{
+    ENTER(MODE_CONTINUOUS);
+    ME_ONLY;
+    m->state.mode = MODE_EVENT;
+    return fmi2OK;
+}
+
+fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *fmi2eventInfo)
+{
+    ENTER(MODE_EVENT);
+    ME_ONLY;
+    REQUIRE(fmi2eventInfo);
+    if (model_me_event_update(m) != fmi2OK) {      /* logged why */
+        m->state.mode = MODE_ERROR;
+        return fmi2Error;
+    }
+    fmi2eventInfo->newDiscreteStatesNeeded = fmi2False;
+    fmi2eventInfo->terminateSimulation = fmi2False;
+    fmi2eventInfo->nominalsOfContinuousStatesChanged = fmi2False;
+    fmi2eventInfo->valuesOfContinuousStatesChanged = fmi2False;   /* a re-assembly keeps the states */
+    fmi2eventInfo->nextEventTimeDefined = fmi2False;
+    fmi2eventInfo->nextEventTime = 0.0;
+    return fmi2OK;
+}
+
+fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c)
+{
+    ENTER(MODE_EVENT);
+    ME_ONLY;
+    m->state.mode = MODE_CONTINUOUS;
+    return fmi2OK;
+}
+
+fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean noSetFMUStatePriorToCurrentPoint,
+                                       fmi2Boolean *enterEventMode, fmi2Boolean *terminateSimulation)
+{
+    ENTER(MODE_CONTINUOUS);
+    ME_ONLY;
+    (void)noSetFMUStatePriorToCurrentPoint;
+    REQUIRE(enterEventMode);
+    REQUIRE(terminateSimulation);
+    if (model_me_completed_step(m) != fmi2OK) {
+        m->state.mode = MODE_ERROR;
+        return fmi2Error;
+    }
+    *enterEventMode = fmi2False;
+    *terminateSimulation = fmi2False;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time)
+{
+    ENTER(MODE_EVENT | MODE_CONTINUOUS);
+    ME_ONLY;
+    if (!isfinite(time)) {
+        model_log(m, fmi2Error, "logStatusError", "fmi2SetTime: the time must be finite (got %g)", time);
+        return fmi2Error;
+    }
+    model_me_set_time(m, time);
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx)
+{
+    ENTER(MODE_CONTINUOUS);
+    ME_ONLY;
+    REQUIRE_ARRAY(x, nx);
+    if (!count_is(m, __func__, nx, FB_N_STATES, "states")) return fmi2Error;
+    for (size_t i = 0; i < nx; i++)
+        if (!isfinite(x[i])) {
+            model_log(m, fmi2Error, "logStatusError", "fmi2SetContinuousStates: state %u is %g: must be finite",
+                      (unsigned)i, x[i]);
+            return fmi2Error;
+        }
+    model_me_set_states(m, x);
+    return fmi2OK;
+}
+
+/* In initialization mode, the values the start values give (model_preview_outputs: all of them,
+   or none when the start values are invalid or cannot be assembled, which
+   fmi2ExitInitializationMode then reports). */
+static fmi2Status from_preview(ModelInstance *m, const int *vrs, fmi2Real value[], size_t n)
+{
+    model_preview_outputs(m, FB_GROUP_STATES);
+    for (size_t i = 0; i < n; i++) value[i] = m->state.values[vrs[i]];
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx)
+{
+    static const int DERIVATIVE_VRS[] = FB_DERIVATIVE_VRS;
+    ENTER(ME_READABLE);
+    ME_ONLY;
+    REQUIRE_ARRAY(derivatives, nx);
+    if (!count_is(m, __func__, nx, FB_N_STATES, "derivatives")) return fmi2Error;
+    if (m->state.mode == MODE_INITIALIZATION) return from_preview(m, DERIVATIVE_VRS, derivatives, nx);
+    if (model_me_derivatives(m, derivatives) != fmi2OK) {
+        m->state.mode = MODE_ERROR;
+        return fmi2Error;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real eventIndicators[], size_t ni)
+{
+    ENTER(ME_READABLE);
+    ME_ONLY;
+    REQUIRE_ARRAY(eventIndicators, ni);
+    return count_is(m, __func__, ni, 0, "event indicators") ? fmi2OK : fmi2Error;
+}
+
+fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx)
+{
+    static const int STATE_VRS[] = FB_STATE_VRS;
+    ENTER(ME_READABLE);
+    ME_ONLY;
+    REQUIRE_ARRAY(x, nx);
+    if (!count_is(m, __func__, nx, FB_N_STATES, "states")) return fmi2Error;
+    if (m->state.mode == MODE_INITIALIZATION) return from_preview(m, STATE_VRS, x, nx);
+    model_me_get_states(m, x);
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x_nominal[], size_t nx)
+{
+    ENTER(MODE_INSTANTIATED | MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED);
+    ME_ONLY;
+    REQUIRE_ARRAY(x_nominal, nx);
+    if (!count_is(m, __func__, nx, FB_N_STATES, "nominals")) return fmi2Error;
+    for (size_t i = 0; i < nx; i++) x_nominal[i] = 1.0;
+    return fmi2OK;
 }

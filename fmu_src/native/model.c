@@ -38,6 +38,8 @@ static const double GUESS[MECH_N] = MECH_GUESS;
 static const int OUTPUT_VRS[MECH_N_OUTPUTS] = MECH_OUTPUT_VRS;
 static const int OUTPUT_KINDS[MECH_N_OUTPUTS] = MECH_OUTPUT_KINDS;
 static const char *const COORDINATES[MECH_N] = MECH_COORDINATE_NAMES;
+static const int STATE_VRS[] = FB_STATE_VRS;
+static const int DERIVATIVE_VRS[] = FB_DERIVATIVE_VRS;
 enum { KIND_TUNABLE = 0, KIND_FIXED = 1 };
 
 static fmi2Status fail(ModelInstance *m, const char *fmt, ...)
@@ -117,7 +119,7 @@ static void start_configuration(const ModelState *s, double *guess, double *rate
    pending, computed when first read (model_preview_outputs), a group at a time. */
 static fmi2Status publish(ModelInstance *m)
 {
-    m->state.outputs_pending = FB_GROUP_STATE | FB_GROUP_RESIDUAL | FB_GROUP_FORCE;
+    m->state.outputs_pending = FB_GROUP_STATE | FB_GROUP_RESIDUAL | FB_GROUP_FORCE | FB_GROUP_STATES;
     return fmi2OK;
 }
 
@@ -127,6 +129,32 @@ static void store_outputs(ModelState *s, const double *out, int kind)
     for (int k = 0; k < MECH_N_OUTPUTS; k++)
         if (OUTPUT_KINDS[k] == kind || (kind == MECH_OUTPUT_STATE && OUTPUT_KINDS[k] == MECH_OUTPUT_WORK))
             s->values[OUTPUT_VRS[k]] = out[k];
+}
+
+/* The continuous states and their derivatives f into values[] (Model Exchange's variables). */
+static void store_states(ModelState *s, const double *f)
+{
+    double y[RK_N];
+    dae_states(s, y);
+    for (int k = 0; k < FB_N_STATES; k++) {
+        s->values[STATE_VRS[k]] = y[k];
+        s->values[DERIVATIVE_VRS[k]] = f[k];
+    }
+}
+
+/* Model Exchange: the current state is the evaluation of the states the host set (dae_me_evaluate). */
+static fmi2Status me_evaluate(ModelInstance *m)
+{
+    ModelState *s = &m->state;
+    if (s->me_fresh) return fmi2OK;
+    const double t = s->t;
+    if (dae_me_evaluate(s, s->me_t, s->me_y, s->me_f)) {
+        s->t = t;
+        return fail(m, "at t = %.9g s: %s", s->me_t, s->rhs_message);
+    }
+    s->me_fresh = 1;
+    publish(m);
+    return fmi2OK;
 }
 
 void model_preview_outputs(ModelInstance *m, int groups)
@@ -148,9 +176,17 @@ void model_preview_outputs(ModelInstance *m, int groups)
         dae_outputs_residual(scratch.p, scratch.d, scratch.t, scratch.q, scratch.qd, out);
         if (dae_outputs_force(scratch.p, scratch.d, scratch.t, scratch.q, scratch.qd, out, scratch.rhs_message))
             return;
+        double f[RK_N];
+        if (dae_me_start(&scratch) || dae_derivatives(&scratch, f)) return;
         for (int k = 0; k < MECH_N_OUTPUTS; k++) s->values[OUTPUT_VRS[k]] = out[k];
+        store_states(&scratch, f);
+        for (int k = 0; k < FB_N_STATES; k++) {
+            s->values[STATE_VRS[k]] = scratch.values[STATE_VRS[k]];
+            s->values[DERIVATIVE_VRS[k]] = scratch.values[DERIVATIVE_VRS[k]];
+        }
         return;
     }
+    if (m->model_exchange && me_evaluate(m) != fmi2OK) return;
     groups &= s->outputs_pending;
     if (groups & FB_GROUP_STATE) {
         dae_outputs_state(s->p, s->d, s->t, s->q, s->tr, s->qd, s->work, out);
@@ -169,6 +205,17 @@ void model_preview_outputs(ModelInstance *m, int groups)
         }
         store_outputs(s, out, MECH_OUTPUT_FORCE);
         s->outputs_pending &= ~FB_GROUP_FORCE;
+    }
+    if (groups & FB_GROUP_STATES) {
+        double f[RK_N];
+        if (m->model_exchange) {
+            memcpy(f, s->me_f, sizeof f);
+        } else if (dae_derivatives(s, f)) {
+            fail(m, "at t = %.9g s %s", s->t, s->rhs_message);
+            return;
+        }
+        store_states(s, f);
+        s->outputs_pending &= ~FB_GROUP_STATES;
     }
 }
 
@@ -202,7 +249,14 @@ fmi2Status model_initialize(ModelInstance *m)
         return fail(m, "initial assembly with %s failed: %s", MECH_K ? given : "the drivers' start values",
                     s->rhs_message);
     }
-    if (dae_start(s, 0.0)) return fail(m, "%s", s->rhs_message);
+    if (m->model_exchange) {
+        if (dae_me_start(s)) return fail(m, "%s", s->rhs_message);
+        s->me_t = s->t;
+        dae_states(s, s->me_y);
+        s->me_fresh = 0;
+    } else if (dae_start(s, 0.0)) {
+        return fail(m, "%s", s->rhs_message);
+    }
     return publish(m);
 }
 
@@ -226,7 +280,12 @@ static fmi2Status apply_parameter_changes(ModelInstance *m, double current_time)
     if (!differs) return fmi2OK;
     if (check_parameters(s, problems, sizeof problems)) return fail(m, "at t = %.9g s: %s", current_time, problems);
     int r = dae_change_parameters(s, p);
-    if (!r) r = dae_start(s, s->solver.h_abs);
+    if (!r) r = m->model_exchange ? dae_me_start(s) : dae_start(s, s->solver.h_abs);
+    if (!r && m->model_exchange) {        /* the states are kept: the new current state is their evaluation */
+        s->me_t = s->t;
+        dae_states(s, s->me_y);
+        s->me_fresh = 0;
+    }
     if (r == DAE_ASSEMBLY) return fail(m, "cannot apply %s at t = %.9g s: %s", changed, current_time, s->rhs_message);
     if (r) return fail(m, "%s", s->rhs_message);
     used = 0;
@@ -248,4 +307,52 @@ fmi2Status model_do_step(ModelInstance *m, double current_time, double step)
     if (apply_parameter_changes(m, current_time) != fmi2OK) return fmi2Error;
     if (dae_advance(s, dae_snap_time(current_time + step))) return fail(m, "%s", s->rhs_message);
     return publish(m);
+}
+
+/* -- Model Exchange ------------------------------------------------------------------ */
+
+void model_me_get_states(ModelInstance *m, double *x)
+{
+    memcpy(x, m->state.me_y, FB_N_STATES * sizeof *x);
+}
+
+void model_me_set_time(ModelInstance *m, double t)
+{
+    ModelState *s = &m->state;
+    if (t != s->me_t) {
+        s->me_fresh = 0;
+        publish(m);
+    }
+    s->me_t = t;
+}
+
+void model_me_set_states(ModelInstance *m, const double *x)
+{
+    ModelState *s = &m->state;
+    if (memcmp(x, s->me_y, FB_N_STATES * sizeof *x) != 0) {
+        s->me_fresh = 0;
+        publish(m);
+    }
+    memcpy(s->me_y, x, FB_N_STATES * sizeof *x);
+}
+
+fmi2Status model_me_derivatives(ModelInstance *m, double *dx)
+{
+    if (me_evaluate(m) != fmi2OK) return fmi2Error;
+    memcpy(dx, m->state.me_f, FB_N_STATES * sizeof *dx);
+    return fmi2OK;
+}
+
+fmi2Status model_me_completed_step(ModelInstance *m)
+{
+    if (me_evaluate(m) != fmi2OK) return fmi2Error;
+    dae_me_accept(&m->state);
+    return fmi2OK;
+}
+
+fmi2Status model_me_event_update(ModelInstance *m)
+{
+    ModelState *s = &m->state;
+    if (me_evaluate(m) != fmi2OK) return fmi2Error;
+    return apply_parameter_changes(m, s->t);
 }

@@ -17,9 +17,12 @@
 
 #define MODEL_MESSAGE 512   /* longest message of one failure */
 
+/* Co-simulation: instantiated, initialization, stepComplete (stepFailed is never entered), terminated,
+   error; Model Exchange: instantiated, initialization, eventMode, continuousTimeMode, terminated, error. */
 typedef enum {
     MODE_INSTANTIATED = 1, MODE_INITIALIZATION = 2, MODE_STEP_COMPLETE = 4,
-    MODE_STEP_FAILED = 8, MODE_TERMINATED = 16, MODE_ERROR = 32
+    MODE_STEP_FAILED = 8, MODE_TERMINATED = 16, MODE_ERROR = 32,
+    MODE_EVENT = 128, MODE_CONTINUOUS = 256
 } ModelMode;
 
 /* One consistent state of the mechanism and its accelerations: a Newton-Raphson predictor's base,
@@ -62,9 +65,14 @@ typedef struct {
     unsigned long failed_evaluations;           /* trial points not reached: the step was rejected */
     int rhs_failed;                             /* DAE_ASSEMBLY or DAE_INTEGRATION (dae.h), with: */
     char rhs_message[MODEL_MESSAGE];
+    /* Model Exchange: the states the host set (at time t) and, when me_fresh, the current state is
+       their evaluation (dae_me_evaluate) and me_f its derivatives. */
+    double me_t, me_y[RK_N], me_f[RK_N];
+    int me_fresh;
 } ModelState;
 
 typedef struct {
+    int model_exchange;                 /* instantiated as fmi2ModelExchange (else co-simulation) */
     const fmi2CallbackFunctions *functions;
     fmi2ComponentEnvironment environment;
     char *instance_name;
@@ -78,6 +86,15 @@ void model_log(ModelInstance *m, fmi2Status status, const char *category, const 
 void model_reset(ModelInstance *m);                       /* start values, mode instantiated */
 fmi2Status model_initialize(ModelInstance *m);            /* check, assemble, start (exit init mode) */
 fmi2Status model_do_step(ModelInstance *m, double current_time, double step);
+/* Model Exchange (dae.h): the states (FB_N_STATES values, value references FB_STATE_VRS), set and
+   evaluated lazily; the derivatives; an accepted integrator step; an event's parameter changes
+   (re-assembly keeping the states).  fmi2Error after logging why. */
+void model_me_get_states(ModelInstance *m, double *x);
+void model_me_set_time(ModelInstance *m, double t);
+void model_me_set_states(ModelInstance *m, const double *x);
+fmi2Status model_me_derivatives(ModelInstance *m, double *dx);
+fmi2Status model_me_completed_step(ModelInstance *m);
+fmi2Status model_me_event_update(ModelInstance *m);
 /* Outputs into values[] before fmi2GetReal reads them: in initialization mode all those the start
    values give; afterwards the groups (FB_GROUP_* bits) of `groups` that outputs_pending says are
    not yet the current state's (each fmi2DoStep only marks them all pending: a host that reads one

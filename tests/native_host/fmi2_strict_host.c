@@ -666,7 +666,7 @@ static void case_instantiate_refusals(const void *arg)
     struct { const char *what, *name, *guid; fmi2Type type; fmi2CallbackFunctions *cb; const char *says; } bad[] = {
         {"another GUID", "strict", "{00000000-0000-0000-0000-000000000000}", fmi2CoSimulation, &CALLBACKS, "GUID"},
         {"a NULL GUID", "strict", NULL, fmi2CoSimulation, &CALLBACKS, "GUID"},
-        {"model exchange", "strict", GUID, fmi2ModelExchange, &CALLBACKS, "co-simulation"},
+        {"an unknown fmuType", "strict", GUID, (fmi2Type)7, &CALLBACKS, "fmuType"},
         {"a NULL instance name", NULL, GUID, fmi2CoSimulation, &CALLBACKS, "name"},
         {"an empty instance name", "", GUID, fmi2CoSimulation, &CALLBACKS, "name"},
         {"allocateMemory without freeMemory", "strict", GUID, fmi2CoSimulation, &half, "freeMemory"}};
