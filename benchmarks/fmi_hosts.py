@@ -264,10 +264,14 @@ def fmusim_version(fmusim: Path) -> str:
 
 
 def run_fmusim(fmusim: Path, fmu: Path, outputs: tuple[str, ...], experiment: Experiment,
-               workdir: Path) -> HostRun:
-    """fmusim's co-simulation run with an empty environment; its CSV read back."""
+               workdir: Path, model_exchange_tolerance: float | None = None) -> HostRun:
+    """fmusim's run with an empty environment, its CSV read back: co-simulation, or with
+    ``model_exchange_tolerance`` model exchange integrated by fmusim's CVode at that relative
+    tolerance."""
     out = workdir / "fmusim.csv"
-    command = [str(fmusim), "--interface-type", "cs", "--stop-time", repr(experiment.stop),
+    interface = ["cs"] if model_exchange_tolerance is None else \
+        ["me", "--solver", "cvode", "--tolerance", repr(model_exchange_tolerance)]
+    command = [str(fmusim), "--interface-type", *interface, "--stop-time", repr(experiment.stop),
                "--output-interval", repr(experiment.step)]
     for name, value in experiment.start_values.items():
         command += ["--start-value", name, repr(value)]

@@ -9,6 +9,7 @@ round-off whatever the host's solver, while the accuracy is the solver's.
 from __future__ import annotations
 
 import ctypes
+import sys
 
 import numpy as np
 import pytest
@@ -17,6 +18,10 @@ from fmpy.fmi2 import FMU2Model
 from scipy.integrate import DOP853
 
 from fmu_src.mechanism.description import shipped_mechanisms
+from support import REPO
+
+sys.path.insert(0, str(REPO / "benchmarks"))
+import fmi_hosts  # noqa: E402   (the hosts' runners: one home)
 
 MECHANISMS = shipped_mechanisms()
 #: CVode's relative tolerance; FMPy sets its absolute tolerance to rtol x each state's nominal
@@ -61,6 +66,30 @@ def test_constraints_hold_at_the_hosts_default_tolerance(mechanism, mechanism_fm
     me = simulate_fmu(fmu, fmi_type="ModelExchange", solver="CVode", stop_time=10.0, output_interval=0.01,
                       output=["constraint_residual"])
     assert len(me) == 1001 and float(np.max(me["constraint_residual"])) <= RESIDUAL
+
+
+@pytest.mark.parametrize("mechanism", MECHANISMS)
+def test_model_exchange_in_fmusim_agrees_with_co_simulation(mechanism, mechanism_fmus, tmp_path):
+    """fmusim (the Reference-FMUs' host) integrating with its own CVode; skipped without fmusim
+    ($FMUSIM or PATH; scripts/build_fmusim.sh builds it)."""
+    try:
+        fmusim = fmi_hosts.find_fmusim()
+    except fmi_hosts.HostError as exc:
+        pytest.fail(str(exc))
+    if fmusim is None:
+        pytest.skip("no fmusim: set FMUSIM=/path/to/fmusim or put fmusim on PATH (scripts/build_fmusim.sh)")
+    fmu = mechanism_fmus.get(mechanism, "native")
+    names = tuple(_lengths(fmu))
+    stop = SPAN.get(mechanism, 10.0)
+    run = fmi_hosts.run_fmusim(fmusim, fmu, names, fmi_hosts.Experiment(stop=stop), tmp_path,
+                               model_exchange_tolerance=CVODE_RTOL)
+    assert run.exit_code == 0 and run.values is not None, run.message
+    cs = simulate_fmu(str(fmu), stop_time=stop, output_interval=0.01, output=list(names),
+                      start_values={"rtol": COSIM_TOL, "atol": COSIM_TOL})
+    assert run.values.shape == (len(cs), len(names))
+    assert np.allclose(run.time, cs["time"], rtol=0, atol=1e-12)
+    worst = max(float(np.max(np.abs(run.values[:, k] - cs[n]))) for k, n in enumerate(names))
+    assert worst <= AGREE, (mechanism, worst)
 
 
 class _Host:
