@@ -6,14 +6,16 @@
  *
  * The rules every entry point follows (tests/native_host/fmi2_strict_host.c checks them all):
  * - ENTER, first: a NULL instance is refused with fmi2Error (no logger can be reached through
- *   it); a call that the FMI 2.0 co-simulation state machine does not allow in the instance's
- *   state is refused with fmi2Error and a message naming the function, the state and the
- *   states the call is allowed in.
+ *   it); a call that the FMI 2.0 state machine of the instance's type (co-simulation or model
+ *   exchange) does not allow in the instance's state is refused with fmi2Error and a message
+ *   naming the function, the state and the states the call is allowed in.  CS_ONLY / ME_ONLY
+ *   then refuse a call of the other type (with a message saying so).
  * - REQUIRE: a NULL pointer argument the call would use is refused with fmi2Error and a message.
- * - A refused call changes nothing.  fmi2ExitInitializationMode and fmi2DoStep returning
- *   fmi2Error leave the instance in the error state, where no value can be read: only
- *   fmi2Reset, fmi2FreeInstance, fmi2SetFMUstate (back to a state saved before the failure),
- *   the other FMU-state bookkeeping calls and fmi2SetDebugLogging are accepted.
+ * - A refused call changes nothing.  fmi2ExitInitializationMode, fmi2DoStep, fmi2NewDiscreteStates
+ *   and a failed model-exchange evaluation returning fmi2Error leave the instance in the error
+ *   state, where no value can be read: only fmi2Reset, fmi2FreeInstance, fmi2SetFMUstate (back to
+ *   a state saved before the failure, by an instance of the same type), the other FMU-state
+ *   bookkeeping calls and fmi2SetDebugLogging are accepted.
  * - The status a call returns is the worst status it logged (fmi2Discard only from the status
  *   inquiries, for a status the FMU does not have).
  * Every message goes through the host's logger callback.
@@ -60,11 +62,20 @@ static const struct { int mode; const char *name; } STATES[] = {
 #define ME_READABLE (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED)
 #define STATUS_STATES (MODE_STEP_COMPLETE | MODE_STEP_IN_PROGRESS | MODE_STEP_FAILED | MODE_TERMINATED)
 
+/* An FMU state: a copy of the ModelState, and the type of the instance that saved it (its mode
+   belongs to that type's state machine: a co-simulation state means nothing to a model-exchange
+   instance, and the other way round). */
+typedef struct {
+    ModelState state;
+    int model_exchange;
+} SavedState;
+
 /* Serialized FMU state: this header, then the ModelState's bytes. */
 typedef struct {
     char magic[8];
     unsigned int state_size;
     char guid[48];
+    int model_exchange;
 } StateHeader;
 static const char STATE_MAGIC[8] = "FBSTATE";
 
@@ -450,22 +461,33 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
     ENTER(ALL_STATES & ~MODE_ERROR);
     REQUIRE(FMUstate);
     if (!*FMUstate) {
-        *FMUstate = allocate(m, sizeof(ModelState));
+        *FMUstate = allocate(m, sizeof(SavedState));
         if (!*FMUstate) {
             model_log(m, fmi2Error, "logStatusError", "fmi2GetFMUstate: out of memory");
             return fmi2Error;
         }
     }
-    memcpy(*FMUstate, &m->state, sizeof(ModelState));
+    memcpy(&((SavedState *)*FMUstate)->state, &m->state, sizeof(ModelState));
+    ((SavedState *)*FMUstate)->model_exchange = m->model_exchange;
     return fmi2OK;
 }
 
-/* Also in the error state: FMI 2.0's way to continue after a failure. */
+static const char *type_name(int model_exchange) { return model_exchange ? "model exchange" : "co-simulation"; }
+
+/* Also in the error state: FMI 2.0's way to continue after a failure.  Only a state saved by an
+   instance of the same type (its mode is of that type's state machine). */
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
 {
     ENTER(ALL_STATES);
     REQUIRE(FMUstate);
-    memcpy(&m->state, FMUstate, sizeof(ModelState));
+    const SavedState *saved = (const SavedState *)FMUstate;
+    if (saved->model_exchange != m->model_exchange) {
+        model_log(m, fmi2Error, "logStatusError", "fmi2SetFMUstate: the FMU state was saved by a %s instance; "
+                  "this instance was instantiated for %s", type_name(saved->model_exchange),
+                  type_name(m->model_exchange));
+        return fmi2Error;
+    }
+    memcpy(&m->state, &saved->state, sizeof(ModelState));
     return fmi2OK;
 }
 
@@ -502,8 +524,9 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byt
     memcpy(header.magic, STATE_MAGIC, sizeof header.magic);
     header.state_size = (unsigned int)sizeof(ModelState);
     strncpy(header.guid, FB_GUID, sizeof header.guid - 1);
+    header.model_exchange = ((const SavedState *)FMUstate)->model_exchange;
     memcpy(serializedState, &header, sizeof header);
-    memcpy(serializedState + sizeof header, FMUstate, sizeof(ModelState));
+    memcpy(serializedState + sizeof header, &((const SavedState *)FMUstate)->state, sizeof(ModelState));
     return fmi2OK;
 }
 
@@ -521,19 +544,21 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
     }
     memcpy(&header, serializedState, sizeof header);
     if (memcmp(header.magic, STATE_MAGIC, sizeof header.magic) != 0 || header.state_size != sizeof(ModelState)
-        || strncmp(header.guid, FB_GUID, sizeof header.guid) != 0) {
+        || strncmp(header.guid, FB_GUID, sizeof header.guid) != 0
+        || (header.model_exchange != 0 && header.model_exchange != 1)) {
         model_log(m, fmi2Error, "logStatusError", "fmi2DeSerializeFMUstate: not a state of this FMU (GUID %s)",
                   FB_GUID);
         return fmi2Error;
     }
     if (!*FMUstate) {
-        *FMUstate = allocate(m, sizeof(ModelState));
+        *FMUstate = allocate(m, sizeof(SavedState));
         if (!*FMUstate) {
             model_log(m, fmi2Error, "logStatusError", "fmi2DeSerializeFMUstate: out of memory");
             return fmi2Error;
         }
     }
-    memcpy(*FMUstate, serializedState + sizeof header, sizeof(ModelState));
+    memcpy(&((SavedState *)*FMUstate)->state, serializedState + sizeof header, sizeof(ModelState));
+    ((SavedState *)*FMUstate)->model_exchange = header.model_exchange;
     return fmi2OK;
 }
 
@@ -624,6 +649,7 @@ static fmi2Status no_status(ModelInstance *m, const char *function, fmi2StatusKi
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value)
 {
     ENTER(STATUS_STATES);
+    CS_ONLY;
     REQUIRE(value);
     return no_status(m, __func__, s);
 }
@@ -631,6 +657,7 @@ fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *va
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)
 {
     ENTER(STATUS_STATES);
+    CS_ONLY;
     REQUIRE(value);
     if (s != fmi2LastSuccessfulTime) return no_status(m, __func__, s);
     *value = m->state.t;
@@ -640,6 +667,7 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value)
 {
     ENTER(STATUS_STATES);
+    CS_ONLY;
     REQUIRE(value);
     return no_status(m, __func__, s);
 }
@@ -647,6 +675,7 @@ fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Int
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value)
 {
     ENTER(STATUS_STATES);
+    CS_ONLY;
     REQUIRE(value);
     if (s != fmi2Terminated) return no_status(m, __func__, s);
     *value = fmi2False;   /* the slave never asks to end the simulation */
@@ -656,6 +685,7 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value)
 {
     ENTER(STATUS_STATES);
+    CS_ONLY;
     REQUIRE(value);
     return no_status(m, __func__, s);
 }
@@ -676,9 +706,10 @@ static int count_is(ModelInstance *m, const char *function, size_t n, size_t exp
     return 0;
 }
 
+/* Also in event mode (FMI 2.0, section 3.2.3; fmi-standard issue #275): a host may enter it again. */
 fmi2Status fmi2EnterEventMode(fmi2Component c)
 {
-    ENTER(MODE_CONTINUOUS);
+    ENTER(MODE_EVENT | MODE_CONTINUOUS);
     ME_ONLY;
     m->state.mode = MODE_EVENT;
     return fmi2OK;
@@ -765,14 +796,14 @@ static fmi2Status from_preview(ModelInstance *m, const int *vrs, fmi2Real value[
     return fmi2OK;
 }
 
+/* Not in initialization mode (FMI 2.0, section 3.2.3, as the Reference-FMUs): the derivatives
+   are initial unknowns there, read by fmi2GetReal. */
 fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx)
 {
-    static const int DERIVATIVE_VRS[] = FB_DERIVATIVE_VRS;
-    ENTER(ME_READABLE);
+    ENTER(MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED);
     ME_ONLY;
     REQUIRE_ARRAY(derivatives, nx);
     if (!count_is(m, __func__, nx, FB_N_STATES, "derivatives")) return fmi2Error;
-    if (m->state.mode == MODE_INITIALIZATION) return from_preview(m, DERIVATIVE_VRS, derivatives, nx);
     if (model_me_derivatives(m, derivatives) != fmi2OK) {
         m->state.mode = MODE_ERROR;
         return fmi2Error;
