@@ -1,11 +1,13 @@
 """The native FMUs' FMI 2.0 C layer is as strict as the Reference-FMUs (issue 23, item 6).
 
 - tests/native_host/fmi2_strict_host.c, compiled here against FMPy's FMI 2.0 headers, calls
-  every exported fmi2* function with a NULL instance, with NULL arguments and in every state
-  the FMU can reach (the error state after a failed initialization and after a failed step
-  included), and checks each status, each message and every allocation.  It must pass, and it
-  must fail on layers that break a rule (three mutants of fmi2Functions.c, compiled here).
-  It passes on another mechanism's FMU (the slider-crank's) too.
+  every exported fmi2* function (co-simulation's and model exchange's) with a NULL instance,
+  with NULL arguments and in every state a co-simulation or a model-exchange instance can
+  reach (the error state after a failed initialization, step or event update included), and
+  checks each status, each message and every allocation; it runs a short model-exchange
+  integration with an event too.  It must pass, and it must fail on layers that break a rule
+  (six mutants of fmi2Functions.c, compiled here).  It passes on other mechanisms' FMUs (the
+  slider-crank's, and the driven four-bar's, whose only state is its driver's work) too.
 - What an FMI host gets after a failed initialization, through FMPy: fmi2Error from every read.
 - binaries/linux64 needs no glibc symbol version newer than 2.17 (read from the ELF file).
 - Under valgrind (when installed): no invalid access, nothing definitely lost.
@@ -50,20 +52,25 @@ def target(native_fmu, tmp_path_factory):
 def test_every_entry_point_is_null_safe_and_follows_the_state_machine(host, target):
     run = run_host(host, target)
     assert run.returncode == 0 and not run.failures, "\n".join(run.failures) or run.stderr[-2000:]
-    # 30 functions x 6 states, 30 with a NULL instance, 36 NULL arguments and 8 sequences
-    # (254 cases): fewer would mean the host stopped early.
-    assert run.cases is not None and run.cases >= 250, run.stdout[-2000:]
+    # 40 functions x 13 states (6 of a co-simulation instance, 7 of a model-exchange one), 40 with
+    # a NULL instance, 44 NULL arguments and 12 sequences (616 cases): fewer would mean the host
+    # stopped early.
+    assert run.cases is not None and run.cases >= 616, run.stdout[-2000:]
 
 
 @linux_only
-def test_the_layer_is_as_strict_for_another_mechanism(host, tmp_path):
+@pytest.mark.parametrize("mechanism", ["slider_crank", "fourbar_driven"])
+def test_the_layer_is_as_strict_for_another_mechanism(host, tmp_path, mechanism):
     """The FMI layer and the model behind it are the same C for every mechanism (only the
-    generated sizes and tables differ): the harness passes on the slider-crank's FMU too."""
+    generated sizes and tables differ): the harness passes on the slider-crank's FMU and on the
+    driven four-bar's (no independent coordinate: one continuous state, the driver's work)."""
     from fmu_src.native_build import build_native_fmu
-    fmu = build_native_fmu(tmp_path / "SliderCrankNative.fmu", mechanism="slider_crank", validate=False).path
-    run = run_host(host, unpack(fmu, tmp_path / "unpacked"))
+    fmu = build_native_fmu(tmp_path / "Native.fmu", mechanism=mechanism, validate=False).path
+    target = unpack(fmu, tmp_path / "unpacked")
+    run = run_host(host, target)
     assert run.returncode == 0 and not run.failures, "\n".join(run.failures) or run.stderr[-2000:]
-    assert run.cases is not None and run.cases >= 250, run.stdout[-2000:]
+    assert run.cases is not None and run.cases >= 616, run.stdout[-2000:]
+    assert target.states == {"slider_crank": 2, "fourbar_driven": 1}[mechanism]
 
 
 # Each mutant breaks one rule in fmi2Functions.c; the host must name the broken call.
@@ -81,6 +88,20 @@ MUTANTS = {
         'model_log(m, fmi2Discard, "logStatusDiscard", "%s(%s): no such status',
         'model_log(m, fmi2Error, "logStatusError", "%s(%s): no such status',
         "FAIL fmi2GetStatus in state stepComplete: fmi2GetStatus returned fmi2Discard but logged fmi2Error"),
+    "a co-simulation status answered by a model-exchange instance": (
+        "    ENTER(STATUS_STATES);\n    CS_ONLY;\n    REQUIRE(value);\n    if (s != fmi2LastSuccessfulTime)",
+        "    ENTER(STATUS_STATES);\n    REQUIRE(value);\n    if (s != fmi2LastSuccessfulTime)",
+        "FAIL fmi2GetRealStatus in state terminated (model exchange): fmi2GetRealStatus returned fmi2OK, "
+        "expected fmi2Error"),
+    "states settable in event mode": (
+        "    ENTER(MODE_CONTINUOUS);\n    ME_ONLY;\n    REQUIRE_ARRAY(x, nx);",
+        "    ENTER(MODE_EVENT | MODE_CONTINUOUS);\n    ME_ONLY;\n    REQUIRE_ARRAY(x, nx);",
+        "FAIL fmi2SetContinuousStates in state eventMode: fmi2SetContinuousStates returned fmi2OK, expected fmi2Error"),
+    "an event update that says the states changed": (
+        "fmi2eventInfo->valuesOfContinuousStatesChanged = fmi2False;",
+        "fmi2eventInfo->valuesOfContinuousStatesChanged = fmi2True;",
+        "FAIL a healthy model-exchange run: Euler steps, saved and replayed, an event changing a parameter: "
+        "fmi2NewDiscreteStates after initialization"),
 }
 
 

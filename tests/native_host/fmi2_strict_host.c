@@ -1,17 +1,26 @@
-/* A strict FMI 2.0 co-simulation host: it dlopens an FMU binary and calls every exported
-   fmi2* function
-     1. in every state of the co-simulation state machine the FMU can reach (instantiated,
-        initializationMode, stepComplete, terminated, and error, reached both by a failed
-        fmi2ExitInitializationMode and by a failed fmi2DoStep), with valid arguments;
+/* A strict FMI 2.0 host for an FMU that offers co-simulation and model exchange in one binary:
+   it dlopens the binary and calls every exported fmi2* function (both types')
+     1. in every state the FMU can reach, with valid arguments: of the co-simulation state
+        machine (section 4.2.4: instantiated, initializationMode, stepComplete, terminated, and
+        error, reached both by a failed fmi2ExitInitializationMode and by a failed fmi2DoStep)
+        on a co-simulation instance, and of the model-exchange one (section 3.2.3:
+        instantiated, initializationMode, eventMode, continuousTimeMode, terminated, and error,
+        reached both by a failed fmi2ExitInitializationMode and by a failed
+        fmi2NewDiscreteStates) on a model-exchange instance;
      2. with a NULL instance;
      3. with NULL pointer or array arguments (array lengths > 0), in a state that allows the call;
    plus a few sequences: unknown value references, a refused fmi2SetReal changing nothing,
-   recovery by fmi2Reset and fmi2SetFMUstate, fmi2Instantiate's refusals, and a short healthy
-   run with a parameter change replayed from a saved FMU state.
+   recovery by fmi2Reset and fmi2SetFMUstate, fmi2Instantiate's refusals, an FMU state of one
+   type refused by an instance of the other, wrong state and event-indicator counts, and two
+   short healthy runs: co-simulation with a parameter change replayed from a saved FMU state;
+   model exchange with explicit Euler steps, an event that changes the parameter, and a replay.
 
    What it requires (the FMI 2.0 standard, as the Modelica Reference-FMUs implement it):
    - a call the state machine does not allow returns fmi2Error, logs a message naming the
      function and the instance's state, and changes nothing (checked by a probe call after it);
+     so does a function of the other type (a co-simulation function on a model-exchange
+     instance, or the other way round), whose message names the function and either the state
+     or the instance's type ("instantiated for model exchange");
    - a NULL instance gives fmi2Error and no crash; a NULL argument gives fmi2Error and a message;
    - the status returned is the worst status logged during the call (an OK call logs no
      warning or error); a status inquiry the FMU has no value for gives fmi2Discard (FMI 2.0,
@@ -20,16 +29,19 @@
    - stricter than the Reference-FMUs, as the native FourBar FMU promises: in the error state no
      value can be read (fmi2GetXXX, fmi2GetFMUstate and the output derivatives are refused).
 
-   usage: fmi2_strict_host [--in-process] LIBRARY GUID VR_TUNABLE VR_OUTPUT VR_STRING
+   usage: fmi2_strict_host [--in-process] LIBRARY GUID VR_TUNABLE VR_OUTPUT VR_STRING N_STATES
      VR_TUNABLE: a tunable Real parameter that must be positive (set to -1 to make
-     initialization and a step fail); VR_OUTPUT: a Real output; VR_STRING: a fixed String
-     parameter.  Each case runs in a forked child, so a crash is reported as a failed case;
+     initialization, a step and an event update fail); VR_OUTPUT: a Real output; VR_STRING: a
+     fixed String parameter; N_STATES: the number of continuous states (the model description's
+     <Derivatives> unknowns; 1 to MAX_STATES).  Each case runs in a forked child, so a crash is
+     reported as a failed case;
      --in-process runs them in one process (for valgrind).
    Prints "FAIL ..." for each failed check and a summary line; exit status 0 when everything
    holds, 1 when a check failed, 2 for a usage or loading error.
    tests/test_fmu_native_strict.py builds and runs it. */
 #define _POSIX_C_SOURCE 200809L   /* fork, waitpid, dlopen */
 #include <dlfcn.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -46,31 +58,56 @@
     X(SetString) X(GetFMUstate) X(SetFMUstate) X(FreeFMUstate) X(SerializedFMUstateSize) \
     X(SerializeFMUstate) X(DeSerializeFMUstate) X(GetDirectionalDerivative) \
     X(SetRealInputDerivatives) X(GetRealOutputDerivatives) X(DoStep) X(CancelStep) X(GetStatus) \
-    X(GetRealStatus) X(GetIntegerStatus) X(GetBooleanStatus) X(GetStringStatus)
+    X(GetRealStatus) X(GetIntegerStatus) X(GetBooleanStatus) X(GetStringStatus) \
+    X(EnterEventMode) X(NewDiscreteStates) X(EnterContinuousTimeMode) X(CompletedIntegratorStep) X(SetTime) \
+    X(SetContinuousStates) X(GetDerivatives) X(GetEventIndicators) X(GetContinuousStates) \
+    X(GetNominalsOfContinuousStates)
 #define DECLARE(name) fmi2##name##TYPE *name;
 static struct { FMI2_FUNCTIONS(DECLARE) } F;
 
-/* -- the state machine (FMI 2.0, section 4.2.4) --------------------------------------- */
+/* -- the state machines (FMI 2.0, sections 4.2.4 and 3.2.3) ----------------------------- */
+/* The states of both; a co-simulation instance reaches stepComplete (never stepInProgress nor
+   stepFailed: fmi2DoStep is synchronous), a model-exchange instance eventMode and
+   continuousTimeMode; the others are common. */
 enum {
     INSTANTIATED = 1, INITIALIZATION = 2, STEP_COMPLETE = 4, STEP_IN_PROGRESS = 8, STEP_FAILED = 16,
-    TERMINATED = 32, ERROR = 64
+    TERMINATED = 32, ERROR = 64, EVENT = 128, CONTINUOUS = 256
 };
-#define ANY (INSTANTIATED | INITIALIZATION | STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | TERMINATED | ERROR)
-#define INITIALIZED (STEP_COMPLETE | STEP_FAILED | TERMINATED)
+#define ANY (INSTANTIATED | INITIALIZATION | STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | TERMINATED | ERROR | \
+             EVENT | CONTINUOUS)
+#define INITIALIZED (STEP_COMPLETE | STEP_FAILED | EVENT | CONTINUOUS | TERMINATED)
 #define READ (INITIALIZATION | INITIALIZED)          /* no reading in the error state */
-#define WRITE (INSTANTIATED | INITIALIZATION | STEP_COMPLETE)
+/* parameters (the FMU has no inputs): not in continuousTimeMode, where only inputs may be set */
+#define WRITE (INSTANTIATED | INITIALIZATION | STEP_COMPLETE | EVENT)
 #define STATUS (STEP_COMPLETE | STEP_IN_PROGRESS | STEP_FAILED | TERMINATED)
+#define ME_READ (INITIALIZATION | EVENT | CONTINUOUS | TERMINATED)   /* states, event indicators */
 
-/* The states this host drives a fresh instance into, and the word the FMU must use for each. */
-typedef struct { const char *label; int state; const char *word; } Reached;
-enum { R_INSTANTIATED, R_INITIALIZATION, R_STEP_COMPLETE, R_TERMINATED, R_FAILED_INIT, R_FAILED_STEP, N_REACHED };
+/* An instance's type, and the type a function belongs to (BOTH: the common functions). */
+enum { CS = 0, ME = 1, BOTH = 2 };
+static const char *const TYPE_WORDS[2] = {"instantiated for co-simulation", "instantiated for model exchange"};
+
+/* The states this host drives a fresh instance into, the word the FMU must use for each, and the
+   instance's type. */
+typedef struct { const char *label; int state; const char *word; int type; } Reached;
+enum {
+    R_INSTANTIATED, R_INITIALIZATION, R_STEP_COMPLETE, R_TERMINATED, R_FAILED_INIT, R_FAILED_STEP,
+    R_ME_INSTANTIATED, R_ME_INITIALIZATION, R_EVENT, R_CONTINUOUS, R_ME_TERMINATED, R_ME_FAILED_INIT,
+    R_FAILED_EVENT, N_REACHED
+};
 static const Reached REACHED[N_REACHED] = {
-    {"instantiated", INSTANTIATED, "state instantiated"},
-    {"initializationMode", INITIALIZATION, "state initializationMode"},
-    {"stepComplete", STEP_COMPLETE, "state stepComplete"},
-    {"terminated", TERMINATED, "state terminated"},
-    {"error after a failed fmi2ExitInitializationMode", ERROR, "state error"},
-    {"error after a failed fmi2DoStep", ERROR, "state error"}};
+    {"instantiated", INSTANTIATED, "state instantiated", CS},
+    {"initializationMode", INITIALIZATION, "state initializationMode", CS},
+    {"stepComplete", STEP_COMPLETE, "state stepComplete", CS},
+    {"terminated", TERMINATED, "state terminated", CS},
+    {"error after a failed fmi2ExitInitializationMode", ERROR, "state error", CS},
+    {"error after a failed fmi2DoStep", ERROR, "state error", CS},
+    {"instantiated (model exchange)", INSTANTIATED, "state instantiated", ME},
+    {"initializationMode (model exchange)", INITIALIZATION, "state initializationMode", ME},
+    {"eventMode", EVENT, "state eventMode", ME},
+    {"continuousTimeMode", CONTINUOUS, "state continuousTimeMode", ME},
+    {"terminated (model exchange)", TERMINATED, "state terminated", ME},
+    {"error after a failed fmi2ExitInitializationMode (model exchange)", ERROR, "state error", ME},
+    {"error after a failed fmi2NewDiscreteStates", ERROR, "state error", ME}};
 
 /* -- what the FMU logs and allocates --------------------------------------------------- */
 static int ENV_TAG;                                  /* its address is the component environment */
@@ -162,44 +199,80 @@ static int expect(const char *call, fmi2Status got, fmi2Status want, int instanc
     return ok;
 }
 
-/* -- fixtures -------------------------------------------------------------------------- */
-static const char *GUID;
-static fmi2ValueReference VR_TUNABLE, VR_OUTPUT, VR_STRING;
-static fmi2Real TUNABLE_START;                      /* read from the FMU */
-static char STRING_START[256];
-static fmi2Component DONOR;                          /* a healthy instance whose state the cases use */
-static fmi2FMUstate DONOR_STATE;
-static fmi2Byte *SERIAL;
-static size_t SERIAL_SIZE;
-
-static fmi2Component instantiate(void)
+/* A refusal: fmi2Error, the log as expect() requires it, naming `name` and `word1` or `word2`
+   (a function of the other type may be refused by the state machine or by the type check). */
+static int expect_refused(const char *call, fmi2Status got, const char *name, const char *word1,
+                          const char *word2)
 {
-    return F.Instantiate("strict", fmi2CoSimulation, GUID, "", &CALLBACKS, fmi2False, fmi2False);
+    char text[sizeof LOG.text];
+    strcpy(text, LOG.text);
+    int ok = expect(call, got, fmi2Error, 1, name, NULL);
+    if (ok && !strstr(text, word1) && !(word2 && strstr(text, word2))) {
+        fail("%s: the message says neither '%s' nor '%s' (log: %s)", call, word1, word2 ? word2 : "", text);
+        ok = 0;
+    }
+    return ok;
 }
 
-/* A fresh instance in REACHED[r]; NULL (and a failure) if the FMU does not get there. */
+/* -- fixtures -------------------------------------------------------------------------- */
+#define MAX_STATES 64
+static const char *GUID;
+static fmi2ValueReference VR_TUNABLE, VR_OUTPUT, VR_STRING;
+static int NX;                                       /* number of continuous states (command line) */
+static fmi2Real TUNABLE_START;                      /* read from the FMU */
+static char STRING_START[256];
+static fmi2Real X_START[MAX_STATES];                 /* the continuous states after initialization */
+/* A healthy instance of each type whose saved state the cases use. */
+typedef struct { fmi2Component c; fmi2FMUstate state; fmi2Byte *serial; size_t size; } Donor;
+static Donor DONORS[2];
+static int TYPE;                                     /* of the instance the current case made */
+#define DONOR (DONORS[TYPE].c)
+#define DONOR_STATE (DONORS[TYPE].state)
+#define SERIAL (DONORS[TYPE].serial)
+#define SERIAL_SIZE (DONORS[TYPE].size)
+
+static fmi2Component instantiate(int type)
+{
+    return F.Instantiate("strict", type == ME ? fmi2ModelExchange : fmi2CoSimulation, GUID, "", &CALLBACKS,
+                         fmi2False, fmi2False);
+}
+
+/* A fresh instance in REACHED[r]; NULL (and a failure) if the FMU does not get there.  Sets TYPE. */
 static fmi2Component make(int r)
 {
     const fmi2Real bad = -1.0;
-    fmi2Component c = instantiate();
+    const int state = REACHED[r].state;
+    const int failed_init = r == R_FAILED_INIT || r == R_ME_FAILED_INIT;
+    fmi2EventInfo info;
+    TYPE = REACHED[r].type;
+    fmi2Component c = instantiate(TYPE);
     int ok = c != NULL;
     if (!c) fail("fmi2Instantiate returned NULL (log: %s)", LOG.text);
-    if (ok && r == R_FAILED_INIT)
+    if (ok && failed_init)
         ok = expect("fmi2SetReal(tunable = -1)", F.SetReal(c, &VR_TUNABLE, 1, &bad), fmi2OK, 1, NULL, NULL);
-    if (ok && r != R_INSTANTIATED)
+    if (ok && state != INSTANTIATED)
         ok = expect("fmi2SetupExperiment", F.SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2True, 10.0), fmi2OK, 1,
                     NULL, NULL)
              && expect("fmi2EnterInitializationMode", F.EnterInitializationMode(c), fmi2OK, 1, NULL, NULL);
-    if (ok && r == R_FAILED_INIT)
+    if (ok && failed_init)
         ok = expect("fmi2ExitInitializationMode with tunable = -1", F.ExitInitializationMode(c), fmi2Error, 1,
                     NULL, NULL) || 1;
-    else if (ok && r >= R_STEP_COMPLETE)
+    else if (ok && state != INSTANTIATED && state != INITIALIZATION)
         ok = expect("fmi2ExitInitializationMode", F.ExitInitializationMode(c), fmi2OK, 1, NULL, NULL);
-    if (ok && r == R_TERMINATED) ok = expect("fmi2Terminate", F.Terminate(c), fmi2OK, 1, NULL, NULL);
+    if (ok && (r == R_CONTINUOUS || r == R_ME_TERMINATED))
+        ok = expect("fmi2NewDiscreteStates", F.NewDiscreteStates(c, &info), fmi2OK, 1, NULL, NULL)
+             && expect("fmi2EnterContinuousTimeMode", F.EnterContinuousTimeMode(c), fmi2OK, 1, NULL, NULL);
+    if (ok && (r == R_TERMINATED || r == R_ME_TERMINATED))
+        ok = expect("fmi2Terminate", F.Terminate(c), fmi2OK, 1, NULL, NULL);
     if (ok && r == R_FAILED_STEP)
         ok = expect("fmi2SetReal(tunable = -1)", F.SetReal(c, &VR_TUNABLE, 1, &bad), fmi2OK, 1, NULL, NULL)
              && (expect("fmi2DoStep with tunable = -1", F.DoStep(c, 0.0, 0.01, fmi2True), fmi2Error, 1, NULL, NULL)
                  || 1);
+    if (ok && r == R_FAILED_EVENT)
+        ok = expect("fmi2SetReal(tunable = -1) in eventMode", F.SetReal(c, &VR_TUNABLE, 1, &bad), fmi2OK, 1, NULL,
+                    NULL)
+             && (expect("fmi2NewDiscreteStates with tunable = -1", F.NewDiscreteStates(c, &info), fmi2Error, 1,
+                        NULL, NULL) || 1);
     if (!ok && c) {
         F.FreeInstance(c);
         c = NULL;
@@ -211,12 +284,15 @@ static fmi2Component make(int r)
 /* A call that succeeds only in the state `r` leaves: proves a refused call changed nothing. */
 static void probe(fmi2Component c, int r)
 {
-    fmi2Real v;
+    fmi2Real v, x[MAX_STATES];
+    fmi2Boolean enter, terminate;
     switch (r) {
     case R_INSTANTIATED:
+    case R_ME_INSTANTIATED:
         expect("probe fmi2EnterInitializationMode", F.EnterInitializationMode(c), fmi2OK, 1, NULL, NULL);
         break;
     case R_INITIALIZATION:
+    case R_ME_INITIALIZATION:
         expect("probe fmi2ExitInitializationMode", F.ExitInitializationMode(c), fmi2OK, 1, NULL, NULL);
         break;
     case R_STEP_COMPLETE:
@@ -225,6 +301,19 @@ static void probe(fmi2Component c, int r)
     case R_TERMINATED:
         expect("probe fmi2GetReal", F.GetReal(c, &VR_OUTPUT, 1, &v), fmi2OK, 1, NULL, NULL);
         expect("probe fmi2DoStep", F.DoStep(c, 0.0, 0.01, fmi2True), fmi2Error, 1, NULL, NULL);
+        break;
+    case R_EVENT:
+        expect("probe fmi2EnterContinuousTimeMode", F.EnterContinuousTimeMode(c), fmi2OK, 1, NULL, NULL);
+        break;
+    case R_CONTINUOUS:
+        expect("probe fmi2CompletedIntegratorStep", F.CompletedIntegratorStep(c, fmi2True, &enter, &terminate),
+               fmi2OK, 1, NULL, NULL);
+        break;
+    case R_ME_TERMINATED:   /* readable (not instantiated, not error), not initializationMode, not event/continuous */
+        expect("probe fmi2GetReal", F.GetReal(c, &VR_OUTPUT, 1, &v), fmi2OK, 1, NULL, NULL);
+        expect("probe fmi2GetNominalsOfContinuousStates", F.GetNominalsOfContinuousStates(c, x, (size_t)NX), fmi2OK,
+               1, NULL, NULL);
+        expect("probe fmi2SetTime", F.SetTime(c, 0.0), fmi2Error, 1, NULL, NULL);
         break;
     default:
         expect("probe fmi2GetReal", F.GetReal(c, &VR_OUTPUT, 1, &v), fmi2Error, 1, NULL, NULL);
@@ -341,42 +430,86 @@ static fmi2Status call_GetStringStatus(fmi2Component c)
     return F.GetStringStatus(c, fmi2PendingStatus, &v);
 }
 
-/* Each function: the states it is allowed in, and its status there with the arguments above:
-   fmi2Error for what the FMU does not provide (directional derivatives), fmi2Discard for a
-   status it does not have (an asynchronous fmi2DoStep's, any Integer status; FMI 2.0, 2.1.3). */
-typedef struct { const char *name; int allowed; fmi2Status there; Call call; } Entry;
-#define E(name, allowed, there) {"fmi2" #name, allowed, there, call_##name}
+static fmi2Status call_EnterEventMode(fmi2Component c) { return F.EnterEventMode(c); }
+static fmi2Status call_NewDiscreteStates(fmi2Component c)
+{
+    fmi2EventInfo info;
+    return F.NewDiscreteStates(c, &info);
+}
+static fmi2Status call_EnterContinuousTimeMode(fmi2Component c) { return F.EnterContinuousTimeMode(c); }
+static fmi2Status call_CompletedIntegratorStep(fmi2Component c)
+{
+    fmi2Boolean enter, terminate;
+    return F.CompletedIntegratorStep(c, fmi2True, &enter, &terminate);
+}
+static fmi2Status call_SetTime(fmi2Component c) { return F.SetTime(c, 0.0); }
+static fmi2Status call_SetContinuousStates(fmi2Component c) { return F.SetContinuousStates(c, X_START, (size_t)NX); }
+static fmi2Status call_GetDerivatives(fmi2Component c)
+{
+    fmi2Real dx[MAX_STATES];
+    return F.GetDerivatives(c, dx, (size_t)NX);
+}
+static fmi2Status call_GetEventIndicators(fmi2Component c) { return F.GetEventIndicators(c, NULL, 0); }
+static fmi2Status call_GetContinuousStates(fmi2Component c)
+{
+    fmi2Real x[MAX_STATES];
+    return F.GetContinuousStates(c, x, (size_t)NX);
+}
+static fmi2Status call_GetNominalsOfContinuousStates(fmi2Component c)
+{
+    fmi2Real nominal[MAX_STATES];
+    return F.GetNominalsOfContinuousStates(c, nominal, (size_t)NX);
+}
+
+/* Each function: its type, the states it is allowed in, and its status there with the arguments
+   above: fmi2Error for what the FMU does not provide (directional derivatives), fmi2Discard for
+   a status it does not have (an asynchronous fmi2DoStep's, any Integer status; FMI 2.0, 2.1.3).
+   On an instance of the other type a function is refused in every state.  As the Reference-FMUs,
+   except that no value can be read in the error state (fmi2GetXXX, fmi2GetFMUstate, the
+   derivatives, states, event indicators and nominals). */
+typedef struct { const char *name; int type; int allowed; fmi2Status there; Call call; } Entry;
+#define E(name, type, allowed, there) {"fmi2" #name, type, allowed, there, call_##name}
 static const Entry TABLE[] = {
-    E(SetDebugLogging, ANY, fmi2OK),
-    E(SetupExperiment, INSTANTIATED, fmi2OK),
-    E(EnterInitializationMode, INSTANTIATED, fmi2OK),
-    E(ExitInitializationMode, INITIALIZATION, fmi2OK),
-    E(Terminate, STEP_COMPLETE | STEP_FAILED, fmi2OK),
-    E(Reset, ANY, fmi2OK),
-    E(GetReal, READ, fmi2OK),
-    E(GetInteger, READ, fmi2OK),
-    E(GetBoolean, READ, fmi2OK),
-    E(GetString, READ, fmi2OK),
-    E(SetReal, WRITE, fmi2OK),                      /* a tunable parameter */
-    E(SetInteger, WRITE, fmi2OK),
-    E(SetBoolean, WRITE, fmi2OK),
-    E(SetString, INSTANTIATED | INITIALIZATION, fmi2OK),   /* a fixed parameter */
-    E(GetFMUstate, ANY & ~ERROR, fmi2OK),
-    E(SetFMUstate, ANY, fmi2OK),                    /* FMI 2.0's way out of the error state */
-    E(FreeFMUstate, ANY, fmi2OK),
-    E(SerializedFMUstateSize, ANY, fmi2OK),
-    E(SerializeFMUstate, ANY, fmi2OK),
-    E(DeSerializeFMUstate, ANY, fmi2OK),
-    E(GetDirectionalDerivative, READ, fmi2Error),
-    E(SetRealInputDerivatives, WRITE, fmi2OK),
-    E(GetRealOutputDerivatives, INITIALIZED, fmi2OK),
-    E(DoStep, STEP_COMPLETE, fmi2OK),
-    E(CancelStep, STEP_IN_PROGRESS, fmi2Error),
-    E(GetStatus, STATUS, fmi2Discard),
-    E(GetRealStatus, STATUS, fmi2OK),
-    E(GetIntegerStatus, STATUS, fmi2Discard),
-    E(GetBooleanStatus, STATUS, fmi2OK),
-    E(GetStringStatus, STATUS, fmi2Discard),
+    E(SetDebugLogging, BOTH, ANY, fmi2OK),
+    E(SetupExperiment, BOTH, INSTANTIATED, fmi2OK),
+    E(EnterInitializationMode, BOTH, INSTANTIATED, fmi2OK),
+    E(ExitInitializationMode, BOTH, INITIALIZATION, fmi2OK),
+    E(Terminate, BOTH, STEP_COMPLETE | STEP_FAILED | EVENT | CONTINUOUS, fmi2OK),
+    E(Reset, BOTH, ANY, fmi2OK),
+    E(GetReal, BOTH, READ, fmi2OK),
+    E(GetInteger, BOTH, READ, fmi2OK),
+    E(GetBoolean, BOTH, READ, fmi2OK),
+    E(GetString, BOTH, READ, fmi2OK),
+    E(SetReal, BOTH, WRITE, fmi2OK),                      /* a tunable parameter */
+    E(SetInteger, BOTH, WRITE, fmi2OK),
+    E(SetBoolean, BOTH, WRITE, fmi2OK),
+    E(SetString, BOTH, INSTANTIATED | INITIALIZATION, fmi2OK),   /* a fixed parameter */
+    E(GetFMUstate, BOTH, ANY & ~ERROR, fmi2OK),
+    E(SetFMUstate, BOTH, ANY, fmi2OK),                    /* FMI 2.0's way out of the error state */
+    E(FreeFMUstate, BOTH, ANY, fmi2OK),
+    E(SerializedFMUstateSize, BOTH, ANY, fmi2OK),
+    E(SerializeFMUstate, BOTH, ANY, fmi2OK),
+    E(DeSerializeFMUstate, BOTH, ANY, fmi2OK),
+    E(GetDirectionalDerivative, BOTH, READ, fmi2Error),
+    E(SetRealInputDerivatives, CS, WRITE, fmi2OK),
+    E(GetRealOutputDerivatives, CS, INITIALIZED, fmi2OK),
+    E(DoStep, CS, STEP_COMPLETE, fmi2OK),
+    E(CancelStep, CS, STEP_IN_PROGRESS, fmi2Error),
+    E(GetStatus, CS, STATUS, fmi2Discard),
+    E(GetRealStatus, CS, STATUS, fmi2OK),
+    E(GetIntegerStatus, CS, STATUS, fmi2Discard),
+    E(GetBooleanStatus, CS, STATUS, fmi2OK),
+    E(GetStringStatus, CS, STATUS, fmi2Discard),
+    E(EnterEventMode, ME, EVENT | CONTINUOUS, fmi2OK),    /* again in eventMode too (fmi-standard #275) */
+    E(NewDiscreteStates, ME, EVENT, fmi2OK),
+    E(EnterContinuousTimeMode, ME, EVENT, fmi2OK),
+    E(CompletedIntegratorStep, ME, CONTINUOUS, fmi2OK),
+    E(SetTime, ME, EVENT | CONTINUOUS, fmi2OK),
+    E(SetContinuousStates, ME, CONTINUOUS, fmi2OK),
+    E(GetDerivatives, ME, EVENT | CONTINUOUS | TERMINATED, fmi2OK),   /* initializationMode: by fmi2GetReal */
+    E(GetEventIndicators, ME, ME_READ, fmi2OK),
+    E(GetContinuousStates, ME, ME_READ, fmi2OK),
+    E(GetNominalsOfContinuousStates, ME, INSTANTIATED | EVENT | CONTINUOUS | TERMINATED, fmi2OK),
 };
 #define N_TABLE (sizeof TABLE / sizeof *TABLE)
 
@@ -387,7 +520,9 @@ static void case_state(const void *arg)
     const int r = index / (int)N_TABLE;
     fmi2Component c = make(r);
     if (!c) return;
-    if (e->allowed & REACHED[r].state) {
+    if (e->type != BOTH && e->type != REACHED[r].type) {
+        if (expect_refused(e->name, e->call(c), e->name, REACHED[r].word, TYPE_WORDS[REACHED[r].type])) probe(c, r);
+    } else if (e->allowed & REACHED[r].state) {
         expect(e->name, e->call(c), e->there, 1, e->there == fmi2OK ? NULL : e->name, NULL);
     } else if (expect(e->name, e->call(c), fmi2Error, 1, e->name, REACHED[r].word)) {
         probe(c, r);
@@ -497,6 +632,25 @@ static fmi2Status n_GetRealStatus(fmi2Component c) { return F.GetRealStatus(c, f
 static fmi2Status n_GetIntegerStatus(fmi2Component c) { return F.GetIntegerStatus(c, fmi2DoStepStatus, NULL); }
 static fmi2Status n_GetBooleanStatus(fmi2Component c) { return F.GetBooleanStatus(c, fmi2Terminated, NULL); }
 static fmi2Status n_GetStringStatus(fmi2Component c) { return F.GetStringStatus(c, fmi2PendingStatus, NULL); }
+static fmi2Status n_NewDiscreteStates(fmi2Component c) { return F.NewDiscreteStates(c, NULL); }
+static fmi2Status n_CompletedIntegratorStep_enter(fmi2Component c)
+{
+    fmi2Boolean terminate;
+    return F.CompletedIntegratorStep(c, fmi2True, NULL, &terminate);
+}
+static fmi2Status n_CompletedIntegratorStep_terminate(fmi2Component c)
+{
+    fmi2Boolean enter;
+    return F.CompletedIntegratorStep(c, fmi2True, &enter, NULL);
+}
+static fmi2Status n_SetContinuousStates(fmi2Component c) { return F.SetContinuousStates(c, NULL, (size_t)NX); }
+static fmi2Status n_GetDerivatives(fmi2Component c) { return F.GetDerivatives(c, NULL, (size_t)NX); }
+static fmi2Status n_GetEventIndicators(fmi2Component c) { return F.GetEventIndicators(c, NULL, 1); }
+static fmi2Status n_GetContinuousStates(fmi2Component c) { return F.GetContinuousStates(c, NULL, (size_t)NX); }
+static fmi2Status n_GetNominalsOfContinuousStates(fmi2Component c)
+{
+    return F.GetNominalsOfContinuousStates(c, NULL, (size_t)NX);
+}
 
 /* Each NULL argument, in a state where the call is allowed; the message must name the function. */
 typedef struct { const char *name; const char *argument; int r; Call call; } NullEntry;
@@ -527,6 +681,12 @@ static const NullEntry NULLS[] = {
     N(GetStatus, "value", R_STEP_COMPLETE, ), N(GetRealStatus, "value", R_STEP_COMPLETE, ),
     N(GetIntegerStatus, "value", R_STEP_COMPLETE, ), N(GetBooleanStatus, "value", R_STEP_COMPLETE, ),
     N(GetStringStatus, "value", R_STEP_COMPLETE, ),
+    N(NewDiscreteStates, "fmi2eventInfo", R_EVENT, ),
+    N(CompletedIntegratorStep, "enterEventMode", R_CONTINUOUS, _enter),
+    N(CompletedIntegratorStep, "terminateSimulation", R_CONTINUOUS, _terminate),
+    N(SetContinuousStates, "x", R_CONTINUOUS, ), N(GetDerivatives, "derivatives", R_CONTINUOUS, ),
+    N(GetEventIndicators, "eventIndicators", R_CONTINUOUS, ), N(GetContinuousStates, "x", R_CONTINUOUS, ),
+    N(GetNominalsOfContinuousStates, "x_nominal", R_CONTINUOUS, ),
 };
 #define N_NULLS (sizeof NULLS / sizeof *NULLS)
 
@@ -652,6 +812,233 @@ static void case_run(const void *arg)
     F.FreeInstance(c);
 }
 
+/* -- model exchange sequences ------------------------------------------------------------ */
+/* An FMU state saved by an instance of one type, given to an instance of the other: refused (its
+   mode is of the other state machine), and the instance is where it was. */
+static void case_state_of_the_other_type(const void *arg)
+{
+    (void)arg;
+    fmi2Component c = make(R_STEP_COMPLETE);
+    if (c) {
+        if (expect_refused("fmi2SetFMUstate(a model-exchange state)", F.SetFMUstate(c, DONORS[ME].state),
+                           "fmi2SetFMUstate", "model exchange", NULL))
+            probe(c, R_STEP_COMPLETE);
+        F.FreeInstance(c);
+    }
+    c = make(R_CONTINUOUS);
+    if (c) {
+        if (expect_refused("fmi2SetFMUstate(a co-simulation state)", F.SetFMUstate(c, DONORS[CS].state),
+                           "fmi2SetFMUstate", "co-simulation", NULL))
+            probe(c, R_CONTINUOUS);
+        F.FreeInstance(c);
+    }
+    /* the type survives serialization */
+    c = make(R_CONTINUOUS);
+    if (c) {
+        fmi2FMUstate s = NULL;
+        if (expect("fmi2DeSerializeFMUstate(a co-simulation state)",
+                   F.DeSerializeFMUstate(c, DONORS[CS].serial, DONORS[CS].size, &s), fmi2OK, 1, NULL, NULL)
+            && expect_refused("fmi2SetFMUstate(a deserialized co-simulation state)", F.SetFMUstate(c, s),
+                              "fmi2SetFMUstate", "co-simulation", NULL))
+            probe(c, R_CONTINUOUS);
+        if (s) F.FreeFMUstate(c, &s);
+        F.FreeInstance(c);
+    }
+}
+
+static int same_states(const fmi2Real *a, const fmi2Real *b) { return memcmp(a, b, (size_t)NX * sizeof *a) == 0; }
+
+static int all_finite(const fmi2Real *x, int n)
+{
+    for (int i = 0; i < n; i++)
+        if (!isfinite(x[i])) return 0;
+    return 1;
+}
+
+/* Wrong counts (nx other than the FMU's, ni other than 0), non-finite time and states: each refused
+   with a message naming the function, nothing written, nothing changed. */
+static void case_wrong_counts(const void *arg)
+{
+    enum { SENTINEL = 12345 };
+    fmi2Real x[MAX_STATES + 1], before[MAX_STATES], buffer[MAX_STATES + 1];
+    fmi2Boolean enter, terminate;
+    char has[64];
+    (void)arg;
+    fmi2Component c = make(R_CONTINUOUS);
+    if (!c) return;
+    snprintf(has, sizeof has, "this FMU has %d", NX);
+    expect("fmi2GetContinuousStates", F.GetContinuousStates(c, before, (size_t)NX), fmi2OK, 1, NULL, NULL);
+    for (int i = 0; i <= MAX_STATES; i++) buffer[i] = SENTINEL;
+    memcpy(x, before, (size_t)NX * sizeof *x);
+    x[NX] = 1.0;
+    expect("fmi2SetContinuousStates(nx + 1)", F.SetContinuousStates(c, x, (size_t)NX + 1), fmi2Error, 1,
+           "fmi2SetContinuousStates", has);
+    expect("fmi2SetContinuousStates(nx - 1)", F.SetContinuousStates(c, x, (size_t)NX - 1), fmi2Error, 1,
+           "fmi2SetContinuousStates", has);
+    expect("fmi2GetDerivatives(nx + 1)", F.GetDerivatives(c, buffer, (size_t)NX + 1), fmi2Error, 1,
+           "fmi2GetDerivatives", has);
+    expect("fmi2GetDerivatives(NULL, 0)", F.GetDerivatives(c, NULL, 0), fmi2Error, 1, "fmi2GetDerivatives", has);
+    expect("fmi2GetContinuousStates(nx - 1)", F.GetContinuousStates(c, buffer, (size_t)NX - 1), fmi2Error, 1,
+           "fmi2GetContinuousStates", has);
+    expect("fmi2GetNominalsOfContinuousStates(nx + 1)", F.GetNominalsOfContinuousStates(c, buffer, (size_t)NX + 1),
+           fmi2Error, 1, "fmi2GetNominalsOfContinuousStates", has);
+    expect("fmi2GetEventIndicators(ni = 1)", F.GetEventIndicators(c, buffer, 1), fmi2Error, 1,
+           "fmi2GetEventIndicators", "this FMU has 0");
+    for (int i = 0; i <= MAX_STATES; i++)
+        if (buffer[i] != SENTINEL) {
+            fail("a refused call wrote %g into element %d of its output array", buffer[i], i);
+            break;
+        }
+    expect("fmi2SetTime(NaN)", F.SetTime(c, NAN), fmi2Error, 1, "fmi2SetTime", NULL);
+    expect("fmi2SetTime(inf)", F.SetTime(c, INFINITY), fmi2Error, 1, "fmi2SetTime", NULL);
+    memcpy(x, before, (size_t)NX * sizeof *x);
+    x[NX - 1] = NAN;
+    expect("fmi2SetContinuousStates(a NaN)", F.SetContinuousStates(c, x, (size_t)NX), fmi2Error, 1,
+           "fmi2SetContinuousStates", NULL);
+    expect("fmi2GetContinuousStates", F.GetContinuousStates(c, x, (size_t)NX), fmi2OK, 1, NULL, NULL);
+    if (!same_states(x, before)) fail("refused calls changed the continuous states");
+    expect("fmi2CompletedIntegratorStep", F.CompletedIntegratorStep(c, fmi2True, &enter, &terminate), fmi2OK, 1,
+           NULL, NULL);
+    F.FreeInstance(c);
+}
+
+/* Out of the error state a failed fmi2NewDiscreteStates leaves: by fmi2SetFMUstate (a state saved
+   in eventMode, before the failure), then by fmi2Reset and a new initialization. */
+static void case_recover_after_failed_event(const void *arg)
+{
+    fmi2EventInfo info;
+    fmi2Real dx[MAX_STATES];
+    (void)arg;
+    fmi2Component c = make(R_FAILED_EVENT);
+    if (!c) return;
+    expect("fmi2GetDerivatives in state error", F.GetDerivatives(c, dx, (size_t)NX), fmi2Error, 1,
+           "fmi2GetDerivatives", "state error");
+    expect("fmi2SetFMUstate", F.SetFMUstate(c, DONORS[ME].state), fmi2OK, 1, NULL, NULL);
+    expect("fmi2NewDiscreteStates", F.NewDiscreteStates(c, &info), fmi2OK, 1, NULL, NULL);
+    expect("fmi2EnterContinuousTimeMode", F.EnterContinuousTimeMode(c), fmi2OK, 1, NULL, NULL);
+    expect("fmi2GetDerivatives", F.GetDerivatives(c, dx, (size_t)NX), fmi2OK, 1, NULL, NULL);
+    if (!all_finite(dx, NX)) fail("the derivatives after fmi2SetFMUstate are not finite");
+    expect("fmi2Reset", F.Reset(c), fmi2OK, 1, NULL, NULL);
+    expect("fmi2SetupExperiment", call_SetupExperiment(c), fmi2OK, 1, NULL, NULL);
+    expect("fmi2EnterInitializationMode", F.EnterInitializationMode(c), fmi2OK, 1, NULL, NULL);
+    expect("fmi2ExitInitializationMode", F.ExitInitializationMode(c), fmi2OK, 1, NULL, NULL);
+    expect("fmi2NewDiscreteStates", F.NewDiscreteStates(c, &info), fmi2OK, 1, NULL, NULL);
+    expect("fmi2EnterContinuousTimeMode", F.EnterContinuousTimeMode(c), fmi2OK, 1, NULL, NULL);
+    expect("fmi2GetDerivatives", F.GetDerivatives(c, dx, (size_t)NX), fmi2OK, 1, NULL, NULL);
+    F.FreeInstance(c);
+}
+
+/* The event update's answer: nothing more to do, the states kept. */
+static void check_event_info(const char *when, const fmi2EventInfo *info)
+{
+    if (info->newDiscreteStatesNeeded || info->terminateSimulation || info->nominalsOfContinuousStatesChanged
+        || info->valuesOfContinuousStatesChanged || info->nextEventTimeDefined)
+        fail("fmi2NewDiscreteStates %s: newDiscreteStatesNeeded %d, terminateSimulation %d, "
+             "nominalsOfContinuousStatesChanged %d, valuesOfContinuousStatesChanged %d, nextEventTimeDefined %d "
+             "(expected all false: no event indicators, no time events, a re-assembly keeps the states)", when,
+             info->newDiscreteStatesNeeded, info->terminateSimulation, info->nominalsOfContinuousStatesChanged,
+             info->valuesOfContinuousStatesChanged, info->nextEventTimeDefined);
+}
+
+#define ME_STEP 1e-3          /* s: the explicit Euler step */
+#define ME_STEPS 40
+
+/* Explicit Euler steps `from` .. `to` - 1 of ME_STEP from x (updated): at each, the derivatives
+   at (t, x), then x + h dx set at t + h and the step completed; the states after each step into
+   rows[k], the output into out[k]. */
+static void euler(fmi2Component c, int from, int to, fmi2Real *x, fmi2Real rows[][MAX_STATES], fmi2Real out[])
+{
+    fmi2Real dx[MAX_STATES];
+    fmi2Boolean enter = fmi2True, terminate = fmi2True;
+    for (int k = from; k < to; k++) {
+        const int ok = expect("fmi2SetTime", F.SetTime(c, k * ME_STEP), fmi2OK, 1, NULL, NULL)
+                       && expect("fmi2SetContinuousStates", F.SetContinuousStates(c, x, (size_t)NX), fmi2OK, 1,
+                                 NULL, NULL)
+                       && expect("fmi2GetDerivatives", F.GetDerivatives(c, dx, (size_t)NX), fmi2OK, 1, NULL, NULL);
+        if (!ok) return;
+        if (!all_finite(dx, NX)) { fail("step %d: the derivatives are not finite", k); return; }
+        for (int i = 0; i < NX; i++) x[i] += ME_STEP * dx[i];
+        expect("fmi2SetTime", F.SetTime(c, (k + 1) * ME_STEP), fmi2OK, 1, NULL, NULL);
+        expect("fmi2SetContinuousStates", F.SetContinuousStates(c, x, (size_t)NX), fmi2OK, 1, NULL, NULL);
+        expect("fmi2CompletedIntegratorStep", F.CompletedIntegratorStep(c, fmi2False, &enter, &terminate), fmi2OK,
+               1, NULL, NULL);
+        if (enter || terminate)
+            fail("step %d: fmi2CompletedIntegratorStep asked for %s", k, enter ? "an event" : "the end");
+        expect("fmi2GetReal(output)", F.GetReal(c, &VR_OUTPUT, 1, &out[k]), fmi2OK, 1, NULL, NULL);
+        if (!isfinite(out[k])) fail("step %d: the output is %g", k, out[k]);
+        memcpy(rows[k], x, (size_t)NX * sizeof *x);
+    }
+}
+
+/* A short healthy model-exchange run: the event iteration after initialization, explicit Euler
+   steps, an FMU state saved in continuousTimeMode and the second half replayed from it (the same
+   numbers), then an event that changes the tunable parameter (the states kept), more steps, and
+   fmi2Terminate.  Valgrind thus sees model exchange's numerics too. */
+static void case_model_exchange_run(const void *arg)
+{
+    static fmi2Real rows[2 * ME_STEPS][MAX_STATES], replay[2 * ME_STEPS][MAX_STATES];
+    fmi2Real out[2 * ME_STEPS], out_replay[2 * ME_STEPS], x[MAX_STATES], x_saved[MAX_STATES], after[MAX_STATES];
+    fmi2Real nominal[MAX_STATES], dx[MAX_STATES], v = 0.0;
+    const fmi2Real changed = 1.1 * TUNABLE_START;
+    fmi2EventInfo info;
+    fmi2FMUstate saved = NULL;
+    const int half = ME_STEPS / 2;
+    (void)arg;
+    fmi2Component c = make(R_EVENT);
+    if (!c) return;
+    memset(&info, 0xff, sizeof info);
+    expect("fmi2NewDiscreteStates", F.NewDiscreteStates(c, &info), fmi2OK, 1, NULL, NULL);
+    check_event_info("after initialization", &info);
+    expect("fmi2EnterContinuousTimeMode", F.EnterContinuousTimeMode(c), fmi2OK, 1, NULL, NULL);
+    expect("fmi2GetEventIndicators(ni = 0)", F.GetEventIndicators(c, NULL, 0), fmi2OK, 1, NULL, NULL);
+    expect("fmi2GetNominalsOfContinuousStates", F.GetNominalsOfContinuousStates(c, nominal, (size_t)NX), fmi2OK, 1,
+           NULL, NULL);
+    for (int i = 0; i < NX; i++)
+        if (!(nominal[i] > 0.0 && isfinite(nominal[i]))) fail("nominal of state %d is %g", i, nominal[i]);
+    expect("fmi2GetContinuousStates", F.GetContinuousStates(c, x, (size_t)NX), fmi2OK, 1, NULL, NULL);
+    if (!same_states(x, X_START)) fail("the states after initialization differ from the donor's");
+
+    euler(c, 0, half, x, rows, out);
+    memcpy(x_saved, x, sizeof x_saved);
+    expect("fmi2GetFMUstate in continuousTimeMode", F.GetFMUstate(c, &saved), fmi2OK, 1, NULL, NULL);
+    euler(c, half, ME_STEPS, x, rows, out);
+    if (saved && expect("fmi2SetFMUstate(saved in continuousTimeMode)", F.SetFMUstate(c, saved), fmi2OK, 1, NULL,
+                        NULL)) {
+        memcpy(x, x_saved, sizeof x);
+        euler(c, half, ME_STEPS, x, replay, out_replay);   /* in continuousTimeMode again, or these fail */
+        for (int k = half; k < ME_STEPS; k++)
+            if (!same_states(replay[k], rows[k]) || !(out_replay[k] == out[k])) {
+                fail("after step %d the replay from the saved state gave other states or output (%.17g, the run "
+                     "%.17g)", k + 1, out_replay[k], out[k]);
+                break;
+            }
+    }
+    if (saved) F.FreeFMUstate(c, &saved);
+
+    /* the event: the tunable parameter changes, the states do not */
+    expect("fmi2EnterEventMode", F.EnterEventMode(c), fmi2OK, 1, NULL, NULL);
+    expect("fmi2SetTime in eventMode", F.SetTime(c, ME_STEPS * ME_STEP), fmi2OK, 1, NULL, NULL);
+    expect("fmi2SetReal(tunable + 10 %) in eventMode", F.SetReal(c, &VR_TUNABLE, 1, &changed), fmi2OK, 1, NULL,
+           NULL);
+    memset(&info, 0xff, sizeof info);
+    expect("fmi2NewDiscreteStates(tunable changed)", F.NewDiscreteStates(c, &info), fmi2OK, 1, NULL, NULL);
+    check_event_info("after the parameter change", &info);
+    expect("fmi2GetContinuousStates after the event", F.GetContinuousStates(c, after, (size_t)NX), fmi2OK, 1, NULL,
+           NULL);
+    if (!same_states(after, x)) fail("the event changed the continuous states (valuesOfContinuousStatesChanged false)");
+    expect("fmi2GetReal(tunable)", F.GetReal(c, &VR_TUNABLE, 1, &v), fmi2OK, 1, NULL, NULL);
+    if (v != changed) fail("the tunable parameter reads %.17g after the event, set %.17g", v, changed);
+    expect("fmi2EnterContinuousTimeMode", F.EnterContinuousTimeMode(c), fmi2OK, 1, NULL, NULL);
+    euler(c, ME_STEPS, 2 * ME_STEPS, x, rows, out);
+    expect("fmi2Terminate", F.Terminate(c), fmi2OK, 1, NULL, NULL);
+    expect("fmi2GetDerivatives in state terminated", F.GetDerivatives(c, dx, (size_t)NX), fmi2OK, 1, NULL, NULL);
+    if (!all_finite(dx, NX)) fail("the derivatives in state terminated are not finite");
+    expect("fmi2GetReal in state terminated", F.GetReal(c, &VR_OUTPUT, 1, &v), fmi2OK, 1, NULL, NULL);
+    if (!(v == out[2 * ME_STEPS - 1])) fail("the output in state terminated is %.17g, after the last step %.17g", v,
+                                            out[2 * ME_STEPS - 1]);
+    F.FreeInstance(c);
+}
+
 static void case_instantiate_refusals(const void *arg)
 {
     fmi2CallbackFunctions no_logger = CALLBACKS, half = CALLBACKS;
@@ -720,22 +1107,30 @@ static void run(const char *label, void (*fn)(const void *), const void *arg)
         fail("%ld block(s) allocated through allocateMemory were not freed", ALLOCS - FREES - held);
 }
 
-static int setup_donor(void)
+/* The donor of `type`: a healthy instance just past initialization (stepComplete or eventMode),
+   its FMU state saved and serialized; the CS donor reads the start values, the ME donor the states. */
+static int setup_donor(int type)
 {
+    Donor *d = &DONORS[type];
     fmi2String s = NULL;
-    int ok = (DONOR = make(R_INITIALIZATION)) != NULL;
-    ok = ok && expect("donor fmi2GetReal", F.GetReal(DONOR, &VR_TUNABLE, 1, &TUNABLE_START), fmi2OK, 1, NULL, NULL)
-         && expect("donor fmi2GetString", F.GetString(DONOR, &VR_STRING, 1, &s), fmi2OK, 1, NULL, NULL)
-         && s && strlen(s) < sizeof STRING_START
-         && expect("donor fmi2ExitInitializationMode", F.ExitInitializationMode(DONOR), fmi2OK, 1, NULL, NULL)
-         && expect("donor fmi2GetFMUstate", F.GetFMUstate(DONOR, &DONOR_STATE), fmi2OK, 1, NULL, NULL)
-         && expect("donor fmi2SerializedFMUstateSize", F.SerializedFMUstateSize(DONOR, DONOR_STATE, &SERIAL_SIZE),
-                   fmi2OK, 1, NULL, NULL);
+    d->c = make(type == ME ? R_ME_INITIALIZATION : R_INITIALIZATION);
+    int ok = d->c != NULL;
+    if (ok && type == CS) {
+        ok = expect("donor fmi2GetReal", F.GetReal(d->c, &VR_TUNABLE, 1, &TUNABLE_START), fmi2OK, 1, NULL, NULL)
+             && expect("donor fmi2GetString", F.GetString(d->c, &VR_STRING, 1, &s), fmi2OK, 1, NULL, NULL)
+             && s && strlen(s) < sizeof STRING_START;
+        if (ok) strcpy(STRING_START, s);
+    }
+    ok = ok && expect("donor fmi2ExitInitializationMode", F.ExitInitializationMode(d->c), fmi2OK, 1, NULL, NULL)
+         && (type == CS || expect("donor fmi2GetContinuousStates", F.GetContinuousStates(d->c, X_START, (size_t)NX),
+                                  fmi2OK, 1, NULL, NULL))
+         && expect("donor fmi2GetFMUstate", F.GetFMUstate(d->c, &d->state), fmi2OK, 1, NULL, NULL)
+         && expect("donor fmi2SerializedFMUstateSize", F.SerializedFMUstateSize(d->c, d->state, &d->size), fmi2OK, 1,
+                   NULL, NULL);
     if (ok) {
-        strcpy(STRING_START, s);
-        SERIAL = malloc(SERIAL_SIZE);
-        ok = expect("donor fmi2SerializeFMUstate", F.SerializeFMUstate(DONOR, DONOR_STATE, SERIAL, SERIAL_SIZE),
-                    fmi2OK, 1, NULL, NULL);
+        d->serial = malloc(d->size);
+        ok = d->serial && expect("donor fmi2SerializeFMUstate", F.SerializeFMUstate(d->c, d->state, d->serial,
+                                                                                    d->size), fmi2OK, 1, NULL, NULL);
     }
     return ok;
 }
@@ -744,8 +1139,13 @@ int main(int argc, char **argv)
 {
     int first = 1;
     if (argc > 1 && strcmp(argv[1], "--in-process") == 0) { ISOLATE = 0; first = 2; }
-    if (argc - first != 5) {
-        fprintf(stderr, "usage: %s [--in-process] LIBRARY GUID VR_TUNABLE VR_OUTPUT VR_STRING\n", argv[0]);
+    if (argc - first != 6) {
+        fprintf(stderr, "usage: %s [--in-process] LIBRARY GUID VR_TUNABLE VR_OUTPUT VR_STRING N_STATES\n", argv[0]);
+        return 2;
+    }
+    NX = atoi(argv[first + 5]);
+    if (NX < 1 || NX > MAX_STATES) {
+        fprintf(stderr, "N_STATES must be 1 to %d (got '%s')\n", MAX_STATES, argv[first + 5]);
         return 2;
     }
     void *library = dlopen(argv[first], RTLD_NOW | RTLD_LOCAL);
@@ -762,7 +1162,10 @@ int main(int argc, char **argv)
     VR_STRING = (fmi2ValueReference)strtoul(argv[first + 4], NULL, 10);
     setvbuf(stdout, NULL, _IOLBF, 0);
     CASE = "setup";
-    if (!setup_donor()) { fprintf(stderr, "cannot bring an instance to stepComplete: see the FAIL lines\n"); return 2; }
+    if (!setup_donor(CS) || !setup_donor(ME)) {
+        fprintf(stderr, "cannot bring an instance to stepComplete or eventMode: see the FAIL lines\n");
+        return 2;
+    }
 
     static int index[N_REACHED * N_TABLE];
     static char labels[N_REACHED * N_TABLE + N_TABLE + N_NULLS][160];
@@ -789,11 +1192,18 @@ int main(int argc, char **argv)
     run("fmi2DoStep with a zero step", case_bad_step_arguments, NULL);
     run("fmi2Instantiate's refusals", case_instantiate_refusals, NULL);
     run("a healthy run with a parameter change, saved and replayed", case_run, NULL);
+    run("an FMU state of the other type", case_state_of_the_other_type, NULL);
+    run("wrong state and event-indicator counts, non-finite time and states", case_wrong_counts, NULL);
+    run("fmi2SetFMUstate and fmi2Reset after a failed fmi2NewDiscreteStates", case_recover_after_failed_event, NULL);
+    run("a healthy model-exchange run: Euler steps, saved and replayed, an event changing a parameter",
+        case_model_exchange_run, NULL);
 
     CASE = "teardown";
-    F.FreeFMUstate(DONOR, &DONOR_STATE);
-    F.FreeInstance(DONOR);
-    free(SERIAL);
+    for (int type = CS; type <= ME; type++) {
+        F.FreeFMUstate(DONORS[type].c, &DONORS[type].state);
+        F.FreeInstance(DONORS[type].c);
+        free(DONORS[type].serial);
+    }
     if (ALLOCS != FREES) fail("%ld block(s) allocated through allocateMemory were never freed", ALLOCS - FREES);
     dlclose(library);
     printf("fmi2_strict_host: %d cases, %d failed check(s)\n", CASES, FAILURES);

@@ -30,6 +30,7 @@ class Target:
     library: Path
     guid: str
     value_references: tuple[int, int, int]    # of VARIABLES, in that order
+    states: int                               # continuous states: the <Derivatives> unknowns (model exchange)
 
 
 @dataclass(frozen=True)
@@ -74,7 +75,8 @@ def compile_host(dest_dir: Path, compiler: str) -> Path:
 
 
 def unpack(fmu: Path, dest_dir: Path) -> Target:
-    """Unpack ``fmu`` into ``dest_dir``; its linux64 binary, GUID and the value references of VARIABLES."""
+    """Unpack ``fmu`` into ``dest_dir``; its linux64 binary, GUID, the value references of VARIABLES
+    and its number of continuous states."""
     from fmpy import read_model_description
 
     dest_dir = Path(dest_dir)
@@ -84,7 +86,8 @@ def unpack(fmu: Path, dest_dir: Path) -> Target:
     by_name = {v.name: v.valueReference for v in md.modelVariables}
     library = dest_dir / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
     return Target(root=dest_dir, library=library, guid=md.guid,
-                  value_references=tuple(by_name[name] for name in VARIABLES))  # type: ignore[arg-type]
+                  value_references=tuple(by_name[name] for name in VARIABLES),  # type: ignore[arg-type]
+                  states=len(md.derivatives))
 
 
 def _valgrind_report(stderr: str) -> ValgrindReport:
@@ -103,7 +106,7 @@ def run_host(exe: Path, target: Target, in_process: bool = False, valgrind: str 
     """Run the host on ``target``: each case in a forked child, or all in one process
     (``in_process``; always so under ``valgrind``, the path of a valgrind executable)."""
     command = [str(exe), *(["--in-process"] if in_process or valgrind else []), str(target.library), target.guid,
-               *(str(vr) for vr in target.value_references)]
+               *(str(vr) for vr in target.value_references), str(target.states)]
     if valgrind:
         command = [valgrind, *VALGRIND_OPTIONS, *command]
     proc = subprocess.run(command, capture_output=True, text=True, timeout=timeout)
