@@ -675,7 +675,8 @@ def _variables(eqs: MechanismEquations, variables, guid: str, model_identifier: 
              f'#define FB_GUID "{guid}"', f"#define FB_MODEL_IDENTIFIER {_c_string(model_identifier)}",
              f"#define FB_N_VARIABLES {len(variables)}", ""]
     for vr, var in enumerate(variables):
-        lines.append(f"#define VR_{var.name} {vr}   /* {var.type} {var.causality}, {var.variability} */")
+        macro = re.sub(r"\W+", "_", var.name).strip("_")       # der(theta2) -> VR_der_theta2
+        lines.append(f"#define VR_{macro} {vr}   /* {var.name}: {var.type} {var.causality}, {var.variability} */")
     lines.append("")
     kinds = []
     for var in variables:

@@ -80,14 +80,16 @@ class RunRecordError(ValueError):
 
 @dataclass(frozen=True)
 class RecordedFmu:
-    """The FMU the run used: its path, GUID and model name."""
+    """The FMU the run used: its path, GUID, model name and the FMI interface the run used
+    ("CoSimulation" or "ModelExchange"; records without it are co-simulation runs)."""
 
     path: str
     guid: str
     model_name: str
+    fmi_type: str = "CoSimulation"
 
     def to_json(self) -> dict:
-        return {"path": self.path, "guid": self.guid, "model_name": self.model_name}
+        return {"path": self.path, "guid": self.guid, "model_name": self.model_name, "fmi_type": self.fmi_type}
 
 
 @dataclass(frozen=True)
@@ -457,7 +459,11 @@ class _Parser:
         values = [self.text(table, key, "fmu.") for key in ("path", "guid", "model_name")]
         if None in values:       # schema 1 without them
             return None
-        return RecordedFmu(*values)
+        fmi_type = self.text(table, "fmi_type", "fmu.", default="CoSimulation")
+        if fmi_type not in ("CoSimulation", "ModelExchange"):
+            raise RunRecordError(f"{self.source}: field 'fmu.fmi_type' = {fmi_type!r}: expected 'CoSimulation' or "
+                                 f"'ModelExchange'")
+        return RecordedFmu(*values, fmi_type=fmi_type)
 
     def experiment(self, data: dict) -> RecordedExperiment | None:
         table = self.obj(data, "experiment", "")

@@ -216,6 +216,9 @@ class Case:
     overridden: frozenset[str] = frozenset()
     #: What validation read from ``fmu``; set by load_case/apply_overrides, not compared.
     fmu_description: FmuDescription | None = field(default=None, compare=False, repr=False)
+    #: The FMI interface the run uses (``fmi_type``): "CoSimulation", or "ModelExchange" with
+    #: FMPy's CVode integrating (orchestrator.instance); by default co-simulation when offered.
+    fmi_type: str = "CoSimulation"
 
     @property
     def fault_time(self) -> float | None:

@@ -30,7 +30,10 @@ from .validation import ConfigError, ProblemReporter, kind_of, read_toml
 
 __all__ = ["apply_overrides", "load_case"]
 
-_TOP_KEYS = ("name", "description", "fmu", "experiment", "parameters", "events", "outputs", "noise", "exchange")
+_TOP_KEYS = ("name", "description", "fmu", "fmi_type", "experiment", "parameters", "events", "outputs", "noise",
+             "exchange")
+#: The FMI 2.0 interfaces a case may run (``fmi_type``), as FMPy names them.
+FMI_TYPES = ("CoSimulation", "ModelExchange")
 _EXPERIMENT_KEYS = ("start", "stop", "step", "tolerance")
 _STEP_KEYS = ("type", "time", "variable", "value")
 _RAMP_KEYS = ("type", "variable", "from", "to", "start", "end")
@@ -160,6 +163,7 @@ class _Validator(ProblemReporter):
         name = self.name()
         description = self.text("description", raw.get("description", "")) or ""
         fmu = self.fmu()
+        fmi_type = self.fmi_type()
         experiment = self.experiment()
         parameters = self.parameters()
         outputs = self.outputs()
@@ -172,7 +176,7 @@ class _Validator(ProblemReporter):
             raise ConfigError(self.label, self.problems)
         return Case(name=name, fmu=fmu, experiment=experiment, parameters=parameters, events=events,
                     outputs=outputs, drawing=drawing, record_drawing=record_drawing, noise=noise, exchange=exchange, description=description,
-                    source=self.source, fmu_description=self.description,
+                    source=self.source, fmu_description=self.description, fmi_type=fmi_type,
                     overridden=frozenset(n for n in parameters if f"parameters.{n}" in self.origins))
 
     def name(self) -> str:
@@ -198,15 +202,31 @@ class _Validator(ProblemReporter):
             detail = " ".join(str(exc).split())
             self.problem("fmu", value, f"not a readable FMU ({type(exc).__name__}: {detail}); variables not checked")
             return path
-        if md.fmiVersion != "2.0" or md.coSimulation is None:
-            kinds = "co-simulation" if md.coSimulation is not None else "no co-simulation interface"
-            self.problem("fmu", value, f"expected an FMI 2.0 co-simulation FMU, got FMI {md.fmiVersion} "
-                                       f"with {kinds}; variables not checked")
+        if md.fmiVersion != "2.0" or (md.coSimulation is None and md.modelExchange is None):
+            kinds = " and ".join(k for k, i in (("co-simulation", md.coSimulation), ("model exchange", md.modelExchange))
+                                 if i is not None) or "no interface"
+            self.problem("fmu", value, f"expected an FMI 2.0 FMU (co-simulation or model exchange), got FMI "
+                                       f"{md.fmiVersion} with {kinds}; variables not checked")
             return path
         self.description = description
         self.fmu_name = path.name
         self.binary(value, path)
         return path
+
+    def fmi_type(self) -> str:
+        """``fmi_type``: the interface the run uses; by default co-simulation when the FMU offers it."""
+        value = self.raw.get("fmi_type")
+        md = self.description.model if self.description is not None else None
+        offered = [t for t, i in zip(FMI_TYPES, (md.coSimulation, md.modelExchange) if md else (None, None))
+                   if i is not None]
+        if value is None:
+            return offered[0] if offered else FMI_TYPES[0]
+        if value not in FMI_TYPES:
+            self.problem("fmi_type", value, f"expected one of {', '.join(map(repr, FMI_TYPES))}")
+            return FMI_TYPES[0]
+        if md is not None and value not in offered:
+            self.problem("fmi_type", value, f"the FMU does not offer it (it offers {', '.join(offered)})")
+        return value
 
     def binary(self, value: str, path: Path) -> None:
         """The FMU must hold a binary for this machine (FMPy loads ``binaries/<platform>/``)."""

@@ -1,9 +1,16 @@
-"""One FMI 2.0 co-simulation instance, driven through FMPy's ``FMU2Slave``.
+"""One FMI 2.0 instance, driven through FMPy's ``FMU2Slave`` (co-simulation) or ``FMU2Model``
+(model exchange, integrated by FMPy's CVode).
 
 :class:`FmuInstance` extracts the FMU, instantiates it with a logger that keeps the FMU's
 messages (so a failure carries the FMU's own reason), reads and writes variables by name
 whatever their type, and always frees the instance and removes the extracted files.
-Any FMI 2.0 co-simulation FMU works; nothing here knows about the four-bar.
+Any FMI 2.0 FMU works; nothing here knows about the four-bar.
+
+Model exchange looks like co-simulation to the caller: :meth:`FmuInstance.do_step` integrates
+the states with CVode over the step (``fmi2CompletedIntegratorStep`` at its end, as FMPy's
+``simulate_fmu`` does, and an event iteration where the FMU asks for one), and values set after initialisation are set
+in event mode, followed by the event iteration and a restart of CVode at that time (a step or
+ramp fault is a discontinuity the solver must not integrate across).
 """
 from __future__ import annotations
 
@@ -72,14 +79,20 @@ class FmuInstance:
     extracted directory removed, whatever happened.
     """
 
-    def __init__(self, description: FmuDescription, instance_name: str, log_size: int = 200):
+    def __init__(self, description: FmuDescription, instance_name: str, log_size: int = 200,
+                 fmi_type: str = "CoSimulation"):
         self.path = description.path
         self.md = description.model
         self.instance_name = instance_name
+        self.fmi_type = fmi_type
+        self.model_exchange = fmi_type == "ModelExchange"
+        self._solver = None                  # model exchange: FMPy's CVodeSolver, after initialisation
+        self._tolerance: float | None = None
+        self._time = 0.0
         self.variables = description.variables
         self.log = collections.deque(maxlen=log_size)   # (sequence number, status, category, message)
         self._log_count = 0
-        self._slave = None
+        self._fmu = None
         self._callbacks = None
         self._unzipdir = None
         self._env = 0
@@ -103,8 +116,8 @@ class FmuInstance:
         from ctypes import byref
 
         from fmpy import extract
-        from fmpy.fmi2 import (FMU2Slave, calloc, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                               fmi2CallbackFunctions, free)
+        from fmpy.fmi2 import (FMU2Model, FMU2Slave, calloc, fmi2CallbackAllocateMemoryTYPE,
+                               fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions, free)
         from fmpy.fmi1 import FMICallException
         from fmpy.logging import addLoggerProxy
 
@@ -121,35 +134,36 @@ class FmuInstance:
         callbacks.componentEnvironment = self._env   # passed back to the logger: routes the messages
         addLoggerProxy(byref(callbacks))   # formats the FMU's printf-style message before our callback
         self._callbacks = callbacks        # must outlive the instance
-        self._slave = FMU2Slave(guid=self.md.guid, unzipDirectory=self._unzipdir,
-                                modelIdentifier=self.md.coSimulation.modelIdentifier,
-                                instanceName=self.instance_name)
+        kind, interface = (FMU2Model, self.md.modelExchange) if self.model_exchange else \
+            (FMU2Slave, self.md.coSimulation)
+        self._fmu = kind(guid=self.md.guid, unzipDirectory=self._unzipdir, modelIdentifier=interface.modelIdentifier,
+                         instanceName=self.instance_name)
         forget_other_fmu_modules(self._unzipdir)   # another build's cached Python code
         try:
             # loggingOn: pythonfmu (and many FMUs) forward messages only when logging is on.
-            self._slave.instantiate(callbacks=callbacks, loggingOn=True)
+            self._fmu.instantiate(callbacks=callbacks, loggingOn=True)
         except Exception as exc:   # FMPy raises a bare Exception when fmi2Instantiate returns NULL
             raise FmuError(self._describe(f"fmi2Instantiate failed ({exc})", 0)) from None
         self._instantiated = True
 
     def _close(self, clean: bool) -> None:
-        slave, self._slave = self._slave, None
+        fmu, self._fmu = self._fmu, None
         try:
-            if slave is not None:
-                release_library(slave.dll)      # pythonfmu_workarounds; an instance keeps its own reference
+            if fmu is not None:
+                release_library(fmu.dll)      # pythonfmu_workarounds; an instance keeps its own reference
                 if self._instantiated:
                     if clean and self._failed_status is None:
                         try:
-                            slave.terminate()
+                            fmu.terminate()
                         except Exception:   # a failing terminate must not hide the run's result
                             pass
                     # FMI 2.0 allows no call after fmi2Fatal, fmi2FreeInstance included, and
                     # pythonfmu's slaves corrupt the interpreter's heap if freed then (a later
                     # segfault in the garbage collector).  The instance is left allocated.
                     if self._failed_status != _FATAL:
-                        slave.freeInstance()
+                        fmu.freeInstance()
                 else:
-                    slave.freeLibrary()
+                    fmu.freeLibrary()
         finally:
             _ROUTES.pop(self._env, None)
             if self._unzipdir is not None:
@@ -187,21 +201,79 @@ class FmuInstance:
 
     # -- FMI calls --------------------------------------------------------------------
     def setup_experiment(self, start: float, stop: float, tolerance: float | None) -> None:
-        self._call("fmi2SetupExperiment", self._slave.setupExperiment, tolerance, start, stop)
+        self._call("fmi2SetupExperiment", self._fmu.setupExperiment, tolerance, start, stop)
+        self._time, self._tolerance = start, tolerance
 
     def enter_initialization_mode(self) -> None:
-        self._call("fmi2EnterInitializationMode", self._slave.enterInitializationMode)
+        self._call("fmi2EnterInitializationMode", self._fmu.enterInitializationMode)
 
     def exit_initialization_mode(self) -> None:
-        self._call("fmi2ExitInitializationMode", self._slave.exitInitializationMode)
+        self._call("fmi2ExitInitializationMode", self._fmu.exitInitializationMode)
+        if self.model_exchange:
+            self._event_iteration()
+            self._start_solver()
 
     def do_step(self, t: float, h: float) -> None:
-        """``fmi2DoStep(t, h)`` (the hot path: no work beyond the call unless it fails)."""
+        """``fmi2DoStep(t, h)`` (the hot path: no work beyond the call unless it fails); in model
+        exchange, CVode over the step."""
+        if self.model_exchange:
+            self._integrate(t, t + h)
+            return
         mark = self._log_count
         try:
-            self._slave.doStep(t, h)
+            self._fmu.doStep(t, h)
         except self._call_error as exc:
             raise self._failure(f"fmi2DoStep(t = {format_time(t)} s, h = {format_time(h)} s)", exc.status, mark) from None
+
+    # -- model exchange ---------------------------------------------------------------
+    def _event_iteration(self) -> None:
+        """``fmi2NewDiscreteStates`` until the FMU needs no more, then continuous-time mode."""
+        while True:
+            needed, terminate = self._call("fmi2NewDiscreteStates", self._fmu.newDiscreteStates)[:2]
+            if terminate:
+                raise FmuError(self._describe(f"the FMU asked to end the simulation at t = "
+                                              f"{format_time(self._time)} s", self._log_count - 3))
+            if not needed:
+                break
+        self._call("fmi2EnterContinuousTimeMode", self._fmu.enterContinuousTimeMode)
+
+    def _start_solver(self) -> None:
+        """FMPy's CVode on the FMU's states, from the current time (the case's tolerance, else FMPy's default)."""
+        from fmpy.sundials import CVodeSolver
+
+        md, fmu = self.md, self._fmu
+        self._solver = CVodeSolver(
+            nx=md.numberOfContinuousStates, nz=md.numberOfEventIndicators, get_x=fmu.getContinuousStates,
+            set_x=fmu.setContinuousStates, get_dx=fmu.getDerivatives, get_z=fmu.getEventIndicators,
+            get_nominals=fmu.getNominalsOfContinuousStates, set_time=fmu.setTime, input=_NoInputs(),
+            startTime=self._time, **({"relativeTolerance": self._tolerance} if self._tolerance else {}))
+
+    def _integrate(self, t: float, t_end: float) -> None:
+        """CVode from ``t`` to ``t_end`` (a state event stops it early: the event is handled, and on)."""
+        mark = self._log_count
+        try:
+            while t < t_end:
+                state_event, _roots, t = self._solver.step(t, t_end)
+                self._fmu.setTime(t)
+                step_event, terminate = self._fmu.completedIntegratorStep()
+                if terminate:
+                    raise FmuError(self._describe(f"the FMU asked to end the simulation at t = {format_time(t)} s",
+                                                  mark))
+                if state_event or step_event:
+                    self._time = t
+                    self._fmu.enterEventMode()
+                    self._event_iteration()
+                    self._solver.reset(t)
+        except self._call_error as exc:
+            raise self._failure(f"model exchange from t = {format_time(t)} s to {format_time(t_end)} s",
+                                exc.status, mark) from None
+        except FmuError:
+            raise
+        except Exception as exc:             # CVode's own failure (fmpy.sundials raises RuntimeError or Exception)
+            self._failed_status = 3
+            raise FmuError(self._describe(f"CVode failed between t = {format_time(t)} s and "
+                                          f"{format_time(t_end)} s ({exc})", mark), 3) from None
+        self._time = t_end
 
     def step_through(self, times: Sequence[float], outputs: Sequence[str], out,
                      changes: tuple[str, Sequence[float]] | None = None) -> None:
@@ -217,9 +289,9 @@ class FmuInstance:
         """
         from ctypes import c_double, c_uint
 
-        functions = self._slave._functions
+        functions = self._fmu._functions
         do_step, get_real, set_real = functions["fmi2DoStep"], functions["fmi2GetReal"], functions["fmi2SetReal"]
-        component = self._slave.component
+        component = self._fmu.component
         for name in (*outputs, *([changes[0]] if changes else [])):
             if self.variables[name].type != "Real":
                 raise ValueError(f"step_through: {name} is a {self.variables[name].type}, not a Real")
@@ -246,19 +318,29 @@ class FmuInstance:
 
     def get_state(self):
         """``fmi2GetFMUstate``: an opaque copy of the instance's state (free it with :meth:`free_state`)."""
-        return self._call("fmi2GetFMUstate", self._slave.getFMUstate)
+        return self._call("fmi2GetFMUstate", self._fmu.getFMUstate)
 
     def set_state(self, state) -> None:
-        self._call("fmi2SetFMUstate", self._slave.setFMUstate, state)
+        self._call("fmi2SetFMUstate", self._fmu.setFMUstate, state)
 
     def free_state(self, state) -> None:
-        self._call("fmi2FreeFMUstate", self._slave.freeFMUstate, state)
+        self._call("fmi2FreeFMUstate", self._fmu.freeFMUstate, state)
 
     def reset(self) -> None:
-        self._call("fmi2Reset", self._slave.reset)
+        self._call("fmi2Reset", self._fmu.reset)
 
     def set_values(self, values: Iterable[tuple[str, Any]]) -> None:
-        """Set variables by name (grouped per FMI type)."""
+        """Set variables by name (grouped per FMI type); in model exchange after initialisation,
+        in event mode at the current time, then the event iteration and CVode restarted."""
+        if self._solver is not None:
+            self._call("fmi2EnterEventMode", self._fmu.enterEventMode)
+            self._set(values)
+            self._event_iteration()
+            self._solver.reset(self._time)
+            return
+        self._set(values)
+
+    def _set(self, values: Iterable[tuple[str, Any]]) -> None:
         groups: dict[str, tuple[list, list]] = {}
         for name, value in values:
             var = self.variables[name]
@@ -266,14 +348,14 @@ class FmuInstance:
             vrs.append(var.valueReference)
             vals.append(value)
         for kind, (vrs, vals) in groups.items():
-            setter = getattr(self._slave, f"set{kind}")
+            setter = getattr(self._fmu, f"set{kind}")
             self._call(f"fmi2Set{kind}({', '.join(_names(self.md, vrs))})", setter, vrs, vals)
 
     def reader(self, names: Sequence[str]) -> Callable[[], list]:
         """A function returning the current values of ``names`` (in that order) as Python numbers."""
         kinds = [_setter_type(self.variables[n].type) for n in names]
         vrs = [self.variables[n].valueReference for n in names]
-        slave = self._slave
+        slave = self._fmu
         if all(k == "Real" for k in kinds):
             get_real = slave.getReal
             return lambda: get_real(vrs)
@@ -296,6 +378,13 @@ class FmuInstance:
     @property
     def guid(self) -> str:
         return self.md.guid
+
+
+class _NoInputs:
+    """FMPy's CVodeSolver applies the inputs at every evaluation; the orchestrator sets none."""
+
+    def apply(self, time, continuous=True, discrete=True, after_event=False) -> None:
+        return None
 
 
 def _setter_type(vtype: str) -> str:

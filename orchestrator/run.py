@@ -237,7 +237,7 @@ class _Run:
             status="running", run_id=uuid.uuid4().hex, case=case.name,
             case_file=str(case.source) if case.source is not None else None,
             description=case.description,
-            fmu=RecordedFmu(path=str(case.fmu), guid=md.guid, model_name=md.modelName),
+            fmu=RecordedFmu(path=str(case.fmu), guid=md.guid, model_name=md.modelName, fmi_type=case.fmi_type),
             experiment=RecordedExperiment(start=exp.start, stop=exp.stop, step=exp.step, tolerance=exp.tolerance),
             parameters=_parameter_starts(case),
             events=tuple(case.events),
@@ -312,7 +312,7 @@ class _Run:
         try:
             with InterruptFlag() as flag:
                 try:
-                    with FmuInstance(self.case.fmu_description, self.case.name) as fmu:
+                    with FmuInstance(self.case.fmu_description, self.case.name, fmi_type=self.case.fmi_type) as fmu:
                         self._initialize(fmu)      # refused: StartValuesRefused, nothing written
                         flag.check()               # a signal while the FMU loaded: nothing written
                         self._start_outputs()

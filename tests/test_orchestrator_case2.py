@@ -106,7 +106,8 @@ def test_run_json_carries_the_ground_truth(case2_run, fourbar_fmu):
     assert record["status"] == "finished"
     assert record["case"] == "case2_fault_L2"
     assert record["case_file"].endswith("case2_fault_L2.toml")
-    assert record["fmu"] == {"path": str(Path(fourbar_fmu).resolve()), "guid": md.guid, "model_name": "FourBar"}
+    assert record["fmu"] == {"path": str(Path(fourbar_fmu).resolve()), "guid": md.guid, "model_name": "FourBar",
+                             "fmi_type": "CoSimulation"}
     assert record["experiment"] == {"start": 0.0, "stop": 100.0, "step": 0.01, "tolerance": 1e-9}
     assert record["parameters"]["L2"] == {"start": 1.0, "source": "case", "type": "Real", "variability": "tunable",
                                           "unit": "m"}

@@ -104,7 +104,7 @@ end = {end}
 #  expected message parts)
 INVALID = [
     ("unknown-top-key", '^colour = "red"\n',
-     ["colour: unknown key; expected one of: name, description, fmu, experiment"]),
+     ["colour: unknown key; expected one of: name, description, fmu, fmi_type, experiment"]),
     ("unknown-key-suggestion", "",  # replaced below: tolrance in [experiment]
      ["experiment.tolrance: unknown key; did you mean 'tolerance'?"]),
     ("wrong-type-string", "!stop-string",
