@@ -114,7 +114,7 @@ static int allowed(ModelInstance *m, const char *function, int states)
             used += snprintf(list + used, sizeof list - used, "%s%s", used ? ", " : "", STATES[i].name);
     model_log(m, fmi2Error, "logStatusError", "%s is not allowed in state %s (only in: %s)%s", function,
               state_name(m->state.mode), list, m->state.mode == MODE_ERROR ?
-              "; after a failed fmi2ExitInitializationMode or fmi2DoStep, call fmi2Reset, fmi2SetFMUstate or "
+              "; after a failed fmi2ExitInitializationMode, fmi2DoStep or model-exchange call, call fmi2Reset, fmi2SetFMUstate or "
               "fmi2FreeInstance" : "");
     return 0;
 }
