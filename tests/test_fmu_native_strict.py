@@ -85,8 +85,8 @@ MUTANTS = {
         "    if (m->state.mode & states) return 1;",
         "FAIL fmi2CancelStep with a NULL instance: crashed"),
     "a status that is not what the log says": (
-        'model_log(m, fmi2Discard, "logStatusDiscard", "%s(%s): no such status',
-        'model_log(m, fmi2Error, "logStatusError", "%s(%s): no such status',
+        'model_log(m, MODEL_DISCARD, "logStatusDiscard", "%s(%s): no such status',
+        'model_log(m, MODEL_ERROR, "logStatusError", "%s(%s): no such status',
         "FAIL fmi2GetStatus in state stepComplete: fmi2GetStatus returned fmi2Discard but logged fmi2Error"),
     "a co-simulation status answered by a model-exchange instance": (
         "    ENTER(STATUS_STATES);\n    CS_ONLY;\n    REQUIRE(value);\n    if (s != fmi2LastSuccessfulTime)",

@@ -18,17 +18,17 @@ void model_reset(ModelInstance *m)
     m->state.mode = MODE_INSTANTIATED;
 }
 
-fmi2Status model_initialize(ModelInstance *m)
+ModelStatus model_initialize(ModelInstance *m)
 {
     m->state.t = m->state.start_time;
-    return fmi2OK;
+    return MODEL_OK;
 }
 
-fmi2Status model_do_step(ModelInstance *m, double current_time, double step)
+ModelStatus model_do_step(ModelInstance *m, double current_time, double step)
 {
     m->state.t = current_time + step;
     m->state.values[VR_x2] = m->state.t;
-    return fmi2OK;
+    return MODEL_OK;
 }
 
 void model_preview_outputs(ModelInstance *m, int groups)
@@ -53,21 +53,21 @@ void model_me_set_states(ModelInstance *m, const double *x)
     memcpy(m->state.me_y, x, FB_N_STATES * sizeof *x);
 }
 
-fmi2Status model_me_derivatives(ModelInstance *m, double *dx)
+ModelStatus model_me_derivatives(ModelInstance *m, double *dx)
 {
     (void)m;
     memset(dx, 0, FB_N_STATES * sizeof *dx);
-    return fmi2OK;
+    return MODEL_OK;
 }
 
-fmi2Status model_me_completed_step(ModelInstance *m)
+ModelStatus model_me_completed_step(ModelInstance *m)
 {
     (void)m;
-    return fmi2OK;
+    return MODEL_OK;
 }
 
-fmi2Status model_me_event_update(ModelInstance *m)
+ModelStatus model_me_event_update(ModelInstance *m)
 {
     (void)m;
-    return fmi2OK;
+    return MODEL_OK;
 }

@@ -25,6 +25,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include "fmi2Functions.h"
 #include "model.h"
 
 static const int KINDS[FB_N_VARIABLES] = FB_VARIABLE_KINDS;
@@ -81,16 +82,21 @@ static const char STATE_MAGIC[8] = "FBSTATE";
 
 /* Every message goes through the host's logger: errors and warnings always, information
    (status OK) only with logging on.  The text is formatted here and passed as "%s". */
-void model_log(ModelInstance *m, fmi2Status status, const char *category, const char *fmt, ...)
+static const fmi2CallbackFunctions *callbacks(const ModelInstance *m)
+{
+    return (const fmi2CallbackFunctions *)m->host;
+}
+
+void model_log(ModelInstance *m, ModelStatus status, const char *category, const char *fmt, ...)
 {
     char text[1024];
     va_list args;
-    if (!m || !m->functions || !m->functions->logger) return;
-    if (status == fmi2OK && !m->logging_on) return;
+    if (!m || !callbacks(m) || !callbacks(m)->logger) return;
+    if (status == MODEL_OK && !m->logging_on) return;
     va_start(args, fmt);
     vsnprintf(text, sizeof text, fmt, args);
     va_end(args);
-    m->functions->logger(m->environment, m->instance_name, status, category, "%s", text);
+    callbacks(m)->logger(m->environment, m->instance_name, (fmi2Status)status, category, "%s", text);
 }
 
 static const char *state_name(int mode)
@@ -112,7 +118,7 @@ static int allowed(ModelInstance *m, const char *function, int states)
     for (size_t i = 0; i < N_STATES; i++)
         if ((states & STATES[i].mode) && used < sizeof list)
             used += snprintf(list + used, sizeof list - used, "%s%s", used ? ", " : "", STATES[i].name);
-    model_log(m, fmi2Error, "logStatusError", "%s is not allowed in state %s (only in: %s)%s", function,
+    model_log(m, MODEL_ERROR, "logStatusError", "%s is not allowed in state %s (only in: %s)%s", function,
               state_name(m->state.mode), list, m->state.mode == MODE_ERROR ?
               "; after a failed fmi2ExitInitializationMode, fmi2DoStep or model-exchange call, call fmi2Reset, fmi2SetFMUstate or "
               "fmi2FreeInstance" : "");
@@ -131,10 +137,10 @@ static int present(ModelInstance *m, const char *function, const void *p, const 
 {
     if (p) return 1;
     if (n > 0)
-        model_log(m, fmi2Error, "logStatusError", "%s: argument %s is NULL but its length is %u", function, name,
+        model_log(m, MODEL_ERROR, "logStatusError", "%s: argument %s is NULL but its length is %u", function, name,
                   (unsigned)n);
     else
-        model_log(m, fmi2Error, "logStatusError", "%s: argument %s is NULL", function, name);
+        model_log(m, MODEL_ERROR, "logStatusError", "%s: argument %s is NULL", function, name);
     return 0;
 }
 
@@ -142,7 +148,7 @@ static int present(ModelInstance *m, const char *function, const void *p, const 
 static int of_type(ModelInstance *m, const char *function, int model_exchange)
 {
     if (m->model_exchange == model_exchange) return 1;
-    model_log(m, fmi2Error, "logStatusError", "%s is a %s function; this instance was instantiated for %s", function,
+    model_log(m, MODEL_ERROR, "logStatusError", "%s is a %s function; this instance was instantiated for %s", function,
               model_exchange ? "model exchange" : "co-simulation", m->model_exchange ? "model exchange" : "co-simulation");
     return 0;
 }
@@ -155,14 +161,14 @@ static int of_type(ModelInstance *m, const char *function, int model_exchange)
 
 static void *allocate(const ModelInstance *m, size_t size)
 {
-    if (m && m->functions && m->functions->allocateMemory) return m->functions->allocateMemory(1, size);
+    if (m && callbacks(m) && callbacks(m)->allocateMemory) return callbacks(m)->allocateMemory(1, size);
     return calloc(1, size);
 }
 
 static void release(const ModelInstance *m, void *p)
 {
     if (!p) return;
-    if (m && m->functions && m->functions->freeMemory) m->functions->freeMemory(p);
+    if (m && callbacks(m) && callbacks(m)->freeMemory) callbacks(m)->freeMemory(p);
     else free(p);
 }
 
@@ -173,11 +179,11 @@ static int check_refs(ModelInstance *m, const char *function, const fmi2ValueRef
 {
     for (size_t i = 0; i < nvr; i++) {
         if (vr[i] >= FB_N_VARIABLES) {
-            model_log(m, fmi2Error, "logStatusError", "%s: unknown value reference %u", function, (unsigned)vr[i]);
+            model_log(m, MODEL_ERROR, "logStatusError", "%s: unknown value reference %u", function, (unsigned)vr[i]);
             return 0;
         }
         if (!(kinds & KIND(KINDS[vr[i]]))) {
-            model_log(m, fmi2Error, "logStatusError", "%s: %s (value reference %u) is %s; expected %s", function,
+            model_log(m, MODEL_ERROR, "logStatusError", "%s: %s (value reference %u) is %s; expected %s", function,
                       NAMES[vr[i]], (unsigned)vr[i], KIND_TEXT[KINDS[vr[i]]], expected);
             return 0;
         }
@@ -191,7 +197,7 @@ static int settable_now(ModelInstance *m, const char *function, const fmi2ValueR
     if (m->state.mode != MODE_STEP_COMPLETE && m->state.mode != MODE_EVENT) return 1;
     for (size_t i = 0; i < nvr; i++)
         if (KINDS[vr[i]] == KIND_FIXED || KINDS[vr[i]] == KIND_STRING) {
-            model_log(m, fmi2Error, "logStatusError", "%s: %s is a fixed parameter; it can only be set before "
+            model_log(m, MODEL_ERROR, "logStatusError", "%s: %s is a fixed parameter; it can only be set before "
                       "fmi2ExitInitializationMode (the instance is in state %s)", function, NAMES[vr[i]],
                       state_name(m->state.mode));
             return 0;
@@ -216,7 +222,7 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
         for (size_t k = 0; k < sizeof known / sizeof *known; k++)
             if (categories[i] && strcmp(categories[i], known[k]) == 0) found = 1;
         if (!found) {
-            model_log(m, fmi2Error, "logStatusError", "fmi2SetDebugLogging: unknown log category '%s'",
+            model_log(m, MODEL_ERROR, "logStatusError", "fmi2SetDebugLogging: unknown log category '%s'",
                       categories[i] ? categories[i] : "(null)");
             return fmi2Error;
         }
@@ -236,26 +242,26 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     (void)fmuResourceLocation;
     (void)visible;
     memset(&probe, 0, sizeof probe);
-    probe.functions = functions;
+    probe.host = functions;
     probe.environment = functions ? functions->componentEnvironment : NULL;
     probe.instance_name = (char *)name;
     if (!functions || !functions->logger) return NULL;
     if (!functions->allocateMemory != !functions->freeMemory) {
-        model_log(&probe, fmi2Error, "logStatusError", "fmi2Instantiate: allocateMemory and freeMemory must be "
+        model_log(&probe, MODEL_ERROR, "logStatusError", "fmi2Instantiate: allocateMemory and freeMemory must be "
                   "given together (memory allocated by one must be freed by the other)");
         return NULL;
     }
     if (!instanceName || !instanceName[0]) {
-        model_log(&probe, fmi2Error, "logStatusError", "fmi2Instantiate: the instance name must not be empty");
+        model_log(&probe, MODEL_ERROR, "logStatusError", "fmi2Instantiate: the instance name must not be empty");
         return NULL;
     }
     if (fmuType != fmi2CoSimulation && fmuType != fmi2ModelExchange) {
-        model_log(&probe, fmi2Error, "logStatusError", "fmi2Instantiate: unknown fmuType %d (fmi2ModelExchange %d "
+        model_log(&probe, MODEL_ERROR, "logStatusError", "fmi2Instantiate: unknown fmuType %d (fmi2ModelExchange %d "
                   "or fmi2CoSimulation %d)", (int)fmuType, (int)fmi2ModelExchange, (int)fmi2CoSimulation);
         return NULL;
     }
     if (!fmuGUID || strcmp(fmuGUID, FB_GUID) != 0) {
-        model_log(&probe, fmi2Error, "logStatusError", "fmi2Instantiate: GUID '%s' does not match this binary's "
+        model_log(&probe, MODEL_ERROR, "logStatusError", "fmi2Instantiate: GUID '%s' does not match this binary's "
                   "'%s' (a model description from another build?)", fmuGUID ? fmuGUID : "(null)", FB_GUID);
         return NULL;
     }
@@ -264,10 +270,10 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     if (!m || !copy) {
         release(&probe, m);
         release(&probe, copy);
-        model_log(&probe, fmi2Error, "logStatusError", "fmi2Instantiate: out of memory");
+        model_log(&probe, MODEL_ERROR, "logStatusError", "fmi2Instantiate: out of memory");
         return NULL;
     }
-    m->functions = functions;
+    m->host = functions;
     m->environment = functions->componentEnvironment;
     m->instance_name = strcpy(copy, name);
     m->logging_on = loggingOn ? 1 : 0;
@@ -292,7 +298,7 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     (void)toleranceDefined;   /* the integrator's tolerances are the rtol and atol parameters */
     (void)tolerance;
     if (!isfinite(startTime) || (stopTimeDefined && !(stopTime >= startTime))) {
-        model_log(m, fmi2Error, "logStatusError", "fmi2SetupExperiment: need a finite start time and a stop "
+        model_log(m, MODEL_ERROR, "logStatusError", "fmi2SetupExperiment: need a finite start time and a stop "
                   "time not before it (got start %g s, stop %g s)", startTime, stopTime);
         return fmi2Error;
     }
@@ -311,7 +317,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c)
 fmi2Status fmi2ExitInitializationMode(fmi2Component c)
 {
     ENTER(MODE_INITIALIZATION);
-    if (model_initialize(m) != fmi2OK) {   /* model_initialize logged why */
+    if (model_initialize(m) != MODEL_OK) {   /* model_initialize logged why */
         m->state.mode = MODE_ERROR;
         return fmi2Error;
     }
@@ -324,7 +330,7 @@ fmi2Status fmi2Terminate(fmi2Component c)
     ENTER(MODE_STEP_COMPLETE | MODE_STEP_FAILED | MODE_EVENT | MODE_CONTINUOUS);
     m->state.mode = MODE_TERMINATED;
     /* the integration's statistics (with logging on: a host that wants to know how hard it was) */
-    model_log(m, fmi2OK, "logAll", "statistics at t = %.9g s: %lu right-hand-side evaluations, %lu by "
+    model_log(m, MODEL_OK, "logAll", "statistics at t = %.9g s: %lu right-hand-side evaluations, %lu by "
               "continuation from the last accepted state, %lu at trial points not reached (their steps "
               "rejected); %lu Newton-Raphson iterations, %lu integrator starts, %lu re-partitions", m->state.t,
               m->state.rhs_evaluations, m->state.continuations, m->state.failed_evaluations,
@@ -404,7 +410,7 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
         return fmi2Error;
     for (size_t i = 0; i < nvr; i++)
         if (integrator_index(value[i]) < 0) {
-            model_log(m, fmi2Error, "logStatusError", "fmi2SetString: %s '%s': integrator = '%s': must be one "
+            model_log(m, MODEL_ERROR, "logStatusError", "fmi2SetString: %s '%s': integrator = '%s': must be one "
                       "of %s, %s", MECH_NAME, m->instance_name, value[i] ? value[i] : "(null)", INTEGRATORS[0], INTEGRATORS[1]);
             return fmi2Error;
         }
@@ -416,7 +422,7 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 static fmi2Status no_variables(ModelInstance *m, const char *function, const fmi2ValueReference vr[], size_t nvr)
 {
     if (nvr == 0) return fmi2OK;
-    model_log(m, fmi2Error, "logStatusError", "%s: unknown value reference %u (this FMU has no variables of "
+    model_log(m, MODEL_ERROR, "logStatusError", "%s: unknown value reference %u (this FMU has no variables of "
               "that type)", function, (unsigned)vr[0]);
     return fmi2Error;
 }
@@ -463,7 +469,7 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
     if (!*FMUstate) {
         *FMUstate = allocate(m, sizeof(SavedState));
         if (!*FMUstate) {
-            model_log(m, fmi2Error, "logStatusError", "fmi2GetFMUstate: out of memory");
+            model_log(m, MODEL_ERROR, "logStatusError", "fmi2GetFMUstate: out of memory");
             return fmi2Error;
         }
     }
@@ -482,7 +488,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
     REQUIRE(FMUstate);
     const SavedState *saved = (const SavedState *)FMUstate;
     if (saved->model_exchange != m->model_exchange) {
-        model_log(m, fmi2Error, "logStatusError", "fmi2SetFMUstate: the FMU state was saved by a %s instance; "
+        model_log(m, MODEL_ERROR, "logStatusError", "fmi2SetFMUstate: the FMU state was saved by a %s instance; "
                   "this instance was instantiated for %s", type_name(saved->model_exchange),
                   type_name(m->model_exchange));
         return fmi2Error;
@@ -516,7 +522,7 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byt
     REQUIRE(FMUstate);
     REQUIRE(serializedState);
     if (size < sizeof header + sizeof(ModelState)) {
-        model_log(m, fmi2Error, "logStatusError", "fmi2SerializeFMUstate: need %u bytes (got %u)",
+        model_log(m, MODEL_ERROR, "logStatusError", "fmi2SerializeFMUstate: need %u bytes (got %u)",
                   (unsigned)(sizeof header + sizeof(ModelState)), (unsigned)size);
         return fmi2Error;
     }
@@ -538,7 +544,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
     REQUIRE(serializedState);
     REQUIRE(FMUstate);
     if (size != sizeof header + sizeof(ModelState)) {
-        model_log(m, fmi2Error, "logStatusError", "fmi2DeSerializeFMUstate: expected %u bytes, got %u",
+        model_log(m, MODEL_ERROR, "logStatusError", "fmi2DeSerializeFMUstate: expected %u bytes, got %u",
                   (unsigned)(sizeof header + sizeof(ModelState)), (unsigned)size);
         return fmi2Error;
     }
@@ -546,14 +552,14 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
     if (memcmp(header.magic, STATE_MAGIC, sizeof header.magic) != 0 || header.state_size != sizeof(ModelState)
         || strncmp(header.guid, FB_GUID, sizeof header.guid) != 0
         || (header.model_exchange != 0 && header.model_exchange != 1)) {
-        model_log(m, fmi2Error, "logStatusError", "fmi2DeSerializeFMUstate: not a state of this FMU (GUID %s)",
+        model_log(m, MODEL_ERROR, "logStatusError", "fmi2DeSerializeFMUstate: not a state of this FMU (GUID %s)",
                   FB_GUID);
         return fmi2Error;
     }
     if (!*FMUstate) {
         *FMUstate = allocate(m, sizeof(SavedState));
         if (!*FMUstate) {
-            model_log(m, fmi2Error, "logStatusError", "fmi2DeSerializeFMUstate: out of memory");
+            model_log(m, MODEL_ERROR, "logStatusError", "fmi2DeSerializeFMUstate: out of memory");
             return fmi2Error;
         }
     }
@@ -568,7 +574,7 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
 {
     ENTER(READABLE);
     (void)vUnknown_ref; (void)nUnknown; (void)vKnown_ref; (void)nKnown; (void)dvKnown; (void)dvUnknown;
-    model_log(m, fmi2Error, "logStatusError",
+    model_log(m, MODEL_ERROR, "logStatusError",
               "fmi2GetDirectionalDerivative: not provided (providesDirectionalDerivative is false)");
     return fmi2Error;
 }
@@ -584,7 +590,7 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference
     REQUIRE_ARRAY(order, nvr);
     REQUIRE_ARRAY(value, nvr);
     if (nvr == 0) return fmi2OK;
-    model_log(m, fmi2Error, "logStatusError", "fmi2SetRealInputDerivatives: the FMU has no inputs "
+    model_log(m, MODEL_ERROR, "logStatusError", "fmi2SetRealInputDerivatives: the FMU has no inputs "
               "(value reference %u)", (unsigned)vr[0]);
     return fmi2Error;
 }
@@ -598,7 +604,7 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
     REQUIRE_ARRAY(order, nvr);
     REQUIRE_ARRAY(value, nvr);
     if (nvr == 0) return fmi2OK;
-    model_log(m, fmi2Error, "logStatusError",
+    model_log(m, MODEL_ERROR, "logStatusError",
               "fmi2GetRealOutputDerivatives: not provided (maxOutputDerivativeOrder is 0)");
     return fmi2Error;
 }
@@ -611,12 +617,12 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     CS_ONLY;
     (void)noSetFMUStatePriorToCurrentPoint;
     if (!(communicationStepSize > 0.0) || !isfinite(currentCommunicationPoint)) {
-        model_log(m, fmi2Error, "logStatusError", "fmi2DoStep: the step size must be positive (got %g s at t = %g s)",
+        model_log(m, MODEL_ERROR, "logStatusError", "fmi2DoStep: the step size must be positive (got %g s at t = %g s)",
                   communicationStepSize, currentCommunicationPoint);
         m->state.mode = MODE_ERROR;
         return fmi2Error;
     }
-    if (model_do_step(m, currentCommunicationPoint, communicationStepSize) != fmi2OK) {   /* logged why */
+    if (model_do_step(m, currentCommunicationPoint, communicationStepSize) != MODEL_OK) {   /* logged why */
         m->state.mode = MODE_ERROR;
         return fmi2Error;
     }
@@ -639,7 +645,7 @@ static fmi2Status no_status(ModelInstance *m, const char *function, fmi2StatusKi
 {
     static const char *const kinds[] = {"fmi2DoStepStatus", "fmi2PendingStatus", "fmi2LastSuccessfulTime",
                                         "fmi2Terminated"};
-    model_log(m, fmi2Discard, "logStatusDiscard", "%s(%s): no such status: fmi2DoStep never returns fmi2Pending, "
+    model_log(m, MODEL_DISCARD, "logStatusDiscard", "%s(%s): no such status: fmi2DoStep never returns fmi2Pending, "
               "so the only status values are fmi2GetRealStatus(fmi2LastSuccessfulTime) and "
               "fmi2GetBooleanStatus(fmi2Terminated)", function,
               (unsigned)s < sizeof kinds / sizeof *kinds ? kinds[s] : "an unknown kind");
@@ -701,7 +707,7 @@ fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2Stri
 static int count_is(ModelInstance *m, const char *function, size_t n, size_t expected, const char *what)
 {
     if (n == expected) return 1;
-    model_log(m, fmi2Error, "logStatusError", "%s: %u %s given; this FMU has %u", function, (unsigned)n, what,
+    model_log(m, MODEL_ERROR, "logStatusError", "%s: %u %s given; this FMU has %u", function, (unsigned)n, what,
               (unsigned)expected);
     return 0;
 }
@@ -720,7 +726,7 @@ fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *fmi2eventInfo)
     ENTER(MODE_EVENT);
     ME_ONLY;
     REQUIRE(fmi2eventInfo);
-    if (model_me_event_update(m) != fmi2OK) {      /* logged why */
+    if (model_me_event_update(m) != MODEL_OK) {      /* logged why */
         m->state.mode = MODE_ERROR;
         return fmi2Error;
     }
@@ -749,7 +755,7 @@ fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean noSetFMUStat
     (void)noSetFMUStatePriorToCurrentPoint;
     REQUIRE(enterEventMode);
     REQUIRE(terminateSimulation);
-    if (model_me_completed_step(m) != fmi2OK) {
+    if (model_me_completed_step(m) != MODEL_OK) {
         m->state.mode = MODE_ERROR;
         return fmi2Error;
     }
@@ -763,7 +769,7 @@ fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time)
     ENTER(MODE_EVENT | MODE_CONTINUOUS);
     ME_ONLY;
     if (!isfinite(time)) {
-        model_log(m, fmi2Error, "logStatusError", "fmi2SetTime: the time must be finite (got %g)", time);
+        model_log(m, MODEL_ERROR, "logStatusError", "fmi2SetTime: the time must be finite (got %g)", time);
         return fmi2Error;
     }
     model_me_set_time(m, time);
@@ -778,7 +784,7 @@ fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t n
     if (!count_is(m, __func__, nx, FB_N_STATES, "states")) return fmi2Error;
     for (size_t i = 0; i < nx; i++)
         if (!isfinite(x[i])) {
-            model_log(m, fmi2Error, "logStatusError", "fmi2SetContinuousStates: state %u is %g: must be finite",
+            model_log(m, MODEL_ERROR, "logStatusError", "fmi2SetContinuousStates: state %u is %g: must be finite",
                       (unsigned)i, x[i]);
             return fmi2Error;
         }
@@ -804,7 +810,7 @@ fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx
     ME_ONLY;
     REQUIRE_ARRAY(derivatives, nx);
     if (!count_is(m, __func__, nx, FB_N_STATES, "derivatives")) return fmi2Error;
-    if (model_me_derivatives(m, derivatives) != fmi2OK) {
+    if (model_me_derivatives(m, derivatives) != MODEL_OK) {
         m->state.mode = MODE_ERROR;
         return fmi2Error;
     }

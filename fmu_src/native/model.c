@@ -42,15 +42,15 @@ static const int STATE_VRS[] = FB_STATE_VRS;
 static const int DERIVATIVE_VRS[] = FB_DERIVATIVE_VRS;
 enum { KIND_TUNABLE = 0, KIND_FIXED = 1 };
 
-static fmi2Status fail(ModelInstance *m, const char *fmt, ...)
+static ModelStatus fail(ModelInstance *m, const char *fmt, ...)
 {
     char text[2 * MSG];
     va_list args;
     va_start(args, fmt);
     vsnprintf(text, sizeof text, fmt, args);
     va_end(args);
-    model_log(m, fmi2Error, "logStatusError", "%s '%s': %s", MECH_NAME, m->instance_name, text);
-    return fmi2Error;
+    model_log(m, MODEL_ERROR, "logStatusError", "%s '%s': %s", MECH_NAME, m->instance_name, text);
+    return MODEL_ERROR;
 }
 
 /* A double as Python's repr writes it: the shortest of %.15g, %.16g, %.17g that reads back as
@@ -117,10 +117,10 @@ static void start_configuration(const ModelState *s, double *guess, double *rate
 
 /* The outputs of the current state (slave.py's _publish computes them all at every step): marked
    pending, computed when first read (model_preview_outputs), a group at a time. */
-static fmi2Status publish(ModelInstance *m)
+static ModelStatus publish(ModelInstance *m)
 {
     m->state.outputs_pending = FB_GROUP_STATE | FB_GROUP_RESIDUAL | FB_GROUP_FORCE | FB_GROUP_STATES;
-    return fmi2OK;
+    return MODEL_OK;
 }
 
 /* Copy the outputs of kind `kind` from out (output order) into values[]. */
@@ -143,10 +143,10 @@ static void store_states(ModelState *s, const double *f)
 }
 
 /* Model Exchange: the current state is the evaluation of the states the host set (dae_me_evaluate). */
-static fmi2Status me_evaluate(ModelInstance *m)
+static ModelStatus me_evaluate(ModelInstance *m)
 {
     ModelState *s = &m->state;
-    if (s->me_fresh) return fmi2OK;
+    if (s->me_fresh) return MODEL_OK;
     const double t = s->t;
     if (dae_me_evaluate(s, s->me_t, s->me_y, s->me_f)) {
         s->t = t;
@@ -154,7 +154,7 @@ static fmi2Status me_evaluate(ModelInstance *m)
     }
     s->me_fresh = 1;
     publish(m);
-    return fmi2OK;
+    return MODEL_OK;
 }
 
 void model_preview_outputs(ModelInstance *m, int groups)
@@ -186,7 +186,7 @@ void model_preview_outputs(ModelInstance *m, int groups)
         }
         return;
     }
-    if (m->model_exchange && me_evaluate(m) != fmi2OK) return;
+    if (m->model_exchange && me_evaluate(m) != MODEL_OK) return;
     groups &= s->outputs_pending;
     if (groups & FB_GROUP_STATE) {
         dae_outputs_state(s->p, s->d, s->t, s->q, s->tr, s->qd, s->work, out);
@@ -232,7 +232,7 @@ void model_reset(ModelInstance *m)
     s->mode = MODE_INSTANTIATED;
 }
 
-fmi2Status model_initialize(ModelInstance *m)
+ModelStatus model_initialize(ModelInstance *m)
 {
     ModelState *s = &m->state;
     char problems[4 * MSG], given[MSG], num[40];
@@ -261,7 +261,7 @@ fmi2Status model_initialize(ModelInstance *m)
 }
 
 /* Apply the set parameters when they differ from the ones in use (re-assembly). */
-static fmi2Status apply_parameter_changes(ModelInstance *m, double current_time)
+static ModelStatus apply_parameter_changes(ModelInstance *m, double current_time)
 {
     ModelState *s = &m->state;
     double p[MECH_ALLOC(MECH_N_PARAMETERS)];
@@ -277,7 +277,7 @@ static fmi2Status apply_parameter_changes(ModelInstance *m, double current_time)
                                  NAMES[PARAMETER_VRS[i]], s->p[i], p[i]);
             differs = 1;
         }
-    if (!differs) return fmi2OK;
+    if (!differs) return MODEL_OK;
     if (check_parameters(s, problems, sizeof problems)) return fail(m, "at t = %.9g s: %s", current_time, problems);
     int r = dae_change_parameters(s, p);
     if (!r) r = m->model_exchange ? dae_me_start(s) : dae_start(s, s->solver.h_abs);
@@ -292,19 +292,19 @@ static fmi2Status apply_parameter_changes(ModelInstance *m, double current_time)
     kept[0] = '\0';
     for (int j = 0; j < MECH_K && used < sizeof kept; j++)
         used += snprintf(kept + used, sizeof kept - used, "%s%s", j ? ", " : "", COORDINATES[s->independent[j]]);
-    model_log(m, fmi2OK, "logAll", "applied %s at t = %.9g s (re-assembled keeping %s)", changed, current_time,
+    model_log(m, MODEL_OK, "logAll", "applied %s at t = %.9g s (re-assembled keeping %s)", changed, current_time,
               MECH_K ? kept : "the drivers");
-    return fmi2OK;
+    return MODEL_OK;
 }
 
-fmi2Status model_do_step(ModelInstance *m, double current_time, double step)
+ModelStatus model_do_step(ModelInstance *m, double current_time, double step)
 {
     ModelState *s = &m->state;
     char a[40], b[40];
     if (fabs(dae_snap_time(current_time) - s->t) > 1e-9 * fmax(1.0, fabs(s->t)))
         return fail(m, "do_step at t = %s s, but the model is at t = %s s", real_text(a, sizeof a, current_time),
                     real_text(b, sizeof b, s->t));
-    if (apply_parameter_changes(m, current_time) != fmi2OK) return fmi2Error;
+    if (apply_parameter_changes(m, current_time) != MODEL_OK) return MODEL_ERROR;
     if (dae_advance(s, dae_snap_time(current_time + step))) return fail(m, "%s", s->rhs_message);
     return publish(m);
 }
@@ -336,23 +336,23 @@ void model_me_set_states(ModelInstance *m, const double *x)
     memcpy(s->me_y, x, FB_N_STATES * sizeof *x);
 }
 
-fmi2Status model_me_derivatives(ModelInstance *m, double *dx)
+ModelStatus model_me_derivatives(ModelInstance *m, double *dx)
 {
-    if (me_evaluate(m) != fmi2OK) return fmi2Error;
+    if (me_evaluate(m) != MODEL_OK) return MODEL_ERROR;
     memcpy(dx, m->state.me_f, FB_N_STATES * sizeof *dx);
-    return fmi2OK;
+    return MODEL_OK;
 }
 
-fmi2Status model_me_completed_step(ModelInstance *m)
+ModelStatus model_me_completed_step(ModelInstance *m)
 {
-    if (me_evaluate(m) != fmi2OK) return fmi2Error;
+    if (me_evaluate(m) != MODEL_OK) return MODEL_ERROR;
     dae_me_accept(&m->state);
-    return fmi2OK;
+    return MODEL_OK;
 }
 
-fmi2Status model_me_event_update(ModelInstance *m)
+ModelStatus model_me_event_update(ModelInstance *m)
 {
     ModelState *s = &m->state;
-    if (me_evaluate(m) != fmi2OK) return fmi2Error;
+    if (me_evaluate(m) != MODEL_OK) return MODEL_ERROR;
     return apply_parameter_changes(m, s->t);
 }

@@ -1,4 +1,7 @@
-/* A mechanism's model behind the generic FMI 2.0 layer (fmi2Functions.c).
+/* A mechanism's model behind the generic FMI layers (fmi2Functions.c for FMI 2.0; an FMI 3.0
+ * layer compiles against the same interface).  Nothing here depends on the FMI version: the
+ * statuses are ModelStatus (numbered as ModelStatus and fmi3Status are), and the host's
+ * callbacks are the layer's business (ModelInstance.host; model_log is defined by the layer).
  *
  * Everything an instance owns lives in one ModelInstance; everything that changes while it
  * runs lives in its ModelState, a plain struct without pointers, so fmi2GetFMUstate and
@@ -10,12 +13,14 @@
 #define MODEL_H
 
 #include <stddef.h>
-#include "fmi2Functions.h"
 #include "equations.h"
 #include "variables.h"
 #include "rk.h"
 
 #define MODEL_MESSAGE 512   /* longest message of one failure */
+
+/* What the model's functions return and log: the values of ModelStatus and fmi3Status. */
+typedef enum { MODEL_OK = 0, MODEL_WARNING = 1, MODEL_DISCARD = 2, MODEL_ERROR = 3, MODEL_FATAL = 4 } ModelStatus;
 
 /* Co-simulation: instantiated, initialization, stepComplete (stepFailed is never entered), terminated,
    error; Model Exchange: instantiated, initialization, eventMode, continuousTimeMode, terminated, error. */
@@ -72,29 +77,29 @@ typedef struct {
 } ModelState;
 
 typedef struct {
-    int model_exchange;                 /* instantiated as fmi2ModelExchange (else co-simulation) */
-    const fmi2CallbackFunctions *functions;
-    fmi2ComponentEnvironment environment;
+    int model_exchange;                 /* instantiated for model exchange (else co-simulation) */
+    const void *host;                   /* the host's callbacks, as the FMI layer keeps them */
+    void *environment;                  /* the host's environment pointer, passed back to its logger */
     char *instance_name;
     int logging_on;
     ModelState state;
 } ModelInstance;
 
-/* Logging through the host's callback (defined in fmi2Functions.c); `status` is an fmi2Status. */
-void model_log(ModelInstance *m, fmi2Status status, const char *category, const char *fmt, ...);
+/* Logging through the host's callback (defined by the FMI layer). */
+void model_log(ModelInstance *m, ModelStatus status, const char *category, const char *fmt, ...);
 
 void model_reset(ModelInstance *m);                       /* start values, mode instantiated */
-fmi2Status model_initialize(ModelInstance *m);            /* check, assemble, start (exit init mode) */
-fmi2Status model_do_step(ModelInstance *m, double current_time, double step);
+ModelStatus model_initialize(ModelInstance *m);            /* check, assemble, start (exit init mode) */
+ModelStatus model_do_step(ModelInstance *m, double current_time, double step);
 /* Model Exchange (dae.h): the states (FB_N_STATES values, value references FB_STATE_VRS), set and
    evaluated lazily; the derivatives; an accepted integrator step; an event's parameter changes
-   (re-assembly keeping the states).  fmi2Error after logging why. */
+   (re-assembly keeping the states).  MODEL_ERROR after logging why. */
 void model_me_get_states(ModelInstance *m, double *x);
 void model_me_set_time(ModelInstance *m, double t);
 void model_me_set_states(ModelInstance *m, const double *x);
-fmi2Status model_me_derivatives(ModelInstance *m, double *dx);
-fmi2Status model_me_completed_step(ModelInstance *m);
-fmi2Status model_me_event_update(ModelInstance *m);
+ModelStatus model_me_derivatives(ModelInstance *m, double *dx);
+ModelStatus model_me_completed_step(ModelInstance *m);
+ModelStatus model_me_event_update(ModelInstance *m);
 /* Outputs into values[] before fmi2GetReal reads them: in initialization mode all those the start
    values give; afterwards the groups (FB_GROUP_* bits) of `groups` that outputs_pending says are
    not yet the current state's (each fmi2DoStep only marks them all pending: a host that reads one

@@ -14,6 +14,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include "fmi2Functions.h"
 #include "model.h"
 #include "dae.h"
 
