@@ -131,7 +131,10 @@ class Drawing:
             root = ET.fromstring(xml)
         except ET.ParseError as exc:
             raise DrawingError(f"{where}: not well-formed XML: {exc}") from None
+        # FMI 2.0: <VendorAnnotations><Tool name=...>; FMI 3.0: <Annotations><Annotation type=...>
         tool = next((t for t in root.findall("./VendorAnnotations/Tool") if t.get("name") == TOOL_NAME), None)
+        if tool is None:
+            tool = next((t for t in root.findall("./Annotations/Annotation") if t.get("type") == TOOL_NAME), None)
         node = tool.find("Drawing") if tool is not None else None
         if node is None:
             return None

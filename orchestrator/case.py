@@ -59,6 +59,8 @@ class FmuDescription:
     #: why the annotation could not be read when it is malformed (``drawing`` is None then).
     drawing: Drawing | None = None
     drawing_problem: str | None = None
+    #: FMI 3.0: each variable's own type (Float64, Int32, ...) by name; its ``type`` reads as FMI 2.0's.
+    own_types: dict[str, str] = field(default_factory=dict)
 
     @property
     def guid(self) -> str:
@@ -113,8 +115,27 @@ def describe_fmu(path: Path, known: FmuDescription | None = None) -> FmuDescript
 
     stamp = _stamp(path)
     model = read_model_description(str(path))
+    own_types = _fmi2_type_names(model)
     drawing, problem = _drawing(path)
-    return FmuDescription(path=path, stamp=stamp, model=model, drawing=drawing, drawing_problem=problem)
+    return FmuDescription(path=path, stamp=stamp, model=model, drawing=drawing, drawing_problem=problem,
+                          own_types=own_types)
+
+
+#: FMI 3.0's variable types by the FMI 2.0 names the orchestrator (and run.json) use.
+_FMI2_TYPE = {"Float64": "Real", "Float32": "Real", "Int8": "Integer", "UInt8": "Integer", "Int16": "Integer",
+              "UInt16": "Integer", "Int32": "Integer", "UInt32": "Integer", "Int64": "Integer", "UInt64": "Integer"}
+
+
+def _fmi2_type_names(model) -> dict[str, str]:
+    """An FMI 3.0 description's variables typed with FMI 2.0's names (Float64 -> Real, Int32 ->
+    Integer, ...): one vocabulary for every check of a case, and for run.json.  Returns their
+    own types by name (what the FMI 3.0 getters and setters are named after); {} for FMI 2.0."""
+    if not str(model.fmiVersion).startswith("3"):
+        return {}
+    own = {v.name: v.type for v in model.modelVariables}
+    for v in model.modelVariables:
+        v.type = _FMI2_TYPE.get(v.type, v.type)
+    return own
 
 
 def _drawing(path: Path) -> tuple[Drawing | None, str | None]:

@@ -185,7 +185,7 @@ class _Validator(ProblemReporter):
     def fmu(self) -> Path:
         value = self.raw.get("fmu")
         if value is None:
-            self.missing("fmu", "the path of an FMI 2.0 co-simulation FMU, relative to the case file")
+            self.missing("fmu", "the path of an FMI 2.0 or 3.0 FMU, relative to the case file")
             return Path()
         if not isinstance(value, str) or not value:
             self.problem("fmu", value, f"expected a path string, got {kind_of(value)}")
@@ -202,10 +202,10 @@ class _Validator(ProblemReporter):
             detail = " ".join(str(exc).split())
             self.problem("fmu", value, f"not a readable FMU ({type(exc).__name__}: {detail}); variables not checked")
             return path
-        if md.fmiVersion != "2.0" or (md.coSimulation is None and md.modelExchange is None):
+        if md.fmiVersion not in ("2.0", "3.0") or (md.coSimulation is None and md.modelExchange is None):
             kinds = " and ".join(k for k, i in (("co-simulation", md.coSimulation), ("model exchange", md.modelExchange))
-                                 if i is not None) or "no interface"
-            self.problem("fmu", value, f"expected an FMI 2.0 FMU (co-simulation or model exchange), got FMI "
+                                 if i is not None) or "no co-simulation or model-exchange interface"
+            self.problem("fmu", value, f"expected an FMI 2.0 or 3.0 FMU (co-simulation or model exchange), got FMI "
                                        f"{md.fmiVersion} with {kinds}; variables not checked")
             return path
         self.description = description

@@ -1,10 +1,13 @@
-"""One FMI 2.0 instance, driven through FMPy's ``FMU2Slave`` (co-simulation) or ``FMU2Model``
-(model exchange, integrated by FMPy's CVode).
+"""One FMI 2.0 or 3.0 instance, driven through FMPy's ``FMU2Slave``/``FMU3Slave`` (co-simulation)
+or ``FMU2Model``/``FMU3Model`` (model exchange, integrated by FMPy's CVode).
 
 :class:`FmuInstance` extracts the FMU, instantiates it with a logger that keeps the FMU's
 messages (so a failure carries the FMU's own reason), reads and writes variables by name
 whatever their type, and always frees the instance and removes the extracted files.
-Any FMI 2.0 FMU works; nothing here knows about the four-bar.
+Any FMI 2.0 or 3.0 FMU works; nothing here knows about the four-bar.  FMI 3.0 differs in
+names (Float64 for Real, updateDiscreteStates, ...), in a logger that gets a finished message
+(one ctypes callback per instance, kept as long as the instance), and in an initialisation
+that takes the experiment's times and tolerance; the methods below hide it.
 
 Model exchange looks like co-simulation to the caller: :meth:`FmuInstance.do_step` integrates
 the states with CVode over the step (``fmi2CompletedIntegratorStep`` at its end, as FMPy's
@@ -86,10 +89,13 @@ class FmuInstance:
         self.instance_name = instance_name
         self.fmi_type = fmi_type
         self.model_exchange = fmi_type == "ModelExchange"
+        self.fmi3 = str(self.md.fmiVersion).startswith("3")
+        self._experiment: tuple[float, float, float | None] = (0.0, 0.0, None)   # FMI 3.0: for initialisation
         self._solver = None                  # model exchange: FMPy's CVodeSolver, after initialisation
         self._tolerance: float | None = None
         self._time = 0.0
         self.variables = description.variables
+        self._own_types = description.own_types
         self.log = collections.deque(maxlen=log_size)   # (sequence number, status, category, message)
         self._log_count = 0
         self._fmu = None
@@ -116,15 +122,28 @@ class FmuInstance:
         from ctypes import byref
 
         from fmpy import extract
-        from fmpy.fmi2 import (FMU2Model, FMU2Slave, calloc, fmi2CallbackAllocateMemoryTYPE,
-                               fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions, free)
         from fmpy.fmi1 import FMICallException
-        from fmpy.logging import addLoggerProxy
 
         self._call_error = FMICallException
-
         install_exit_guard()    # also guards FMUs that FMPy loads elsewhere in this process
         self._unzipdir = extract(str(self.path))
+        interface = self.md.modelExchange if self.model_exchange else self.md.coSimulation
+        if self.fmi3:
+            from fmpy.fmi3 import FMU3Model, FMU3Slave
+
+            kind = FMU3Model if self.model_exchange else FMU3Slave
+            self._fmu = kind(guid=self.md.guid, unzipDirectory=self._unzipdir, modelIdentifier=interface.modelIdentifier,
+                             instanceName=self.instance_name)
+            try:
+                self._fmu.instantiate(loggingOn=True, logMessage=self._logger3)
+            except Exception as exc:   # FMPy raises a bare Exception when the instantiation returns NULL
+                raise FmuError(self._describe(f"fmi3Instantiate{self.fmi_type} failed ({exc})", 0)) from None
+            self._instantiated = True
+            return
+        from fmpy.fmi2 import (FMU2Model, FMU2Slave, calloc, fmi2CallbackAllocateMemoryTYPE,
+                               fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions, free)
+        from fmpy.logging import addLoggerProxy
+
         self._env = next(_ENV_IDS)
         _ROUTES[self._env] = self
         callbacks = fmi2CallbackFunctions()
@@ -134,8 +153,7 @@ class FmuInstance:
         callbacks.componentEnvironment = self._env   # passed back to the logger: routes the messages
         addLoggerProxy(byref(callbacks))   # formats the FMU's printf-style message before our callback
         self._callbacks = callbacks        # must outlive the instance
-        kind, interface = (FMU2Model, self.md.modelExchange) if self.model_exchange else \
-            (FMU2Slave, self.md.coSimulation)
+        kind = FMU2Model if self.model_exchange else FMU2Slave
         self._fmu = kind(guid=self.md.guid, unzipDirectory=self._unzipdir, modelIdentifier=interface.modelIdentifier,
                          instanceName=self.instance_name)
         forget_other_fmu_modules(self._unzipdir)   # another build's cached Python code
@@ -171,6 +189,10 @@ class FmuInstance:
                 self._unzipdir = None
 
     # -- logging ----------------------------------------------------------------------
+    def _logger3(self, environment, status, category, message) -> None:
+        """FMI 3.0's logMessage: the message comes formatted."""
+        self._logger(environment, None, status, category, message)
+
     def _logger(self, component, instance_name, status, category, message) -> None:
         self._log_count += 1
         text = message.decode("utf-8", "replace") if message else ""
@@ -201,14 +223,21 @@ class FmuInstance:
 
     # -- FMI calls --------------------------------------------------------------------
     def setup_experiment(self, start: float, stop: float, tolerance: float | None) -> None:
-        self._call("fmi2SetupExperiment", self._fmu.setupExperiment, tolerance, start, stop)
+        """``fmi2SetupExperiment``; FMI 3.0 takes the same at :meth:`enter_initialization_mode`."""
+        if not self.fmi3:
+            self._call("fmi2SetupExperiment", self._fmu.setupExperiment, tolerance, start, stop)
         self._time, self._tolerance = start, tolerance
+        self._experiment = (start, stop, tolerance)
 
     def enter_initialization_mode(self) -> None:
-        self._call("fmi2EnterInitializationMode", self._fmu.enterInitializationMode)
+        if self.fmi3:
+            start, stop, tolerance = self._experiment
+            self._call("fmi3EnterInitializationMode", self._fmu.enterInitializationMode, tolerance, start, stop)
+        else:
+            self._call("fmi2EnterInitializationMode", self._fmu.enterInitializationMode)
 
     def exit_initialization_mode(self) -> None:
-        self._call("fmi2ExitInitializationMode", self._fmu.exitInitializationMode)
+        self._call(f"fmi{3 if self.fmi3 else 2}ExitInitializationMode", self._fmu.exitInitializationMode)
         if self.model_exchange:
             self._event_iteration()
             self._start_solver()
@@ -221,21 +250,26 @@ class FmuInstance:
             return
         mark = self._log_count
         try:
-            self._fmu.doStep(t, h)
+            result = self._fmu.doStep(t, h)
         except self._call_error as exc:
-            raise self._failure(f"fmi2DoStep(t = {format_time(t)} s, h = {format_time(h)} s)", exc.status, mark) from None
+            raise self._failure(f"fmi{3 if self.fmi3 else 2}DoStep(t = {format_time(t)} s, h = {format_time(h)} s)",
+                                exc.status, mark) from None
+        if self.fmi3 and result[1]:          # terminateSimulation
+            raise FmuError(self._describe(f"the FMU asked to end the simulation at t = {format_time(t + h)} s", mark))
 
     # -- model exchange ---------------------------------------------------------------
     def _event_iteration(self) -> None:
         """``fmi2NewDiscreteStates`` until the FMU needs no more, then continuous-time mode."""
+        update = ("fmi3UpdateDiscreteStates", self._fmu.updateDiscreteStates) if self.fmi3 else \
+            ("fmi2NewDiscreteStates", self._fmu.newDiscreteStates)
         while True:
-            needed, terminate = self._call("fmi2NewDiscreteStates", self._fmu.newDiscreteStates)[:2]
+            needed, terminate = self._call(*update)[:2]
             if terminate:
                 raise FmuError(self._describe(f"the FMU asked to end the simulation at t = "
                                               f"{format_time(self._time)} s", self._log_count - 3))
             if not needed:
                 break
-        self._call("fmi2EnterContinuousTimeMode", self._fmu.enterContinuousTimeMode)
+        self._call(f"fmi{3 if self.fmi3 else 2}EnterContinuousTimeMode", self._fmu.enterContinuousTimeMode)
 
     def _start_solver(self) -> None:
         """FMPy's CVode on the FMU's states, from the current time (the case's tolerance, else FMPy's default)."""
@@ -244,7 +278,8 @@ class FmuInstance:
         md, fmu = self.md, self._fmu
         self._solver = CVodeSolver(
             nx=md.numberOfContinuousStates, nz=md.numberOfEventIndicators, get_x=fmu.getContinuousStates,
-            set_x=fmu.setContinuousStates, get_dx=fmu.getDerivatives, get_z=fmu.getEventIndicators,
+            set_x=fmu.setContinuousStates,
+            get_dx=fmu.getContinuousStateDerivatives if self.fmi3 else fmu.getDerivatives, get_z=fmu.getEventIndicators,
             get_nominals=fmu.getNominalsOfContinuousStates, set_time=fmu.setTime, input=_NoInputs(),
             startTime=self._time, **({"relativeTolerance": self._tolerance} if self._tolerance else {}))
 
@@ -289,6 +324,9 @@ class FmuInstance:
         """
         from ctypes import c_double, c_uint
 
+        if self.fmi3 or self.model_exchange:
+            raise ValueError(f"step_through drives an FMI 2.0 co-simulation instance; {self.path.name} is run as FMI "
+                             f"{self.md.fmiVersion} {self.fmi_type}")
         functions = self._fmu._functions
         do_step, get_real, set_real = functions["fmi2DoStep"], functions["fmi2GetReal"], functions["fmi2SetReal"]
         component = self._fmu.component
@@ -318,22 +356,30 @@ class FmuInstance:
 
     def get_state(self):
         """``fmi2GetFMUstate``: an opaque copy of the instance's state (free it with :meth:`free_state`)."""
+        if self.fmi3:
+            return self._call("fmi3GetFMUState", self._fmu.getFMUState)
         return self._call("fmi2GetFMUstate", self._fmu.getFMUstate)
 
     def set_state(self, state) -> None:
-        self._call("fmi2SetFMUstate", self._fmu.setFMUstate, state)
+        if self.fmi3:
+            self._call("fmi3SetFMUState", self._fmu.setFMUState, state)
+        else:
+            self._call("fmi2SetFMUstate", self._fmu.setFMUstate, state)
 
     def free_state(self, state) -> None:
-        self._call("fmi2FreeFMUstate", self._fmu.freeFMUstate, state)
+        if self.fmi3:
+            self._call("fmi3FreeFMUState", self._fmu.freeFMUState, state)
+        else:
+            self._call("fmi2FreeFMUstate", self._fmu.freeFMUstate, state)
 
     def reset(self) -> None:
-        self._call("fmi2Reset", self._fmu.reset)
+        self._call(f"fmi{3 if self.fmi3 else 2}Reset", self._fmu.reset)
 
     def set_values(self, values: Iterable[tuple[str, Any]]) -> None:
         """Set variables by name (grouped per FMI type); in model exchange after initialisation,
         in event mode at the current time, then the event iteration and CVode restarted."""
         if self._solver is not None:
-            self._call("fmi2EnterEventMode", self._fmu.enterEventMode)
+            self._call(f"fmi{3 if self.fmi3 else 2}EnterEventMode", self._fmu.enterEventMode)
             self._set(values)
             self._event_iteration()
             self._solver.reset(self._time)
@@ -344,20 +390,20 @@ class FmuInstance:
         groups: dict[str, tuple[list, list]] = {}
         for name, value in values:
             var = self.variables[name]
-            vrs, vals = groups.setdefault(_setter_type(var.type), ([], []))
+            vrs, vals = groups.setdefault(_setter_type(var, self._own_types), ([], []))
             vrs.append(var.valueReference)
             vals.append(value)
         for kind, (vrs, vals) in groups.items():
             setter = getattr(self._fmu, f"set{kind}")
-            self._call(f"fmi2Set{kind}({', '.join(_names(self.md, vrs))})", setter, vrs, vals)
+            self._call(f"fmi{3 if self.fmi3 else 2}Set{kind}({', '.join(_names(self.md, vrs))})", setter, vrs, vals)
 
     def reader(self, names: Sequence[str]) -> Callable[[], list]:
         """A function returning the current values of ``names`` (in that order) as Python numbers."""
-        kinds = [_setter_type(self.variables[n].type) for n in names]
+        kinds = [_setter_type(self.variables[n], self._own_types) for n in names]
         vrs = [self.variables[n].valueReference for n in names]
         slave = self._fmu
-        if all(k == "Real" for k in kinds):
-            get_real = slave.getReal
+        if all(k in ("Real", "Float64") for k in kinds):
+            get_real = slave.getFloat64 if self.fmi3 else slave.getReal
             return lambda: get_real(vrs)
         groups: dict[str, list[int]] = {}
         for i, kind in enumerate(kinds):
@@ -387,8 +433,13 @@ class _NoInputs:
         return None
 
 
-def _setter_type(vtype: str) -> str:
-    return "Integer" if vtype == "Enumeration" else vtype
+def _setter_type(var, own_types: dict[str, str]) -> str:
+    """The suffix of FMPy's getter and setter of ``var``: FMI 2.0's type (an Enumeration is an
+    Integer), or FMI 3.0's own (``own_types``: Float64, Int32, ...; an Enumeration is an Int64)."""
+    own = own_types.get(var.name)
+    if own is not None:
+        return "Int64" if own == "Enumeration" else own
+    return "Integer" if var.type == "Enumeration" else var.type
 
 
 def _names(md, vrs) -> list[str]:

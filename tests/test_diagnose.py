@@ -131,15 +131,16 @@ def _check_printed_uncertainty(stdout: str, best: dict, unit: str) -> None:
 @pytest.mark.slow
 def test_a_mass_step_under_noise_is_sharpened_on_a_longer_window(tmp_path, native_fmu):
     """m3 +10 % at 10 s under 5 mm on six columns (seed 1): over the first 3 s after the alarm a
-    step at 10.26 s to 1.120 kg fits as well as the true one (within 2 in chi-square), so the
-    value is off by 1.8 %; fitted again on a longer window it is within issue 13's 1 %."""
+    step at 10.26 s to 1.120 kg fitted as well as the true one (within 2 in chi-square; 1.8 % off,
+    ± 1.1 %, with the build that found it); fitted again on a longer window it is within issue
+    13's 1 % and known to 0.25 %."""
     run = _monitored(tmp_path, native_fmu, "m3", stop=25.0, extra=_step("m3", 1.1) + _noise(0.005, ALL, 1))
     proc, d = _diagnose_cli(run)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     best, first = d["best"], d["first_fit"]
     assert best["parameter"] == "m3" and best["kind"] == "step"
     assert first is not None and first["parameter"] == "m3"
-    assert abs(first["value"] / 1.1 - 1) > 0.01                 # what the first window alone gave
+    assert first["stderr"] > 0.0025 * first["value"]            # loose over the first window: hence fitted again
     assert best["value"] == pytest.approx(1.1, rel=0.01)        # issue 13's target with 5 mm of noise
     assert best["change_time"] == pytest.approx(10.0, abs=0.05)
     assert best["stderr"] <= 0.0025 * best["value"]             # the precision it was sharpened to (the default)
@@ -193,9 +194,10 @@ def test_a_sensor_offset_is_a_change_outside_the_model(tmp_path, native_fmu):
 
 @pytest.mark.slow
 def test_a_ramp_is_identified_as_a_ramp(tmp_path, native_fmu):
-    """Case 3 (L2 ramp 1.0 -> 1.05 m over 20-30 s, σ = 5 mm on x2), noise seed 3, run to 32 s: over
-    the first 3 s after the alarm the ramp came out as 20.83-22.61 s at 9.6 mm/s; fitted again on
-    the 10 s after the alarm that the run holds, it is the whole ramp."""
+    """Case 3 (L2 ramp 1.0 -> 1.05 m over 20-30 s, σ = 5 mm on x2), noise seed 3, run to 32 s: the
+    first 3 s after the alarm cannot hold the ramp's end (they gave 20.83-22.61 s at 9.6 mm/s
+    with one build's round-off, 5.3 mm/s with another's); fitted again on the 10 s after the
+    alarm that the run holds, it is the whole ramp."""
     path = case_file("case3_ramp_noise", native_fmu, tmp_path / "case3.toml", name="case3", seed=3)
     subprocess.run([FOURBAR_RUN, str(path), "--out", str(tmp_path / "case3"), "--stop", "32", "--quiet"],
                    check=True, timeout=600)
@@ -209,7 +211,8 @@ def test_a_ramp_is_identified_as_a_ramp(tmp_path, native_fmu):
         return (f["value"] - f["before"]) / (f["end_time"] - f["change_time"])
 
     assert best["parameter"] == "L2" and best["kind"] == "ramp"
-    assert first["kind"] == "ramp" and abs(rate(first) / 0.005 - 1) > 0.2     # the first window alone: 9.6 mm/s
+    # the first window ends 3 s after the alarm (about 25 s): it cannot hold the ramp's end at 30 s
+    assert first["kind"] == "ramp" and first["end_time"] <= d["window"][1] < 28.0
     # truth: 20-30 s at 5 mm/s, measured by 5 mm noise on x2; tolerances a few of the stated
     # standard errors (0.04 mm/s on the rate) and a tenth of a period on the times
     assert best["change_time"] == pytest.approx(20.0, abs=0.3)
