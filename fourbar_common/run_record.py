@@ -459,7 +459,7 @@ class _Parser:
         values = [self.text(table, key, "fmu.") for key in ("path", "guid", "model_name")]
         if None in values:       # schema 1 without them
             return None
-        fmi_type = self.text(table, "fmi_type", "fmu.", default="CoSimulation")
+        fmi_type = table.get("fmi_type", "CoSimulation")   # optional: runs written before it are co-simulation
         if fmi_type not in ("CoSimulation", "ModelExchange"):
             raise RunRecordError(f"{self.source}: field 'fmu.fmi_type' = {fmi_type!r}: expected 'CoSimulation' or "
                                  f"'ModelExchange'")
