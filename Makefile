@@ -13,7 +13,7 @@ VIEW     ?= 1
 DEMO_SPEED := $(if $(filter 1,$(REALTIME)),1,$(SPEEDUP))
 # What the FMUs are built from: the generated code lives only in the build (and build/generated/).
 FMU_SOURCES := build_fmu.py $(wildcard fmu_src/*.py fmu_src/mechanism/*.py fmu_src/mechanism_model/*.py \
-               fmu_src/mechanisms/*.toml fmu_src/native/*.[ch])
+               fmu_src/mechanisms/*.toml fmu_src/native/*.[ch] fmu_src/native/fmi3/*.[ch])
 MECHANISMS  := $(basename $(notdir $(wildcard fmu_src/mechanisms/*.toml)))
 
 .PHONY: demo test check fmu mechanisms browser benchmarks figures clean help

@@ -2,14 +2,17 @@
 """Build a mechanism's FMUs from one sympy derivation and validate them with FMPy.
 
 - build/<Name>.fmu        pythonfmu (the FMU of record; needs Python in the host)
-- build/<Name>Native.fmu  the same equations printed as C and compiled (needs nothing);
-                          built when a C compiler is found
+- build/<Name>Native.fmu  the same equations printed as C and compiled (needs nothing), FMI 2.0
+                          co-simulation and model exchange; built when a C compiler is found
+- build/<Name>Native3.fmu the same C model behind the FMI 3.0 layer (co-simulation and model
+                          exchange); built beside it (--fmi picks: 2, 3 or all)
 
 The mechanism is a description file (docs/mechanisms.md): a name shipped in
 fmu_src/mechanisms/ (default: fourbar, Table 1's linkage, giving FourBar.fmu) or a path.
 
-Usage: python build_fmu.py [--mechanism NAME|PATH] [--only {pythonfmu,native}] [--out PATH]
-                           [--native-out PATH] [--force] [--no-validate] [--list]
+Usage: python build_fmu.py [--mechanism NAME|PATH] [--only {pythonfmu,native}] [--fmi {2,3,all}]
+                           [--out PATH] [--native-out PATH] [--native3-out PATH] [--force]
+                           [--no-validate] [--list]
 """
 from __future__ import annotations
 
@@ -20,14 +23,15 @@ from pathlib import Path
 
 _EPILOG = """\
 examples:
-  python build_fmu.py                      # build/FourBar.fmu and build/FourBarNative.fmu (Table 1)
+  python build_fmu.py                      # build/FourBar.fmu, FourBarNative.fmu and FourBarNative3.fmu (Table 1)
   python build_fmu.py --mechanism slider_crank      # build/SliderCrank.fmu and SliderCrankNative.fmu
   python build_fmu.py --mechanism my_machine.toml   # your own mechanism file (docs/mechanisms.md)
   python build_fmu.py --list               # the shipped mechanisms
-  python build_fmu.py --only native        # just the native FMU
+  python build_fmu.py --only native        # just the native FMUs (FMI 2.0 and 3.0)
+  python build_fmu.py --only native --fmi 3 # just build/FourBarNative3.fmu (FMI 3.0)
   CC=clang python build_fmu.py             # choose the C compiler
 
---out and --native-out name files: an existing FMU there is replaced, any other existing
+--out, --native-out and --native3-out name files: an existing FMU there is replaced, any other existing
 file only with --force, a directory never, nor a file in a folder this user cannot write in
 (exit 2, nothing written).  The new FMU replaces the old one only once it is complete.
 exit status: 0 built (and valid), 1 a build failed or fmpy validate found problems, 2 usage error
@@ -48,7 +52,7 @@ def _destination_problem(option: str, value: str, force: bool, name: str = "Four
     """Why ``value`` cannot be written as an FMU (a message naming ``option``), or None."""
     path = Path(value)
     if path.is_dir():
-        example = path / (f"{name}.fmu" if option == "--out" else f"{name}Native.fmu")
+        example = path / {"--out": f"{name}.fmu", "--native3-out": f"{name}Native3.fmu"}.get(option, f"{name}Native.fmu")
         return f"{option} {value}: is a directory; expected the path of the .fmu file to write, e.g. {example}"
     if path.exists() and not force and not _is_fmu(path):
         return (f"{option} {value}: exists and is not an FMU (no zip with a modelDescription.xml); "
@@ -105,17 +109,24 @@ def _report(label: str, path, guid: str, problems, validate: bool, extra: str = 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
         prog="build_fmu.py", epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Build a planar mechanism (default: Table 1's four-bar) as FMI 2.0 co-simulation FMUs: "
-                    "<Name>.fmu (pythonfmu) and <Name>Native.fmu (generated C, no Python needed), then "
-                    "validate them with FMPy.")
+        description="Build a planar mechanism (default: Table 1's four-bar) as FMUs: <Name>.fmu (pythonfmu, "
+                    "FMI 2.0 co-simulation), <Name>Native.fmu and <Name>Native3.fmu (generated C, no Python "
+                    "needed; FMI 2.0 and FMI 3.0, co-simulation and model exchange each), then validate them "
+                    "with FMPy.")
     parser.add_argument("--mechanism", default="fourbar", metavar="NAME|PATH",
                         help="a mechanism shipped in fmu_src/mechanisms/ or the path of a mechanism file "
                              "(default: %(default)s)")
     parser.add_argument("--list", action="store_true", help="list the shipped mechanisms and exit")
     parser.add_argument("--only", choices=("pythonfmu", "native"),
                         help="build just one of the two FMUs (default: both; native only if a C compiler exists)")
+    parser.add_argument("--fmi", choices=("2", "3", "all"), default="all",
+                        help="the FMI versions of the native FMU: 2 (<Name>Native.fmu), 3 (<Name>Native3.fmu) "
+                             "or all (default: %(default)s; the pythonfmu FMU is FMI 2.0 only)")
     parser.add_argument("--out", help="where to write the pythonfmu FMU (default: build/<Name>.fmu)")
-    parser.add_argument("--native-out", help="where to write the native FMU (default: build/<Name>Native.fmu)")
+    parser.add_argument("--native-out", help="where to write the FMI 2.0 native FMU (default: build/<Name>Native.fmu)")
+    parser.add_argument("--native3-out",
+                        help="where to write the FMI 3.0 native FMU (default: beside --native-out, its name with a 3 "
+                             "appended, e.g. N.fmu -> N3.fmu; without --native-out build/<Name>Native3.fmu)")
     parser.add_argument("--force", action="store_true",
                         help="replace an existing --out/--native-out file even if it is not an FMU "
                              "(an existing FMU is always replaced; a directory never is)")
@@ -131,7 +142,8 @@ def main(argv=None) -> int:
         for name in shipped_mechanisms():
             try:
                 mech = load_mechanism(name)
-                print(f"{name:16s} {mech.name}.fmu / {mech.name}Native.fmu: {mech.description}")
+                print(f"{name:16s} {mech.name}.fmu / {mech.name}Native.fmu / {mech.name}Native3.fmu: "
+                      f"{mech.description}")
             except MechanismError as exc:
                 print(f"{name:16s} (broken: {exc})")
         return 0
@@ -141,9 +153,16 @@ def main(argv=None) -> int:
         print(f"build_fmu.py: error: {exc}", file=sys.stderr)
         return 2
     args.out = args.out or f"build/{mech.name}.fmu"
+    native_named = args.native_out is not None and not Path(args.native_out).is_dir()
     args.native_out = args.native_out or f"build/{mech.name}Native.fmu"
+    # FMI 3.0's beside FMI 2.0's: next to --native-out when that is given (N.fmu -> N3.fmu)
+    args.native3_out = args.native3_out or (str(Path(args.native_out).with_name(Path(args.native_out).stem + "3.fmu"))
+                                            if native_named else f"build/{mech.name}Native3.fmu")
+    args.fmi_versions = (2, 3) if args.fmi == "all" else (int(args.fmi),)
     targets = [("--out", args.out)] if args.only in (None, "pythonfmu") else []
-    targets += [("--native-out", args.native_out)] if args.only in (None, "native") else []
+    if args.only in (None, "native"):
+        targets += [("--native-out", args.native_out)] if 2 in args.fmi_versions else []
+        targets += [("--native3-out", args.native3_out)] if 3 in args.fmi_versions else []
     problems = [p for p in (_destination_problem(option, value, args.force, mech.name) for option, value in targets)
                 if p]
     for problem in problems:
@@ -179,22 +198,26 @@ def _build(args) -> int:
         ok &= _report("pythonfmu FMU", result.path, result.guid, result.problems, args.validate)
     if args.only in (None, "native"):
         from fmu_src.native_build import CompilerNotFound, build_native_fmu
-        try:
-            native = build_native_fmu(args.native_out, validate=args.validate, mechanism=args.mechanism)
-        except CompilerNotFound as exc:
-            if args.only == "native":
-                print(f"build_fmu.py: error: native FMU: {exc}", file=sys.stderr)
+        for version in args.fmi_versions:
+            label = "native FMU" if version == 2 else "native FMU (FMI 3.0)"
+            dest = args.native_out if version == 2 else args.native3_out
+            try:
+                native = build_native_fmu(dest, validate=args.validate, mechanism=args.mechanism,
+                                          fmi_version=version)
+            except CompilerNotFound as exc:
+                if args.only == "native":
+                    print(f"build_fmu.py: error: {label}: {exc}", file=sys.stderr)
+                    return 1
+                print(f"native FMU not built: {exc}; then run `python build_fmu.py --only native`")
+                return 0 if ok else 1
+            except RuntimeError as exc:
+                print(f"build_fmu.py: error: {label}: {exc}", file=sys.stderr)
                 return 1
-            print(f"native FMU not built: {exc}; then run `python build_fmu.py --only native`")
-            return 0 if ok else 1
-        except RuntimeError as exc:
-            print(f"build_fmu.py: error: native FMU: {exc}", file=sys.stderr)
-            return 1
-        except OSError as exc:
-            print(f"build_fmu.py: error: native FMU: {_write_failure(args.native_out, exc)}", file=sys.stderr)
-            return 1
-        ok &= _report("native FMU", native.path, native.guid, native.problems, args.validate,
-                      f", binaries: {', '.join(native.platforms)}")
+            except OSError as exc:
+                print(f"build_fmu.py: error: {label}: {_write_failure(dest, exc)}", file=sys.stderr)
+                return 1
+            ok &= _report(label, native.path, native.guid, native.problems, args.validate,
+                          f", binaries: {', '.join(native.platforms)}")
     return 0 if ok else 1
 
 

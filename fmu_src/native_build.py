@@ -31,6 +31,7 @@ from typing import Mapping
 from xml.etree import ElementTree as ET
 
 from fourbar_common import replace_atomically
+from fourbar_common.drawing import TOOL_NAME
 
 from .build import unit_definitions
 from .c_codegen import GENERATED_FILES, generate_c_sources
@@ -41,7 +42,8 @@ from .mechanism.drawing import drawing_of
 from .mechanism.table import model_exchange_states, native_variable_table
 
 __all__ = ["NativeBuildResult", "CompilerNotFound", "build_native_fmu", "find_compiler", "model_identifier",
-           "native_sources", "MODEL_IDENTIFIER", "HAND_WRITTEN", "GENERATED"]
+           "native_sources", "model_description", "fmi3_model_description", "build_description", "MODEL_IDENTIFIER",
+           "HAND_WRITTEN", "HAND_WRITTEN_FMI3", "GENERATED", "FMI_VERSIONS"]
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
@@ -52,12 +54,19 @@ MODEL_IDENTIFIER = "FourBarNative"
 #: (force-included there only).  None of it knows a mechanism.
 HAND_WRITTEN = ("fmi2Functions.c", "model.c", "model.h", "dae.c", "dae.h", "linalg.h", "rk.c", "rk.h",
                 "glibc_compat.h")
+#: The FMI 3.0 FMU's: the same model, behind the FMI 3.0 layer (fmu_src/native/fmi3/fmi3Functions.c: a
+#: folder of its own, so that fmu_src/native/ holds exactly the FMI 2.0 FMU's hand-written C).
+HAND_WRITTEN_FMI3 = tuple("fmi3/fmi3Functions.c" if name == "fmi2Functions.c" else name for name in HAND_WRITTEN)
 #: Force-included in the linux64 build: libm symbols bound to versions glibc 2.17 has.
 GLIBC_COMPAT = "glibc_compat.h"
 #: The generated C (``c_codegen``), per mechanism.
 GENERATED = GENERATED_FILES
 #: The standard FMI 2.0 headers (2-clause BSD), as FMPy ships them.
 FMI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+#: The standard FMI 3.0 headers (2-clause BSD), as FMPy ships them.
+FMI3_HEADERS = ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")
+#: The FMI versions a native FMU is built for (``build_native_fmu``'s ``fmi_version``).
+FMI_VERSIONS = (2, 3)
 _C_FLAGS = ("-std=c99", "-O3", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra")
 #: Link-time optimisation, when the compiler can: the generated equations (equations.c) inline
 #: into the run-time that calls them at every evaluation (dae.c).  Measured in-process, 100 s at
@@ -84,6 +93,7 @@ class NativeBuildResult:
     platforms: tuple[str, ...]
     problems: tuple[str, ...]
     model_identifier: str = MODEL_IDENTIFIER
+    fmi_version: int = 2
 
 
 def find_compiler() -> str | None:
@@ -96,9 +106,15 @@ def find_compiler() -> str | None:
     return None
 
 
-def model_identifier(eqs: MechanismEquations) -> str:
-    """``<Name>Native``: the native FMU's model identifier (and its library's name)."""
-    return f"{eqs.mechanism.name}Native"
+def model_identifier(eqs: MechanismEquations, fmi_version: int = 2) -> str:
+    """``<Name>Native`` (FMI 2.0) or ``<Name>Native3`` (FMI 3.0): the native FMU's model identifier,
+    its library's name and its file's (``build/<identifier>.fmu``)."""
+    return f"{eqs.mechanism.name}Native" + ("3" if fmi_version == 3 else "")
+
+
+def _check_version(fmi_version: int) -> None:
+    if fmi_version not in FMI_VERSIONS:
+        raise ValueError(f"fmi_version = {fmi_version!r}: must be one of {', '.join(map(str, FMI_VERSIONS))}")
 
 
 def _fmi_header_dir() -> Path:
@@ -107,42 +123,112 @@ def _fmi_header_dir() -> Path:
     return Path(fmpy.__file__).resolve().parent / "c-code"
 
 
-def native_sources(eqs: MechanismEquations, guid: str, replace: Mapping[str, bytes] | None = None) -> dict[str, bytes]:
-    """Every file of the FMU's ``sources/``: generated, hand-written and the FMI headers."""
-    files = {name: text.encode() for name, text in generate_c_sources(eqs, guid, model_identifier(eqs)).items()}
-    for name in HAND_WRITTEN:
-        files[name] = (HERE / "native" / name).read_bytes()
+def native_sources(eqs: MechanismEquations, guid: str, replace: Mapping[str, bytes] | None = None,
+                   fmi_version: int = 2) -> dict[str, bytes]:
+    """Every file of the FMU's ``sources/``: generated, hand-written and the FMI headers (the
+    FMI 2.0 layer and headers, or the FMI 3.0 ones, over the same model).  ``guid`` is what
+    variables.h's FB_GUID holds: the FMI 2.0 GUID or the FMI 3.0 instantiation token."""
+    _check_version(fmi_version)
+    files = {name: text.encode()
+             for name, text in generate_c_sources(eqs, guid, model_identifier(eqs, fmi_version)).items()}
+    for name in (HAND_WRITTEN_FMI3 if fmi_version == 3 else HAND_WRITTEN):
+        files[Path(name).name] = (HERE / "native" / name).read_bytes()     # sources/ is flat
     headers = _fmi_header_dir()
-    for name in FMI_HEADERS:
+    for name in (FMI3_HEADERS if fmi_version == 3 else FMI_HEADERS):
         files[name] = (headers / name).read_bytes()
     files.update(replace or {})
     return files
 
 
-def _guid(eqs: MechanismEquations, replace: Mapping[str, bytes] | None = None) -> str:
+def _guid(eqs: MechanismEquations, replace: Mapping[str, bytes] | None = None, fmi_version: int = 2) -> str:
     """A stable GUID: a hash of the sources (with a placeholder GUID), the variable table and the
-    drawing annotation."""
+    drawing annotation.  FMI 3.0's instantiation token is the GUID of its own sources, in braces
+    (as the Reference-FMUs write theirs)."""
     digest = hashlib.sha256()
-    for name, data in sorted(native_sources(eqs, "GUID", replace).items()):
+    for name, data in sorted(native_sources(eqs, "GUID", replace, fmi_version).items()):
         digest.update(name.encode() + b"\0" + data + b"\0")
     digest.update(repr(native_variable_table(eqs)).encode())
     digest.update(ET.tostring(drawing_of(eqs.mechanism).to_annotation()))
-    return str(uuid.UUID(bytes=digest.digest()[:16], version=5))
+    guid = str(uuid.UUID(bytes=digest.digest()[:16], version=5))
+    return "{" + guid + "}" if fmi_version == 3 else guid
 
 
-def model_description(eqs: MechanismEquations, guid: str, source_files) -> bytes:
-    """The native FMU's modelDescription.xml, from the mechanism's variable table, with the
-    drawing annotation (``mechanism.drawing``) between DefaultExperiment and ModelVariables."""
+@dataclass(frozen=True)
+class _Structure:
+    """What both model descriptions declare, by value reference: the outputs, each state's
+    derivative with the one state it depends on (a coordinate's derivative is its rate, exactly:
+    None for a rate's and a driver's power, which depend on every state) and the initial unknowns."""
+
+    outputs: tuple[int, ...]
+    derivatives: tuple[tuple[int, int | None], ...]
+    initial: tuple[int, ...]
+    state_of: dict[int, int]             # der(x)'s value reference -> x's
+
+
+def _structure(eqs: MechanismEquations) -> _Structure:
+    table = native_variable_table(eqs)
+    vr = {var.name: k for k, var in enumerate(table)}
+    states = [name for name, _, _ in model_exchange_states(eqs)]
+    n_coordinates = len(eqs.mechanism.independent)
+    derivatives = tuple((vr[f"der({name})"], vr[states[n_coordinates + k]] if k < n_coordinates else None)
+                        for k, name in enumerate(states))
+    outputs = tuple(k for k, var in enumerate(table) if var.causality == "output")
+    initial = tuple(k for k, var in enumerate(table)
+                    if var.causality == "output" or var.name in states or var.name.startswith("der("))
+    state_of = {vr[f"der({name})"]: vr[name] for name in states}
+    return _Structure(outputs, derivatives, initial, state_of)
+
+
+def _description_text(eqs: MechanismEquations) -> str:
+    return (f"{eqs.mechanism.description}: Lagrange-multiplier DAE derived with sympy and printed as C, "
+            f"coordinate partitioning, DOP853/RK45 in C (co-simulation) or the host's solver (model "
+            f"exchange), parameters tunable for fault injection; needs no Python")
+
+
+_HEADER_ATTRIBUTES = {"author": "fourbar-cosim developers", "license": "MIT", "version": "0.2.0",
+                      "generationTool": "fourbar-cosim build_fmu.py (sympy C printer)",
+                      "variableNamingConvention": "structured"}
+_LOG_CATEGORIES = (("logStatusWarning", "Messages with {v}Warning status."),
+                   ("logStatusDiscard", "Messages with {v}Discard status."),
+                   ("logStatusError", "Messages with {v}Error status: failed steps, invalid parameters."),
+                   ("logStatusFatal", "Messages with {v}Fatal status."),
+                   ("logAll", "Every message, including applied parameter changes."))
+_DEFAULT_EXPERIMENT = {"startTime": "0.0", "stopTime": "100.0", "stepSize": "0.01", "tolerance": "1e-09"}
+
+
+def _log_categories(prefix: str) -> ET.Element:
+    categories = ET.Element("LogCategories")
+    for name, text in _LOG_CATEGORIES:
+        ET.SubElement(categories, "Category", {"name": name, "description": text.format(v=prefix)})
+    return categories
+
+
+def _variable_attributes(var) -> dict[str, str]:
+    """unit, min, max, displayUnit of a variable (both FMI versions write them alike)."""
+    attrs = {}
+    if var.unit:
+        attrs["unit"] = var.unit
+    if var.minimum is not None:
+        attrs["min"] = repr(var.minimum)
+    if var.maximum is not None:
+        attrs["max"] = repr(var.maximum)
+    if var.display_unit:
+        attrs["displayUnit"] = var.display_unit
+    return attrs
+
+
+def model_description(eqs: MechanismEquations, guid: str, source_files, fmi_version: int = 2) -> bytes:
+    """The native FMU's modelDescription.xml (FMI 2.0, or FMI 3.0: ``fmi3_model_description``),
+    from the mechanism's variable table, with the drawing annotation (``mechanism.drawing``)
+    between DefaultExperiment and ModelVariables."""
+    _check_version(fmi_version)
+    if fmi_version == 3:
+        return fmi3_model_description(eqs, guid)
     mech = eqs.mechanism
     identifier = model_identifier(eqs)
     root = ET.Element("fmiModelDescription", {
-        "fmiVersion": "2.0", "modelName": identifier, "guid": guid,
-        "description": f"{mech.description}: Lagrange-multiplier DAE derived with sympy and printed as C, "
-                       f"coordinate partitioning, DOP853/RK45 in C (co-simulation) or the host's solver (model "
-                       f"exchange), parameters tunable for fault injection; needs no Python",
-        "author": "fourbar-cosim developers", "license": "MIT", "version": "0.2.0",
-        "generationTool": "fourbar-cosim build_fmu.py (sympy C printer)",
-        "variableNamingConvention": "structured", "numberOfEventIndicators": "0"})
+        "fmiVersion": "2.0", "modelName": identifier, "guid": guid, "description": _description_text(eqs),
+        **_HEADER_ATTRIBUTES, "numberOfEventIndicators": "0"})
     cs = ET.SubElement(root, "CoSimulation", {
         "modelIdentifier": identifier, "needsExecutionTool": "false",
         "canHandleVariableCommunicationStepSize": "true", "canInterpolateInputs": "false",
@@ -159,58 +245,110 @@ def model_description(eqs: MechanismEquations, guid: str, source_files) -> bytes
         for name in source_files:
             ET.SubElement(files, "File", {"name": name})
     root.append(unit_definitions())
-    categories = ET.SubElement(root, "LogCategories")
-    for name, text in (("logStatusWarning", "Messages with fmi2Warning status."),
-                       ("logStatusDiscard", "Messages with fmi2Discard status."),
-                       ("logStatusError", "Messages with fmi2Error status: failed steps, invalid parameters."),
-                       ("logStatusFatal", "Messages with fmi2Fatal status."),
-                       ("logAll", "Every message, including applied parameter changes.")):
-        ET.SubElement(categories, "Category", {"name": name, "description": text})
-    ET.SubElement(root, "DefaultExperiment", {"startTime": "0.0", "stopTime": "100.0", "stepSize": "0.01",
-                                              "tolerance": "1e-09"})
+    root.append(_log_categories("fmi2"))
+    ET.SubElement(root, "DefaultExperiment", _DEFAULT_EXPERIMENT)
     root.append(drawing_of(mech).to_annotation())
     variables = ET.SubElement(root, "ModelVariables")
     table = native_variable_table(eqs)
-    index = {var.name: vr + 1 for vr, var in enumerate(table)}          # ScalarVariable indices (1-based)
-    states = [name for name, _, _ in model_exchange_states(eqs)]
-    outputs, initial = [], []
+    structure = _structure(eqs)
     for vr, var in enumerate(table):
         sv = ET.SubElement(variables, "ScalarVariable", {
             "name": var.name, "valueReference": str(vr), "description": var.description,
             "causality": var.causality, "variability": var.variability})
         attrs = {}
-        if var.name.startswith("der(") and var.name[4:-1] in index:
-            attrs["derivative"] = str(index[var.name[4:-1]])
+        if vr in structure.state_of:
+            attrs["derivative"] = str(structure.state_of[vr] + 1)       # ScalarVariable indices (1-based)
         if var.start is not None:
             attrs["start"] = repr(float(var.start)) if var.type == "Real" else str(var.start)
-        if var.unit:
-            attrs["unit"] = var.unit
-        if var.minimum is not None:
-            attrs["min"] = repr(var.minimum)
-        if var.maximum is not None:
-            attrs["max"] = repr(var.maximum)
-        if var.display_unit:
-            attrs["displayUnit"] = var.display_unit
+        attrs.update(_variable_attributes(var))
         ET.SubElement(sv, var.type, attrs)
-        if var.causality == "output":
-            outputs.append(vr + 1)
-        if var.causality == "output" or var.name in states or var.name.startswith("der("):
-            initial.append(vr + 1)
-    structure = ET.SubElement(root, "ModelStructure")
-    group = ET.SubElement(structure, "Outputs")
-    for i in outputs:
-        ET.SubElement(group, "Unknown", {"index": str(i)})
-    # A coordinate's derivative is its rate, exactly; a rate's (and a driver's power) depends on every state.
-    group = ET.SubElement(structure, "Derivatives")
-    n_coordinates = len(eqs.mechanism.independent)
-    for k, name in enumerate(states):
-        attrs = {"index": str(index[f"der({name})"])}
-        if k < n_coordinates:
-            attrs.update(dependencies=str(index[states[n_coordinates + k]]), dependenciesKind="fixed")
+    element = ET.SubElement(root, "ModelStructure")
+    group = ET.SubElement(element, "Outputs")
+    for vr in structure.outputs:
+        ET.SubElement(group, "Unknown", {"index": str(vr + 1)})
+    group = ET.SubElement(element, "Derivatives")
+    for der, depends in structure.derivatives:
+        attrs = {"index": str(der + 1)}
+        if depends is not None:
+            attrs.update(dependencies=str(depends + 1), dependenciesKind="fixed")
         ET.SubElement(group, "Unknown", attrs)
-    group = ET.SubElement(structure, "InitialUnknowns")
-    for i in initial:
-        ET.SubElement(group, "Unknown", {"index": str(i)})
+    group = ET.SubElement(element, "InitialUnknowns")
+    for vr in structure.initial:
+        ET.SubElement(group, "Unknown", {"index": str(vr + 1)})
+    ET.indent(root)
+    return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+
+
+def fmi3_model_description(eqs: MechanismEquations, token: str) -> bytes:
+    """The FMI 3.0 FMU's modelDescription.xml: the same variables with the same value references
+    as Float64 (Real) and String (``integrator``), the independent variable ``time`` after them
+    (value reference FB_N_VARIABLES, as fmi3Functions.c reads it), ``derivative`` naming the
+    state's value reference, ``<ModelStructure>`` by value reference, and the drawing as an FMI 3.0
+    annotation (``<Annotations><Annotation type="fourbar-cosim">``, the same ``<Drawing>`` inside)."""
+    mech = eqs.mechanism
+    identifier = model_identifier(eqs, 3)
+    root = ET.Element("fmiModelDescription", {
+        "fmiVersion": "3.0", "modelName": identifier, "instantiationToken": token,
+        "description": _description_text(eqs), **_HEADER_ATTRIBUTES})
+    common = {"modelIdentifier": identifier, "needsExecutionTool": "false",
+              "canBeInstantiatedOnlyOncePerProcess": "false", "canGetAndSetFMUState": "true",
+              "canSerializeFMUState": "true", "providesDirectionalDerivatives": "false",
+              "providesAdjointDerivatives": "false", "providesPerElementDependencies": "false"}
+    ET.SubElement(root, "ModelExchange", {**common, "needsCompletedIntegratorStep": "true",
+                                          "providesEvaluateDiscreteStates": "false"})
+    ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true",
+                                         "maxOutputDerivativeOrder": "0", "providesIntermediateUpdate": "false",
+                                         "mightReturnEarlyFromDoStep": "false",
+                                         "canReturnEarlyAfterIntermediateUpdate": "false", "hasEventMode": "false",
+                                         "providesEvaluateDiscreteStates": "false"})
+    root.append(unit_definitions())
+    root.append(_log_categories("fmi3"))
+    ET.SubElement(root, "DefaultExperiment", _DEFAULT_EXPERIMENT)
+    variables = ET.SubElement(root, "ModelVariables")
+    table = native_variable_table(eqs)
+    structure = _structure(eqs)
+    ET.SubElement(variables, "Float64", {"name": "time", "valueReference": str(len(table)),
+                                         "description": "Simulation time", "causality": "independent",
+                                         "variability": "continuous", "unit": "s"})
+    for vr, var in enumerate(table):
+        attrs = {"name": var.name, "valueReference": str(vr), "description": var.description,
+                 "causality": var.causality, "variability": var.variability}
+        if var.type == "String":
+            element = ET.SubElement(variables, "String", attrs)
+            ET.SubElement(element, "Start", {"value": str(var.start)})
+            continue
+        if vr in structure.state_of:
+            attrs["derivative"] = str(structure.state_of[vr])
+        if var.start is not None:
+            attrs["start"] = repr(float(var.start))
+        attrs.update(_variable_attributes(var))
+        ET.SubElement(variables, "Float64", attrs)
+    element = ET.SubElement(root, "ModelStructure")
+    for vr in structure.outputs:
+        ET.SubElement(element, "Output", {"valueReference": str(vr)})
+    for der, depends in structure.derivatives:
+        attrs = {"valueReference": str(der)}
+        if depends is not None:
+            attrs.update(dependencies=str(depends), dependenciesKind="constant")
+        ET.SubElement(element, "ContinuousStateDerivative", attrs)
+    for vr in structure.initial:
+        ET.SubElement(element, "InitialUnknown", {"valueReference": str(vr)})
+    annotations = ET.SubElement(root, "Annotations")
+    annotation = ET.SubElement(annotations, "Annotation", {"type": TOOL_NAME})
+    tool = drawing_of(mech).to_annotation().find("Tool")        # FMI 2.0's <VendorAnnotations><Tool>
+    annotation.extend(list(tool))
+    ET.indent(root)
+    return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+
+
+def build_description(eqs: MechanismEquations, source_files) -> bytes:
+    """FMI 3.0's sources/buildDescription.xml: how ``fmpy compile`` (or any importer) builds the
+    binary from sources/ (C99, the .c files; on linux the glibc pinning header is optional)."""
+    root = ET.Element("fmiBuildDescription", {"fmiVersion": "3.0"})
+    config = ET.SubElement(root, "BuildConfiguration", {"modelIdentifier": model_identifier(eqs, 3)})
+    files = ET.SubElement(config, "SourceFileSet", {"language": "C99"})
+    for name in source_files:
+        ET.SubElement(files, "SourceFile", {"name": name})
     ET.indent(root)
     return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
 
@@ -226,15 +364,16 @@ def _compile(compiler: str, source_dir: Path, sources: list[str], output: Path, 
         raise RuntimeError(f"compiling the native FMU failed ({' '.join(command(()))}):\n{proc.stderr.strip()}")
 
 
-def _platform() -> tuple[str, str]:
-    """FMI 2.0 binary folder and library suffix of this machine."""
+def _platform(fmi_version: int = 2) -> tuple[str, str]:
+    """The binary folder (FMI 2.0's, or FMI 3.0's platform tuple) and library suffix of this machine."""
+    machine = "aarch64" if platform.machine().lower() in ("arm64", "aarch64") else "x86_64"
     if sys.platform.startswith("linux"):
-        return "linux64", ".so"
+        return ("linux64" if fmi_version == 2 else f"{machine}-linux"), ".so"
     if sys.platform == "darwin":
-        return "darwin64", ".dylib"
+        return ("darwin64" if fmi_version == 2 else f"{machine}-darwin"), ".dylib"
     if sys.platform == "win32":
-        return "win64", ".dll"
-    raise RuntimeError(f"no FMI 2.0 platform folder for {sys.platform}")
+        return ("win64" if fmi_version == 2 else "x86_64-windows"), ".dll"
+    raise RuntimeError(f"no FMI {fmi_version}.0 platform folder for {sys.platform}")
 
 
 def _write_editor_copies(identifier: str, files: Mapping[str, bytes]) -> None:
@@ -254,11 +393,13 @@ def _write_editor_copies(identifier: str, files: Mapping[str, bytes]) -> None:
 
 def build_native_fmu(dest: str | Path | None = None, mechanism: str | Path | Mechanism | None = "fourbar",
                      validate: bool = True, compiler: str | None = None,
-                     replace: Mapping[str, bytes] | None = None) -> NativeBuildResult:
+                     replace: Mapping[str, bytes] | None = None, fmi_version: int = 2) -> NativeBuildResult:
     """Generate, compile and package a mechanism's native FMU at ``dest``; validate it with FMPy.
 
     ``mechanism`` is a shipped name (fmu_src/mechanisms/NAME.toml), a path or a Mechanism
-    (default: the four-bar); ``dest`` defaults to build/<Name>Native.fmu.  ``replace`` swaps
+    (default: the four-bar); ``dest`` defaults to build/<Name>Native.fmu, or for ``fmi_version``
+    3 build/<Name>Native3.fmu (FMI 3.0: fmi3Functions.c over the same model; binaries in the
+    platform-tuple folder, e.g. x86_64-linux; sources/buildDescription.xml).  ``replace`` swaps
     source files by name (the benchmarks' floor FMU replaces ``model.c``).  Raises
     MechanismError for a description with a mistake, :class:`CompilerNotFound` when no C
     compiler can be found, RuntimeError when compiling fails, OSError when ``dest`` cannot be
@@ -271,12 +412,13 @@ def build_native_fmu(dest: str | Path | None = None, mechanism: str | Path | Mec
                                    f"command on PATH; set CC to an installed C compiler, or unset it to use "
                                    f"cc, gcc or clang")
         raise CompilerNotFound("no C compiler found (set CC, or install gcc or clang)")
+    _check_version(fmi_version)
     eqs = prepare_mechanism(mechanism if mechanism is not None else "fourbar").equations
-    identifier = model_identifier(eqs)
+    identifier = model_identifier(eqs, fmi_version)
     dest = Path(dest if dest is not None else Path("build") / f"{identifier}.fmu").resolve()
-    guid = _guid(eqs, replace)
-    files = native_sources(eqs, guid, replace)
-    if not replace and dest.is_relative_to(REPO):       # a build for the repository, not a test's
+    guid = _guid(eqs, replace, fmi_version)
+    files = native_sources(eqs, guid, replace, fmi_version)
+    if not replace and dest.is_relative_to(REPO) and fmi_version == 2:   # a build for the repository, not a test's
         _write_editor_copies(identifier, files)
     c_files = sorted(name for name in files if name.endswith(".c"))
     platforms = []
@@ -286,26 +428,30 @@ def build_native_fmu(dest: str | Path | None = None, mechanism: str | Path | Mec
         src.mkdir()
         for name, data in files.items():
             (src / name).write_bytes(data)
-        folder, suffix = _platform()
+        folder, suffix = _platform(fmi_version)
         library = stage / (identifier + suffix)
-        pin_glibc = folder == "linux64" and platform.libc_ver()[0] == "glibc"
+        pin_glibc = sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc"
         _compile(compiler, src, c_files, library, extra=("-include", str(src / GLIBC_COMPAT)) if pin_glibc else ())
         binaries = [(f"binaries/{folder}/{identifier}{suffix}", library)]
         platforms.append(folder)
         cross = shutil.which(_WIN64_COMPILER)
-        if cross and folder != "win64":
+        windows = "x86_64-windows" if fmi_version == 3 else "win64"
+        if cross and folder != windows:
             dll = stage / (identifier + ".dll")
             _compile(cross, src, c_files, dll, extra=("-static-libgcc",))
-            binaries.append((f"binaries/win64/{identifier}.dll", dll))
-            platforms.append("win64")
+            binaries.append((f"binaries/{windows}/{identifier}.dll", dll))
+            platforms.append(windows)
+        sources = dict(files)
+        if fmi_version == 3:
+            sources["buildDescription.xml"] = build_description(eqs, c_files)
 
         def write(tmp_dest: Path) -> None:
             with zipfile.ZipFile(tmp_dest, "w", zipfile.ZIP_DEFLATED) as z:
-                z.writestr("modelDescription.xml", model_description(eqs, guid, c_files))
+                z.writestr("modelDescription.xml", model_description(eqs, guid, c_files, fmi_version))
                 for arcname, path in binaries:
                     z.write(path, arcname)
-                for name in sorted(files):
-                    z.writestr(f"sources/{name}", files[name])
+                for name in sorted(sources):
+                    z.writestr(f"sources/{name}", sources[name])
 
         # A uniquely named temporary file beside dest, renamed over it when complete and
         # removed on any failure or interrupt: dest is the old FMU or the new one, never a
@@ -316,4 +462,4 @@ def build_native_fmu(dest: str | Path | None = None, mechanism: str | Path | Mec
         from fmpy.validation import validate_fmu
         problems = tuple(validate_fmu(str(dest)))
     return NativeBuildResult(path=dest, guid=guid, platforms=tuple(platforms), problems=problems,
-                             model_identifier=identifier)
+                             model_identifier=identifier, fmi_version=fmi_version)
