@@ -297,6 +297,66 @@ def run_fmusim(fmusim: Path, fmu: Path, outputs: tuple[str, ...], experiment: Ex
     return HostRun("fmusim", outputs, data[:, 0], data[:, 1:], proc.returncode, wall)
 
 
+def find_fmucheck(explicit: str | None = None) -> Path | None:
+    """``explicit``, else $FMUCHECK, else ``fmuCheck.linux64`` on PATH; None when there is none
+    (scripts/build_fmucheck.sh builds it).  A named path that is not an executable raises HostError."""
+    named, where = (explicit, "--fmucheck") if explicit else (os.environ.get("FMUCHECK"), "$FMUCHECK")
+    if named:
+        path = Path(named).expanduser()
+        if not path.is_file() or not os.access(path, os.X_OK):
+            raise HostError(f"{where} = {named}: not an executable file (build the FMU Compliance Checker with "
+                            "scripts/build_fmucheck.sh CHECKER_SRC FMIL_SRC OUT_DIR)")
+        return path.resolve()
+    found = shutil.which("fmuCheck.linux64")
+    return Path(found).resolve() if found else None
+
+
+@dataclass(frozen=True)
+class CheckerRun:
+    """The FMU Compliance Checker's run: its table (None when it failed) and its own count of
+    errors and warnings in the FMU (``checker_errors``: what it found wrong, XML included)."""
+
+    run: HostRun
+    checker_errors: int | None
+    checker_warnings: int | None
+    log: str
+
+
+def run_fmucheck(fmucheck: Path, fmu: Path, outputs: tuple[str, ...], stop: float, step: float, points: int,
+                 workdir: Path, interface: str = "me") -> CheckerRun:
+    """fmuCheck ``-k interface`` (``me``: forward Euler with step ``step``; ``cs``: communication
+    step ``step``) to ``stop``, ``points`` output rows taken at the steps, with an empty environment."""
+    out = workdir / "fmucheck.csv"
+    command = [str(fmucheck), "-k", interface, "-h", repr(step), "-s", repr(stop), "-n", str(points), "-l", "3",
+               "-t", str(workdir), "-o", str(out), str(Path(fmu).resolve())]
+    start = time.perf_counter()
+    try:
+        proc = subprocess.run(command, cwd=workdir, env={}, capture_output=True, text=True, timeout=TIMEOUT)
+    except subprocess.TimeoutExpired:
+        return CheckerRun(HostRun("fmuCheck", outputs, None, None, -1, time.perf_counter() - start,
+                                  f"no result after {TIMEOUT:g} s"), None, None, "")
+    wall = time.perf_counter() - start
+    log = proc.stderr + proc.stdout
+
+    def count(label: str) -> int | None:
+        found = [line for line in log.splitlines() if line.strip().endswith(label)]
+        return int(found[-1].split()[0]) if found and found[-1].split()[0].isdigit() else None
+
+    errors, warnings = count("Error(s)"), count("Warning(s)")
+    if proc.returncode != 0 or not out.exists() or out.stat().st_size == 0:
+        return CheckerRun(HostRun("fmuCheck", outputs, None, None, proc.returncode, wall,
+                                  _last_words(log) or "no output file"), errors, warnings, log)
+    with open(out, encoding="utf-8") as file:
+        header = [name.strip('"') for name in file.readline().strip().split(",")]
+    data = np.loadtxt(out, delimiter=",", skiprows=1, ndmin=2)
+    columns = [header.index(name) for name in ("time", *outputs) if name in header]
+    if len(columns) != len(outputs) + 1:
+        return CheckerRun(HostRun("fmuCheck", outputs, None, None, proc.returncode, wall,
+                                  f"its CSV lacks some of {list(outputs)}"), errors, warnings, log)
+    return CheckerRun(HostRun("fmuCheck", outputs, data[:, columns[0]], data[:, columns[1:]], proc.returncode, wall),
+                      errors, warnings, log)
+
+
 def _last_words(text: str, lines: int = 3) -> str:
     return " | ".join(line.strip() for line in text.strip().splitlines()[-lines:] if line.strip())
 

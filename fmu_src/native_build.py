@@ -229,6 +229,12 @@ def model_description(eqs: MechanismEquations, guid: str, source_files, fmi_vers
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "2.0", "modelName": identifier, "guid": guid, "description": _description_text(eqs),
         **_HEADER_ATTRIBUTES, "numberOfEventIndicators": "0"})
+    # FMI 2.0 orders them ModelExchange, then CoSimulation (FMI Library, and the FMU Compliance
+    # Checker built on it, skip a ModelExchange that comes second: 'not an ME FMU')
+    me = ET.SubElement(root, "ModelExchange", {
+        "modelIdentifier": identifier, "needsExecutionTool": "false", "completedIntegratorStepNotNeeded": "false",
+        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
+        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true", "providesDirectionalDerivative": "false"})
     cs = ET.SubElement(root, "CoSimulation", {
         "modelIdentifier": identifier, "needsExecutionTool": "false",
         "canHandleVariableCommunicationStepSize": "true", "canInterpolateInputs": "false",
@@ -236,10 +242,6 @@ def model_description(eqs: MechanismEquations, guid: str, source_files, fmi_vers
         "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
         "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true",
         "providesDirectionalDerivative": "false"})
-    me = ET.SubElement(root, "ModelExchange", {
-        "modelIdentifier": identifier, "needsExecutionTool": "false", "completedIntegratorStepNotNeeded": "false",
-        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
-        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true", "providesDirectionalDerivative": "false"})
     for element in (cs, me):
         files = ET.SubElement(element, "SourceFiles")
         for name in source_files:

@@ -86,10 +86,10 @@ def either_fmu(request) -> Path:
 class MechanismFMUs:
     """The FMUs of the shipped mechanisms, built once per session on first use.
 
-    ``get("slider_crank", "native")`` is the path of SliderCrankNative.fmu: build/'s copy when
-    it is newer than every source (``python build_fmu.py --mechanism slider_crank`` writes
-    it), else a private build in the session's temporary folder.  The native kind skips the
-    test when there is no C compiler.
+    ``get("slider_crank", "native")`` is the path of SliderCrankNative.fmu (``"native3"``: its
+    FMI 3.0 twin SliderCrankNative3.fmu): build/'s copy when it is newer than every source
+    (``python build_fmu.py --mechanism slider_crank`` writes them), else a private build in the
+    session's temporary folder.  The native kinds skip the test when there is no C compiler.
     """
 
     def __init__(self, factory):
@@ -101,15 +101,17 @@ class MechanismFMUs:
         if key in self._built:
             return self._built[key]
         from fmu_src.mechanism.description import load_mechanism
-        name = load_mechanism(mechanism).name + ("Native" if kind == "native" else "")
+        name = load_mechanism(mechanism).name + {"pythonfmu": "", "native": "Native", "native3": "Native3"}[kind]
         built = REPO / "build" / f"{name}.fmu"
         if not _fresh(built, ("*.py", "*.toml") if kind == "pythonfmu" else ("*.py", "*.c", "*.h", "*.toml")):
-            if kind == "native":
+            if kind != "pythonfmu":
                 from fmu_src.native_build import find_compiler
                 if find_compiler() is None:
                     pytest.skip("no C compiler: the native FMU cannot be built here")
             built = self._factory.mktemp(name) / f"{name}.fmu"
-            option = ["--only", "native", "--native-out"] if kind == "native" else ["--only", "pythonfmu", "--out"]
+            option = {"native": ["--only", "native", "--fmi", "2", "--native-out"],
+                      "native3": ["--only", "native", "--fmi", "3", "--native3-out"],
+                      "pythonfmu": ["--only", "pythonfmu", "--out"]}[kind]
             subprocess.run([sys.executable, str(REPO / "build_fmu.py"), "--mechanism", mechanism, *option,
                             str(built)], check=True, cwd=REPO, capture_output=True)
         self._built[key] = built

@@ -52,39 +52,6 @@ GLIBC_BASELINE = (2, 17)        # manylinux2014, as the FMI 2.0 binary
 FMI3_HEADERS = Path(__import__("fmpy").__file__).resolve().parent / "c-code"
 
 
-def _fresh(built: Path) -> bool:
-    """``built`` exists and is newer than every source it is built from (as conftest's)."""
-    sources = [p for pattern in ("*.py", "*.c", "*.h", "*.toml") for p in (REPO / "fmu_src").rglob(pattern)]
-    sources.append(REPO / "build_fmu.py")
-    return built.exists() and built.stat().st_mtime >= max(p.stat().st_mtime for p in sources)
-
-
-class _Fmi3Fmus:
-    """Each shipped mechanism's FMI 3.0 FMU: build/'s when fresh, else a private build (once)."""
-
-    def __init__(self, factory):
-        self._factory = factory
-        self._built: dict[str, Path] = {}
-
-    def get(self, mechanism: str) -> Path:
-        if mechanism not in self._built:
-            name = load_mechanism(mechanism).name + "Native3"
-            path = REPO / "build" / f"{name}.fmu"
-            if not _fresh(path):
-                from fmu_src.native_build import build_native_fmu, find_compiler
-                if find_compiler() is None:
-                    pytest.skip("no C compiler: the native FMU cannot be built here")
-                path = build_native_fmu(self._factory.mktemp(name) / f"{name}.fmu", mechanism=mechanism,
-                                        validate=False, fmi_version=3).path
-            self._built[mechanism] = path
-        return self._built[mechanism]
-
-
-@pytest.fixture(scope="session")
-def fmi3_fmus(tmp_path_factory) -> _Fmi3Fmus:
-    return _Fmi3Fmus(tmp_path_factory)
-
-
 def _lengths(fmu) -> list[str]:
     return [v.name for v in read_model_description(str(fmu)).modelVariables
             if v.causality == "output" and v.unit in ("m", "rad")]
@@ -101,8 +68,8 @@ def _fmi2_reference(mechanism_fmus, mechanism, names, stop):
 
 # -- the FMU ---------------------------------------------------------------------------------
 @pytest.mark.parametrize("mechanism", MECHANISMS)
-def test_fmpy_validate_is_clean_and_the_description_is_fmi3(mechanism, fmi3_fmus, mechanism_fmus):
-    fmu = fmi3_fmus.get(mechanism)
+def test_fmpy_validate_is_clean_and_the_description_is_fmi3(mechanism, mechanism_fmus):
+    fmu = mechanism_fmus.get(mechanism, "native3")
     assert validate_fmu(str(fmu)) == []
     md = read_model_description(str(fmu))
     assert md.fmiVersion == "3.0" and md.coSimulation and md.modelExchange
@@ -135,9 +102,9 @@ def test_fmpy_validate_is_clean_and_the_description_is_fmi3(mechanism, fmi3_fmus
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the ELF binary")
-def test_every_fmi3_function_is_exported_and_no_other(fmi3_fmus, tmp_path):
+def test_every_fmi3_function_is_exported_and_no_other(mechanism_fmus, tmp_path):
     """FMI 3.0 requires every function of fmi3Functions.h in the binary (unused ones refuse)."""
-    fmu = fmi3_fmus.get("fourbar")
+    fmu = mechanism_fmus.get("fourbar", "native3")
     declared = set(re.findall(r"^FMI3_Export\s+\w+\s+(fmi3\w+);", (FMI3_HEADERS / "fmi3Functions.h").read_text(),
                               re.M))
     assert len(declared) > 70
@@ -149,10 +116,10 @@ def test_every_fmi3_function_is_exported_and_no_other(fmi3_fmus, tmp_path):
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the FMU's binary here is x86_64-linux")
-def test_linux_binary_needs_no_glibc_newer_than_2_17(fmi3_fmus, tmp_path):
+def test_linux_binary_needs_no_glibc_newer_than_2_17(mechanism_fmus, tmp_path):
     from test_fmu_native_strict import glibc_versions_needed   # one ELF reader
 
-    library = Path(extract(str(fmi3_fmus.get("fourbar")), unzipdir=str(tmp_path))) / "binaries" / "x86_64-linux" / \
+    library = Path(extract(str(mechanism_fmus.get("fourbar", "native3")), unzipdir=str(tmp_path))) / "binaries" / "x86_64-linux" / \
         "FourBarNative3.so"
     needed = glibc_versions_needed(library)
     assert needed, "no GLIBC version found: the ELF reader is broken"
@@ -162,8 +129,8 @@ def test_linux_binary_needs_no_glibc_newer_than_2_17(fmi3_fmus, tmp_path):
 
 # -- FMPy ------------------------------------------------------------------------------------
 @pytest.mark.parametrize("mechanism", MECHANISMS)
-def test_fmpy_co_simulation_equals_fmi2(mechanism, fmi3_fmus, mechanism_fmus):
-    fmu = fmi3_fmus.get(mechanism)
+def test_fmpy_co_simulation_equals_fmi2(mechanism, mechanism_fmus):
+    fmu = mechanism_fmus.get(mechanism, "native3")
     names = _lengths(fmu)
     stop = SPAN.get(mechanism, 10.0)
     ref = _fmi2_reference(mechanism_fmus, mechanism, names, stop)
@@ -176,8 +143,8 @@ def test_fmpy_co_simulation_equals_fmi2(mechanism, fmi3_fmus, mechanism_fmus):
 
 
 @pytest.mark.parametrize("mechanism", MECHANISMS)
-def test_fmpy_model_exchange_agrees_with_fmi2_co_simulation(mechanism, fmi3_fmus, mechanism_fmus):
-    fmu = fmi3_fmus.get(mechanism)
+def test_fmpy_model_exchange_agrees_with_fmi2_co_simulation(mechanism, mechanism_fmus):
+    fmu = mechanism_fmus.get(mechanism, "native3")
     names = _lengths(fmu)
     stop = SPAN.get(mechanism, 10.0)
     ref = _fmi2_reference(mechanism_fmus, mechanism, names, stop)
@@ -201,11 +168,11 @@ def _fmusim():
 
 @pytest.mark.parametrize("interface", ["CoSimulation", "ModelExchange"])
 @pytest.mark.parametrize("mechanism", MECHANISMS)
-def test_fmusim_runs_fmi3_and_agrees_with_fmi2_co_simulation(mechanism, interface, fmi3_fmus, mechanism_fmus,
+def test_fmusim_runs_fmi3_and_agrees_with_fmi2_co_simulation(mechanism, interface, mechanism_fmus,
                                                              tmp_path):
     """fmusim (Reference-FMUs v0.0.39 here), its own CVode for model exchange; skipped without fmusim."""
     fmusim = _fmusim()
-    fmu = fmi3_fmus.get(mechanism)
+    fmu = mechanism_fmus.get(mechanism, "native3")
     names = tuple(_lengths(fmu))
     stop = SPAN.get(mechanism, 10.0)
     me = interface == "ModelExchange"
@@ -257,10 +224,10 @@ def _case2(fmu: Path, tmp: Path, fmi_version: int, fault: bool = True) -> np.nda
     return np.array(rows, dtype=float)
 
 
-def test_case2_parameter_change_mid_run_equals_fmi2(fmi3_fmus, native_fmu, tmp_path):
-    fmi3 = _case2(fmi3_fmus.get("fourbar"), tmp_path / "3", 3)
+def test_case2_parameter_change_mid_run_equals_fmi2(mechanism_fmus, native_fmu, tmp_path):
+    fmi3 = _case2(mechanism_fmus.get("fourbar", "native3"), tmp_path / "3", 3)
     fmi2 = _case2(native_fmu, tmp_path / "2", 2)
-    healthy = _case2(fmi3_fmus.get("fourbar"), tmp_path / "h", 3, fault=False)
+    healthy = _case2(mechanism_fmus.get("fourbar", "native3"), tmp_path / "h", 3, fault=False)
     assert fmi3.shape == fmi2.shape == (1601, 2)
     # the same model and the same steps: equal to round-off (measured: bit for bit)
     assert float(np.max(np.abs(fmi3 - fmi2))) <= 1e-12
@@ -339,10 +306,10 @@ FMI3_OK, FMI3_ERROR = 0, 3
 
 
 @pytest.fixture()
-def lib(fmi3_fmus, tmp_path):
+def lib(mechanism_fmus, tmp_path):
     if not sys.platform.startswith("linux"):
         pytest.skip("loads the x86_64-linux binary")
-    return _Lib(fmi3_fmus.get("fourbar"), tmp_path)
+    return _Lib(mechanism_fmus.get("fourbar", "native3"), tmp_path)
 
 
 def test_refusals_are_errors_with_a_message_and_change_nothing(lib):
