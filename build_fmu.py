@@ -107,6 +107,20 @@ def _report(label: str, path, guid: str, problems, validate: bool, extra: str = 
 
 
 def main(argv=None) -> int:
+    """The command; Ctrl-C or SIGTERM at any point (the imports of a build included) ends it with
+    one line and the signal's exit status, no traceback and no partial FMU."""
+    from fourbar_common.signals import StopSignals, exit_code, signal_of, stop_reason
+
+    try:
+        with StopSignals():
+            return _main(argv)
+    except KeyboardInterrupt as exc:
+        signum = signal_of(exc)
+        print(f"build_fmu.py: {stop_reason(signum)}; no partial FMU was left", file=sys.stderr)
+        return exit_code(signum)
+
+
+def _main(argv=None) -> int:
     parser = argparse.ArgumentParser(
         prog="build_fmu.py", epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Build a planar mechanism (default: Table 1's four-bar) as FMUs: <Name>.fmu (pythonfmu, "

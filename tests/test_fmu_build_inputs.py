@@ -110,35 +110,20 @@ def test_a_cc_that_does_not_exist_is_named(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-def _wait_until_it_catches(pid: int, sig: int, timeout: float = 60.0) -> None:
-    """Until process ``pid`` has a handler for ``sig`` (Linux: SigCgt in /proc/PID/status)."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            status = Path(f"/proc/{pid}/status").read_text()
-        except OSError:
-            return                          # it ended: the assertions say how
-        caught = int(next(line.split()[1] for line in status.splitlines() if line.startswith("SigCgt:")), 16)
-        if caught >> (sig - 1) & 1:
-            return
-        time.sleep(0.02)
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("sig, code, said", [(signal.SIGINT, 130, "interrupted by Ctrl-C"),
                                              (signal.SIGTERM, 143, "terminated by SIGTERM")])
 def test_a_signal_during_a_build_leaves_no_partial_fmu(sig, code, said, tmp_path):
-    """The signal lands during the build (pythonfmu's takes about 3 s; sent once build_fmu.py
-    catches it, which on a loaded machine can take more than the 1 s this test used to wait:
-    the signal then came during the imports).  SIGINT is restored to Python's default in the
-    child: a job started in the background inherits it ignored (see conftest.py)."""
+    """The signal lands after 1 s: during the build (pythonfmu's takes about 3 s) or, on a loaded
+    machine, still during the imports (that gave a traceback, and SIGTERM killed it silently,
+    before build_fmu.py caught both from its first line).  SIGINT is restored to Python's
+    default in the child: a job started in the background inherits it ignored (see conftest.py)."""
     proc = subprocess.Popen([PYTHON, "build_fmu.py", "--out", str(tmp_path / "F.fmu"),
                              "--native-out", str(tmp_path / "N.fmu")], cwd=REPO, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
-        _wait_until_it_catches(proc.pid, sig)      # its handlers are in place (not still importing)
-        time.sleep(0.2)
+        time.sleep(1.0)                            # into the imports or the build: either must end cleanly
         proc.send_signal(sig)
         stdout, stderr = proc.communicate(timeout=60)
     finally:
