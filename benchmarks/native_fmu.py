@@ -281,6 +281,34 @@ def mechanisms_against_floor(names: list[str], fourbar_native: Path, repeat: int
     return lines
 
 
+def fmi3_against_floor(names: list[str], repeat: int, stop: float, directory: Path,
+                       vanderpol: Path | None = None) -> list[str]:
+    """Each mechanism's FMI 3.0 native FMU in co-simulation through FMPy, against its FMI 2.0 twin
+    (the same C model: the difference is the FMI layer and FMPy's FMI 3.0 path) and VanDerPol's
+    FMI 2.0 floor; 100 s recording one output at the FMU's default tolerance."""
+    from fmpy import read_model_description
+    from fmu_src.native_build import build_native_fmu
+
+    head = " | VanDerPol s | FMI 3.0 / VanDerPol" if vanderpol else ""
+    lines = [f"| mechanism | FMI 3.0 s | FMI 2.0 s | FMI 3.0 / FMI 2.0{head} |",
+             "|---|---|---|---|" + ("---|---|" if vanderpol else "")]
+    for name in names:
+        fmi2 = build_native_fmu(directory / f"{name}_2.fmu", mechanism=name, validate=False).path
+        fmi3 = build_native_fmu(directory / f"{name}_3.fmu", mechanism=name, validate=False, fmi_version=3).path
+        output = next(v.name for v in read_model_description(str(fmi2)).modelVariables if v.causality == "output")
+        record_one(fmi3, output, stop)                                    # warm-up: first load
+        record_one(fmi2, output, stop)
+        rounds = [(record_one(fmi3, output, stop), record_one(fmi2, output, stop),
+                   record_one(vanderpol, VANDERPOL_OUTPUT, stop) if vanderpol else math.nan) for _ in range(repeat)]
+        med = statistics.median
+        a, b, v = (med(r[i] for r in rounds) for i in range(3))
+        tail = f" | {v:.3f} | {med(r[0] / r[2] for r in rounds):.2f}x" if vanderpol else ""
+        lines.append(f"| {name} | {a:.3f} | {b:.3f} | {med(r[0] / r[1] for r in rounds):.2f}x{tail} |")
+    lines += ["", f"simulate_fmu(fmi_type='CoSimulation') for {stop:g} s on the 0.01 s grid recording one output, "
+                  f"the FMUs' default tolerance (rtol = atol = 1e-10); median of {repeat} alternating rounds."]
+    return lines
+
+
 #: CVode's relative tolerance of the tight Model Exchange runs (tests/test_fmu_model_exchange.py's).
 ME_TIGHT = 1e-14
 
@@ -403,6 +431,8 @@ def main(argv=None) -> int:
                "### Accuracy per wall second", "", *accuracy(native, python, repeat, stop, search), "",
                "### Every mechanism: the native FMU against FMPy's floor", "",
                *mechanisms_against_floor(mechanisms, native, repeat, stop, Path(tmp), args.vanderpol), "",
+               "### Every mechanism in FMI 3.0 co-simulation", "",
+               *fmi3_against_floor(mechanisms, repeat, stop, Path(tmp), args.vanderpol), "",
                "### Every mechanism in Model Exchange (FMPy's CVode)", "",
                *model_exchange(mechanisms, native, repeat, stop, Path(tmp), args.vanderpol)]
     if args.sweep:
