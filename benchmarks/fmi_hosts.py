@@ -242,20 +242,27 @@ def run_libcosim(fmu: Path, outputs: tuple[str, ...], experiment: Experiment, wo
     return _python_host("libcosim", _LIBCOSIM_CHILD, fmu, outputs, experiment, workdir)
 
 
+def _find_tool(explicit: str | None, option: str, variable: str, program: str, build: str) -> Path | None:
+    """``explicit`` (given as ``option``), else the environment variable ``variable``, else
+    ``program`` on PATH; None when there is none.  A named path that is not an executable file
+    raises HostError saying how to ``build`` one."""
+    named, where = (explicit, option) if explicit else (os.environ.get(variable), f"${variable}")
+    if named:
+        path = Path(named).expanduser()
+        if not path.is_file() or not os.access(path, os.X_OK):
+            raise HostError(f"{where} = {named}: not an executable file ({build})")
+        return path.resolve()
+    found = shutil.which(program)
+    return Path(found).resolve() if found else None
+
+
 def find_fmusim(explicit: str | None = None) -> Path | None:
     """``explicit``, else $FMUSIM, else ``fmusim`` on PATH; None when there is none.
 
     A path that is named (argument or $FMUSIM) but is not an executable file raises HostError.
     """
-    named, where = (explicit, "--fmusim") if explicit else (os.environ.get("FMUSIM"), "$FMUSIM")
-    if named:
-        path = Path(named).expanduser()
-        if not path.is_file() or not os.access(path, os.X_OK):
-            raise HostError(f"{where} = {named}: not an executable file (build fmusim with "
-                            "scripts/build_fmusim.sh SRC_DIR OUT_DIR)")
-        return path.resolve()
-    found = shutil.which("fmusim")
-    return Path(found).resolve() if found else None
+    return _find_tool(explicit, "--fmusim", "FMUSIM", "fmusim",
+                      "build fmusim with scripts/build_fmusim.sh SRC_DIR OUT_DIR")
 
 
 def fmusim_version(fmusim: Path) -> str:
@@ -300,15 +307,8 @@ def run_fmusim(fmusim: Path, fmu: Path, outputs: tuple[str, ...], experiment: Ex
 def find_fmucheck(explicit: str | None = None) -> Path | None:
     """``explicit``, else $FMUCHECK, else ``fmuCheck.linux64`` on PATH; None when there is none
     (scripts/build_fmucheck.sh builds it).  A named path that is not an executable raises HostError."""
-    named, where = (explicit, "--fmucheck") if explicit else (os.environ.get("FMUCHECK"), "$FMUCHECK")
-    if named:
-        path = Path(named).expanduser()
-        if not path.is_file() or not os.access(path, os.X_OK):
-            raise HostError(f"{where} = {named}: not an executable file (build the FMU Compliance Checker with "
-                            "scripts/build_fmucheck.sh CHECKER_SRC FMIL_SRC OUT_DIR)")
-        return path.resolve()
-    found = shutil.which("fmuCheck.linux64")
-    return Path(found).resolve() if found else None
+    return _find_tool(explicit, "--fmucheck", "FMUCHECK", "fmuCheck.linux64",
+                      "build the FMU Compliance Checker with scripts/build_fmucheck.sh CHECKER_SRC FMIL_SRC OUT_DIR")
 
 
 @dataclass(frozen=True)

@@ -90,6 +90,7 @@ class FmuInstance:
         self.fmi_type = fmi_type
         self.model_exchange = fmi_type == "ModelExchange"
         self.fmi3 = str(self.md.fmiVersion).startswith("3")
+        self._prefix = "fmi3" if self.fmi3 else "fmi2"      # of the FMI calls named in messages
         self._experiment: tuple[float, float, float | None] = (0.0, 0.0, None)   # FMI 3.0: for initialisation
         self._solver = None                  # model exchange: FMPy's CVodeSolver, after initialisation
         self._tolerance: float | None = None
@@ -237,7 +238,7 @@ class FmuInstance:
             self._call("fmi2EnterInitializationMode", self._fmu.enterInitializationMode)
 
     def exit_initialization_mode(self) -> None:
-        self._call(f"fmi{3 if self.fmi3 else 2}ExitInitializationMode", self._fmu.exitInitializationMode)
+        self._call(f"{self._prefix}ExitInitializationMode", self._fmu.exitInitializationMode)
         if self.model_exchange:
             self._event_iteration()
             self._start_solver()
@@ -252,7 +253,7 @@ class FmuInstance:
         try:
             result = self._fmu.doStep(t, h)
         except self._call_error as exc:
-            raise self._failure(f"fmi{3 if self.fmi3 else 2}DoStep(t = {format_time(t)} s, h = {format_time(h)} s)",
+            raise self._failure(f"{self._prefix}DoStep(t = {format_time(t)} s, h = {format_time(h)} s)",
                                 exc.status, mark) from None
         if self.fmi3 and result[1]:          # terminateSimulation
             raise FmuError(self._describe(f"the FMU asked to end the simulation at t = {format_time(t + h)} s", mark))
@@ -269,7 +270,7 @@ class FmuInstance:
                                               f"{format_time(self._time)} s", self._log_count - 3))
             if not needed:
                 break
-        self._call(f"fmi{3 if self.fmi3 else 2}EnterContinuousTimeMode", self._fmu.enterContinuousTimeMode)
+        self._call(f"{self._prefix}EnterContinuousTimeMode", self._fmu.enterContinuousTimeMode)
 
     def _start_solver(self) -> None:
         """FMPy's CVode on the FMU's states, from the current time (the case's tolerance, else FMPy's default)."""
@@ -373,13 +374,13 @@ class FmuInstance:
             self._call("fmi2FreeFMUstate", self._fmu.freeFMUstate, state)
 
     def reset(self) -> None:
-        self._call(f"fmi{3 if self.fmi3 else 2}Reset", self._fmu.reset)
+        self._call(f"{self._prefix}Reset", self._fmu.reset)
 
     def set_values(self, values: Iterable[tuple[str, Any]]) -> None:
         """Set variables by name (grouped per FMI type); in model exchange after initialisation,
         in event mode at the current time, then the event iteration and CVode restarted."""
         if self._solver is not None:
-            self._call(f"fmi{3 if self.fmi3 else 2}EnterEventMode", self._fmu.enterEventMode)
+            self._call(f"{self._prefix}EnterEventMode", self._fmu.enterEventMode)
             self._set(values)
             self._event_iteration()
             self._solver.reset(self._time)
@@ -395,7 +396,7 @@ class FmuInstance:
             vals.append(value)
         for kind, (vrs, vals) in groups.items():
             setter = getattr(self._fmu, f"set{kind}")
-            self._call(f"fmi{3 if self.fmi3 else 2}Set{kind}({', '.join(_names(self.md, vrs))})", setter, vrs, vals)
+            self._call(f"{self._prefix}Set{kind}({', '.join(_names(self.md, vrs))})", setter, vrs, vals)
 
     def reader(self, names: Sequence[str]) -> Callable[[], list]:
         """A function returning the current values of ``names`` (in that order) as Python numbers."""

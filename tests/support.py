@@ -67,3 +67,27 @@ def unwritable_folder(tmp_path: Path) -> Path:
             return candidate
         (candidate / ".fourbar-probe").rmdir()
     pytest.skip("no folder here refuses this process's writes")
+
+
+# -- one FMU flavour against another (tests/test_fmu_model_exchange.py, test_fmu_fmi3.py) --------
+#: CVode's relative tolerance in the model-exchange runs; FMPy sets its absolute tolerance to
+#: rtol x each state's nominal (1 here).  Measured over 10 s against co-simulation at 1e-13:
+#: 6e-10 m (four-bar) to 5e-9 m (slider-crank) at 1e-13, 1e-10 to 6.5e-10 m at 1e-14 (CVode's
+#: BDF error, not the FMU's).
+CVODE_RTOL = 1e-14
+#: The co-simulation reference's rtol = atol (DOP853 in the FMU).
+COSIM_TOL = 1e-13
+#: Span compared (s): 10 s, the chaotic five-bar 2 s (two correct integrations of it part by
+#: 4e-7 m at 10 s; at 2 s they agree to 1e-10 m).
+FLAVOUR_SPAN = {"fivebar": 2.0}
+#: |one flavour - FMI 2.0 co-simulation| on the lengths and angles: issue 26's bound.
+FLAVOUR_AGREE = 1e-9
+#: constraint_residual of every row whatever the host's tolerances (coordinate partitioning).
+RESIDUAL = 1e-12
+
+
+def lengths_and_angles(fmu) -> list[str]:
+    """The FMU's outputs in m or rad (the ones the flavours are compared on)."""
+    from fmpy import read_model_description
+    return [v.name for v in read_model_description(str(fmu)).modelVariables
+            if v.causality == "output" and v.unit in ("m", "rad")]

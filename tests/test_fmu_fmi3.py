@@ -30,31 +30,15 @@ from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
 from fmu_src.mechanism.description import load_mechanism, shipped_mechanisms
-from support import REPO
+from support import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, FLAVOUR_SPAN, REPO, RESIDUAL,
+                     lengths_and_angles)
 
 sys.path.insert(0, str(REPO / "benchmarks"))
 import fmi_hosts  # noqa: E402   (the hosts' runners: one home)
 
 MECHANISMS = shipped_mechanisms()
-#: CVode's relative tolerance (as tests/test_fmu_model_exchange.py: FMPy sets atol = rtol x
-#: nominal, 1 here).  At 1e-14 FMI 2.0's model exchange is 1e-10 to 6.5e-10 m from co-simulation.
-CVODE_RTOL = 1e-14
-#: The co-simulation runs' rtol = atol (DOP853 inside the FMU).
-COSIM_TOL = 1e-13
-#: Span compared (s): 10 s; the chaotic five-bar 2 s (two correct integrations of it part by
-#: 4e-7 m at 10 s, 1e-10 m at 2 s).
-SPAN = {"fivebar": 2.0}
-#: |FMI 3.0 - FMI 2.0 co-simulation| on the lengths and angles: the issue's bound.
-AGREE = 1e-9
-#: constraint_residual of every row whatever the host's tolerances (coordinate partitioning).
-RESIDUAL = 1e-12
 GLIBC_BASELINE = (2, 17)        # manylinux2014, as the FMI 2.0 binary
 FMI3_HEADERS = Path(__import__("fmpy").__file__).resolve().parent / "c-code"
-
-
-def _lengths(fmu) -> list[str]:
-    return [v.name for v in read_model_description(str(fmu)).modelVariables
-            if v.causality == "output" and v.unit in ("m", "rad")]
 
 
 def _worst(a, b, names) -> float:
@@ -131,13 +115,13 @@ def test_linux_binary_needs_no_glibc_newer_than_2_17(mechanism_fmus, tmp_path):
 @pytest.mark.parametrize("mechanism", MECHANISMS)
 def test_fmpy_co_simulation_equals_fmi2(mechanism, mechanism_fmus):
     fmu = mechanism_fmus.get(mechanism, "native3")
-    names = _lengths(fmu)
-    stop = SPAN.get(mechanism, 10.0)
+    names = lengths_and_angles(fmu)
+    stop = FLAVOUR_SPAN.get(mechanism, 10.0)
     ref = _fmi2_reference(mechanism_fmus, mechanism, names, stop)
     cs = simulate_fmu(str(fmu), fmi_type="CoSimulation", stop_time=stop, output_interval=0.01,
                       start_values={"rtol": COSIM_TOL, "atol": COSIM_TOL}, output=names)
     assert np.array_equal(cs["time"], ref["time"])
-    assert _worst(cs, ref, names) <= AGREE
+    assert _worst(cs, ref, names) <= FLAVOUR_AGREE
     # the same C model, the same arithmetic: the layers only read it (measured: bit for bit)
     assert _worst(cs, ref, names) == 0.0
 
@@ -145,13 +129,13 @@ def test_fmpy_co_simulation_equals_fmi2(mechanism, mechanism_fmus):
 @pytest.mark.parametrize("mechanism", MECHANISMS)
 def test_fmpy_model_exchange_agrees_with_fmi2_co_simulation(mechanism, mechanism_fmus):
     fmu = mechanism_fmus.get(mechanism, "native3")
-    names = _lengths(fmu)
-    stop = SPAN.get(mechanism, 10.0)
+    names = lengths_and_angles(fmu)
+    stop = FLAVOUR_SPAN.get(mechanism, 10.0)
     ref = _fmi2_reference(mechanism_fmus, mechanism, names, stop)
     me = simulate_fmu(str(fmu), fmi_type="ModelExchange", solver="CVode", relative_tolerance=CVODE_RTOL,
                       stop_time=stop, output_interval=0.01, output=names + ["constraint_residual"])
     assert np.array_equal(me["time"], ref["time"])
-    assert _worst(me, ref, names) <= AGREE, (mechanism, _worst(me, ref, names))
+    assert _worst(me, ref, names) <= FLAVOUR_AGREE, (mechanism, _worst(me, ref, names))
     assert float(np.max(me["constraint_residual"])) <= RESIDUAL
 
 
@@ -173,8 +157,8 @@ def test_fmusim_runs_fmi3_and_agrees_with_fmi2_co_simulation(mechanism, interfac
     """fmusim (Reference-FMUs v0.0.39 here), its own CVode for model exchange; skipped without fmusim."""
     fmusim = _fmusim()
     fmu = mechanism_fmus.get(mechanism, "native3")
-    names = tuple(_lengths(fmu))
-    stop = SPAN.get(mechanism, 10.0)
+    names = tuple(lengths_and_angles(fmu))
+    stop = FLAVOUR_SPAN.get(mechanism, 10.0)
     me = interface == "ModelExchange"
     experiment = fmi_hosts.Experiment(stop=stop, rtol=COSIM_TOL, atol=COSIM_TOL)
     run = fmi_hosts.run_fmusim(fmusim, fmu, names, experiment, tmp_path,
@@ -184,7 +168,7 @@ def test_fmusim_runs_fmi3_and_agrees_with_fmi2_co_simulation(mechanism, interfac
     assert run.values.shape == (len(ref), len(names))
     assert np.allclose(run.time, ref["time"], rtol=0, atol=1e-12)     # fmusim prints 16 digits
     worst = max(float(np.max(np.abs(run.values[:, k] - ref[n]))) for k, n in enumerate(names))
-    assert worst <= AGREE, (mechanism, interface, worst)
+    assert worst <= FLAVOUR_AGREE, (mechanism, interface, worst)
 
 
 # -- Case 2: a parameter changed mid-run -------------------------------------------------------

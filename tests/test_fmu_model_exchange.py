@@ -18,44 +18,27 @@ from fmpy.fmi2 import FMU2Model
 from scipy.integrate import DOP853
 
 from fmu_src.mechanism.description import shipped_mechanisms
-from support import REPO
+from support import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, FLAVOUR_SPAN, REPO, RESIDUAL,
+                     lengths_and_angles)
 
 sys.path.insert(0, str(REPO / "benchmarks"))
 import fmi_hosts  # noqa: E402   (the hosts' runners: one home)
 
 MECHANISMS = shipped_mechanisms()
-#: CVode's relative tolerance; FMPy sets its absolute tolerance to rtol x each state's nominal
-#: (1 here).  Measured over 10 s against co-simulation at 1e-13: 6e-10 m (four-bar) to 5e-9 m
-#: (slider-crank) at 1e-13, 1e-10 to 6.5e-10 m at 1e-14 (CVode's BDF error, not the FMU's).
-CVODE_RTOL = 1e-14
-#: The co-simulation reference's rtol = atol (DOP853 in the FMU).
-COSIM_TOL = 1e-13
-#: Span compared (s): 10 s, the chaotic five-bar 2 s (two correct integrations of it part by
-#: 4e-7 m at 10 s; at 2 s they agree to 1e-10 m).
-SPAN = {"fivebar": 2.0}
-#: |model exchange - co-simulation| on the lengths and angles: the issue's bound.
-AGREE = 1e-9
-#: constraint_residual of every row whatever the host's tolerances (partitioning).
-RESIDUAL = 1e-12
-
-
-def _lengths(fmu) -> list[str]:
-    return [v.name for v in read_model_description(str(fmu)).modelVariables
-            if v.causality == "output" and v.unit in ("m", "rad")]
 
 
 @pytest.mark.parametrize("mechanism", MECHANISMS)
 def test_model_exchange_in_fmpy_agrees_with_co_simulation(mechanism, mechanism_fmus):
     fmu = str(mechanism_fmus.get(mechanism, "native"))
-    names = _lengths(fmu)
-    stop = SPAN.get(mechanism, 10.0)
+    names = lengths_and_angles(fmu)
+    stop = FLAVOUR_SPAN.get(mechanism, 10.0)
     cs = simulate_fmu(fmu, fmi_type="CoSimulation", stop_time=stop, output_interval=0.01,
                       start_values={"rtol": COSIM_TOL, "atol": COSIM_TOL}, output=names)
     me = simulate_fmu(fmu, fmi_type="ModelExchange", solver="CVode", relative_tolerance=CVODE_RTOL, stop_time=stop,
                       output_interval=0.01, output=names + ["constraint_residual"])
     assert np.array_equal(cs["time"], me["time"])
     worst = max(float(np.max(np.abs(cs[n] - me[n]))) for n in names)
-    assert worst <= AGREE, (mechanism, worst)
+    assert worst <= FLAVOUR_AGREE, (mechanism, worst)
     assert float(np.max(me["constraint_residual"])) <= RESIDUAL
 
 
@@ -79,8 +62,8 @@ def test_model_exchange_in_fmusim_agrees_with_co_simulation(mechanism, mechanism
     if fmusim is None:
         pytest.skip("no fmusim: set FMUSIM=/path/to/fmusim or put fmusim on PATH (scripts/build_fmusim.sh)")
     fmu = mechanism_fmus.get(mechanism, "native")
-    names = tuple(_lengths(fmu))
-    stop = SPAN.get(mechanism, 10.0)
+    names = tuple(lengths_and_angles(fmu))
+    stop = FLAVOUR_SPAN.get(mechanism, 10.0)
     run = fmi_hosts.run_fmusim(fmusim, fmu, names, fmi_hosts.Experiment(stop=stop), tmp_path,
                                model_exchange_tolerance=CVODE_RTOL)
     assert run.exit_code == 0 and run.values is not None, run.message
@@ -89,7 +72,7 @@ def test_model_exchange_in_fmusim_agrees_with_co_simulation(mechanism, mechanism
     assert run.values.shape == (len(cs), len(names))
     assert np.allclose(run.time, cs["time"], rtol=0, atol=1e-12)
     worst = max(float(np.max(np.abs(run.values[:, k] - cs[n]))) for k, n in enumerate(names))
-    assert worst <= AGREE, (mechanism, worst)
+    assert worst <= FLAVOUR_AGREE, (mechanism, worst)
 
 
 def _fmucheck():
@@ -111,7 +94,7 @@ def test_the_compliance_checker_finds_nothing_and_runs_model_exchange(mechanism,
     1e-3 m over 1 s: Euler's O(h) error plus the reference's linear interpolation between its
     0.01 s rows (its rows fall at the Euler steps), measured 1.2e-4 m on the four-bar."""
     fmu = mechanism_fmus.get(mechanism, "native")
-    names = tuple(n for n in _lengths(fmu) if n[:1] in "xy")[:6]
+    names = tuple(n for n in lengths_and_angles(fmu) if n[:1] in "xy")[:6]
     checked = fmi_hosts.run_fmucheck(_fmucheck(), fmu, names, stop=1.0, step=1e-5, points=101, workdir=tmp_path)
     assert checked.checker_errors == 0 and checked.checker_warnings == 0, checked.log[-3000:]
     run = checked.run
@@ -213,7 +196,7 @@ def test_a_fault_at_an_event_in_a_scipy_host_matches_co_simulation(native_fmu, t
     assert me.shape == cs.shape == (1601, len(names))
     assert np.array_equal(me[:, -1] == 1.1, grid > 10.0)                # L2 read back: the fault after 10 s
     worst = float(np.max(np.abs(me[:, :-1] - cs[:, :-1])))
-    assert worst <= AGREE, worst
+    assert worst <= FLAVOUR_AGREE, worst
 
 
 def _cosim_case2(fmu: str, names: list[str]) -> np.ndarray:

@@ -600,29 +600,37 @@ void dae_states(const ModelState *s, double *y)
     for (int k = 0; k < N_DRIVERS; k++) y[2 * K + k] = s->work[k];
 }
 
-/* The current state as the predictor's base, its accelerations from one evaluation there (what
-   dae_start has the integrator's first evaluation do). */
-int dae_me_start(ModelState *s)
+/* The current state as the predictor's base (the integrator's start), on its assembly branch: the
+   sign of the dependent block's determinant at q (dae.py's start); its accelerations come with
+   the first evaluation there (dae.py solves for them at the start: the same numbers).  Returns
+   the state vector y of that start. */
+static void restart_base(ModelState *s, double *y)
 {
-    double y[RK_N], f[RK_N], tr[TRIG], J[MA * N], block[MA * MA], inv_diag[MA];
+    double J[MA * N], block[MA * MA], inv_diag[MA];
     int piv[MA];
     DaePoint e;
     e.t = s->t;
     memcpy(e.q, s->q, sizeof e.q);
     memcpy(e.qd, s->qd, sizeof e.qd);
     memset(e.qdd, 0, sizeof e.qdd);
-    eq_trig(s->q, tr);
-    memcpy(e.tr, tr, sizeof e.tr);
-    eq_jacobian(s->q, tr, s->p, J);
+    eq_trig(s->q, e.tr);
+    eq_jacobian(s->q, e.tr, s->p, J);
     dependent_block(J, s->dependent, block);
     dense_factor(block, piv, inv_diag);
     e.sign = lu_det_sign(M, piv, inv_diag);
     s->base = s->last = e;
     s->before.t = NAN;
-    memset(y, 0, sizeof y);
+    memset(y, 0, RK_N * sizeof *y);
     dae_states(s, y);
     s->rhs_failed = 0;
     s->starts++;
+}
+
+/* Model Exchange's start: the base, and its accelerations from one evaluation there. */
+int dae_me_start(ModelState *s)
+{
+    double y[RK_N], f[RK_N];
+    restart_base(s, y);
     return dae_me_evaluate(s, s->t, y, f);
 }
 
@@ -782,33 +790,9 @@ int dae_assemble(ModelState *s, double t, const double *guess, const double *rat
 
 int dae_start(ModelState *s, double first_step)
 {
-    double y0[RK_N], J[MA * N], tr[TRIG], block[MA * MA], inv_diag[MA];
-    int piv[MA];
-    DaePoint e;
+    double y0[RK_N];
     const double bound = isfinite(s->stop_time) ? s->stop_time + 1.0 : INFINITY;
-    /* The predictor's base is the current state; its accelerations come with the integrator's
-       first evaluation, at this time (dae.py solves for them here: the same numbers). */
-    e.t = s->t;
-    memcpy(e.q, s->q, sizeof e.q);
-    memcpy(e.qd, s->qd, sizeof e.qd);
-    memset(e.qdd, 0, sizeof e.qdd);
-    /* its assembly branch: the sign of the dependent block's determinant at q (dae.py's start) */
-    eq_trig(s->q, tr);
-    memcpy(e.tr, tr, sizeof e.tr);
-    eq_jacobian(s->q, tr, s->p, J);
-    dependent_block(J, s->dependent, block);
-    dense_factor(block, piv, inv_diag);
-    e.sign = lu_det_sign(M, piv, inv_diag);
-    s->base = s->last = e;
-    s->before.t = NAN;
-    memset(y0, 0, sizeof y0);
-    for (int j = 0; j < K; j++) {
-        y0[j] = s->q[s->independent[j]];
-        y0[K + j] = s->qd[s->independent[j]];
-    }
-    for (int k = 0; k < N_DRIVERS; k++) y0[2 * K + k] = s->work[k];
-    s->rhs_failed = 0;
-    s->starts++;
+    restart_base(s, y0);
     if (rk_start(&s->solver, s->integrator, rhs, s, s->t, y0, bound, s->values[VR_rtol], s->values[VR_atol],
                  first_step) != RK_OK)
         return s->rhs_failed ? s->rhs_failed : DAE_INTEGRATION;

@@ -63,21 +63,7 @@ static const struct { int mode; const char *name; } STATES[] = {
 #define ME_READABLE (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED)
 #define STATUS_STATES (MODE_STEP_COMPLETE | MODE_STEP_IN_PROGRESS | MODE_STEP_FAILED | MODE_TERMINATED)
 
-/* An FMU state: a copy of the ModelState, and the type of the instance that saved it (its mode
-   belongs to that type's state machine: a co-simulation state means nothing to a model-exchange
-   instance, and the other way round). */
-typedef struct {
-    ModelState state;
-    int model_exchange;
-} SavedState;
-
-/* Serialized FMU state: this header, then the ModelState's bytes. */
-typedef struct {
-    char magic[8];
-    unsigned int state_size;
-    char guid[48];
-    int model_exchange;
-} StateHeader;
+/* The mark of this layer's serialized FMU states (saved_state.c): the FMI 3.0 layer's differs. */
 static const char STATE_MAGIC[8] = "FBSTATE";
 
 /* Every message goes through the host's logger: errors and warnings always, information
@@ -511,47 +497,38 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, si
     ENTER(ALL_STATES);
     REQUIRE(FMUstate);
     REQUIRE(size);
-    *size = sizeof(StateHeader) + sizeof(ModelState);
+    *size = model_serialized_size();
     return fmi2OK;
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size)
 {
-    StateHeader header;
     ENTER(ALL_STATES);
     REQUIRE(FMUstate);
     REQUIRE(serializedState);
-    if (size < sizeof header + sizeof(ModelState)) {
+    if (size < model_serialized_size()) {
         model_log(m, MODEL_ERROR, "logStatusError", "fmi2SerializeFMUstate: need %u bytes (got %u)",
-                  (unsigned)(sizeof header + sizeof(ModelState)), (unsigned)size);
+                  (unsigned)model_serialized_size(), (unsigned)size);
         return fmi2Error;
     }
-    memset(&header, 0, sizeof header);
-    memcpy(header.magic, STATE_MAGIC, sizeof header.magic);
-    header.state_size = (unsigned int)sizeof(ModelState);
-    strncpy(header.guid, FB_GUID, sizeof header.guid - 1);
-    header.model_exchange = ((const SavedState *)FMUstate)->model_exchange;
-    memcpy(serializedState, &header, sizeof header);
-    memcpy(serializedState + sizeof header, &((const SavedState *)FMUstate)->state, sizeof(ModelState));
+    model_serialize((const SavedState *)FMUstate, STATE_MAGIC, (unsigned char *)serializedState);
     return fmi2OK;
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate)
 {
-    StateHeader header;
+    SavedState read;
     ENTER(ALL_STATES);
     REQUIRE(serializedState);
     REQUIRE(FMUstate);
-    if (size != sizeof header + sizeof(ModelState)) {
+    const int problem = model_deserialize((const unsigned char *)serializedState, size, STATE_MAGIC, &read);
+    if (problem == MODEL_WRONG_SIZE) {
         model_log(m, MODEL_ERROR, "logStatusError", "fmi2DeSerializeFMUstate: expected %u bytes, got %u",
-                  (unsigned)(sizeof header + sizeof(ModelState)), (unsigned)size);
+                  (unsigned)model_serialized_size(), (unsigned)size);
         return fmi2Error;
     }
-    memcpy(&header, serializedState, sizeof header);
-    if (memcmp(header.magic, STATE_MAGIC, sizeof header.magic) != 0 || header.state_size != sizeof(ModelState)
-        || strncmp(header.guid, FB_GUID, sizeof header.guid) != 0
-        || (header.model_exchange != 0 && header.model_exchange != 1)) {
+    if (problem) {
         model_log(m, MODEL_ERROR, "logStatusError", "fmi2DeSerializeFMUstate: not a state of this FMU (GUID %s)",
                   FB_GUID);
         return fmi2Error;
@@ -563,8 +540,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
             return fmi2Error;
         }
     }
-    memcpy(&((SavedState *)*FMUstate)->state, serializedState + sizeof header, sizeof(ModelState));
-    ((SavedState *)*FMUstate)->model_exchange = header.model_exchange;
+    *(SavedState *)*FMUstate = read;
     return fmi2OK;
 }
 

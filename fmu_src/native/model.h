@@ -85,6 +85,21 @@ typedef struct {
     ModelState state;
 } ModelInstance;
 
+/* An FMU state (fmi2GetFMUstate, fmi3GetFMUState): a copy of the ModelState and the type of the
+   instance that saved it (an instance of the other type refuses it). */
+typedef struct {
+    ModelState state;
+    int model_exchange;
+} SavedState;
+/* Its serialized form, shared by the FMI layers: a header (`magic`, which tells the layers' states
+   apart, the ModelState's size, the build's GUID, the type), then the ModelState's bytes.
+   model_deserialize: 0, or MODEL_WRONG_SIZE when `size` is not model_serialized_size(), or
+   MODEL_NOT_OURS when the bytes are not a state of this build and layer. */
+enum { MODEL_WRONG_SIZE = 1, MODEL_NOT_OURS = 2 };
+size_t model_serialized_size(void);
+void model_serialize(const SavedState *saved, const char magic[8], unsigned char *bytes);
+int model_deserialize(const unsigned char *bytes, size_t size, const char magic[8], SavedState *saved);
+
 /* Logging through the host's callback (defined by the FMI layer). */
 void model_log(ModelInstance *m, ModelStatus status, const char *category, const char *fmt, ...);
 

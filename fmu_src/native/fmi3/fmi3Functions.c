@@ -90,19 +90,7 @@ typedef struct {
     Host host;
 } Instance;
 
-/* An FMU state: a copy of the ModelState, and the type of the instance that saved it. */
-typedef struct {
-    ModelState state;
-    int model_exchange;
-} SavedState;
-
-/* Serialized FMU state: this header, then the ModelState's bytes. */
-typedef struct {
-    char magic[8];
-    unsigned int state_size;
-    char token[48];
-    int model_exchange;
-} StateHeader;
+/* The mark of this layer's serialized FMU states (saved_state.c): the FMI 2.0 layer's differs. */
 static const char STATE_MAGIC[8] = "FBSTAT3";
 
 /* Every message goes through the host's logger: errors and warnings always, information
@@ -815,50 +803,41 @@ fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUSta
     ENTER(ALL_STATES);
     REQUIRE(FMUState);
     REQUIRE(size);
-    *size = sizeof(StateHeader) + sizeof(ModelState);
+    *size = model_serialized_size();
     return fmi3OK;
 }
 
 fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[],
                                  size_t size)
 {
-    StateHeader header;
     ENTER(ALL_STATES);
     REQUIRE(FMUState);
     REQUIRE(serializedState);
-    if (size < sizeof header + sizeof(ModelState)) {
+    if (size < model_serialized_size()) {
         model_log(m, MODEL_ERROR, "logStatusError", "fmi3SerializeFMUState: need %u bytes (got %u)",
-                  (unsigned)(sizeof header + sizeof(ModelState)), (unsigned)size);
+                  (unsigned)model_serialized_size(), (unsigned)size);
         return fmi3Error;
     }
-    memset(&header, 0, sizeof header);
-    memcpy(header.magic, STATE_MAGIC, sizeof header.magic);
-    header.state_size = (unsigned int)sizeof(ModelState);
-    strncpy(header.token, FB_GUID, sizeof header.token - 1);
-    header.model_exchange = ((const SavedState *)FMUState)->model_exchange;
-    memcpy(serializedState, &header, sizeof header);
-    memcpy(serializedState + sizeof header, &((const SavedState *)FMUState)->state, sizeof(ModelState));
+    model_serialize((const SavedState *)FMUState, STATE_MAGIC, (unsigned char *)serializedState);
     return fmi3OK;
 }
 
 fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[], size_t size,
                                    fmi3FMUState *FMUState)
 {
-    StateHeader header;
+    SavedState read;
     ENTER(ALL_STATES);
     REQUIRE(serializedState);
     REQUIRE(FMUState);
-    if (size != sizeof header + sizeof(ModelState)) {
+    const int problem = model_deserialize((const unsigned char *)serializedState, size, STATE_MAGIC, &read);
+    if (problem == MODEL_WRONG_SIZE) {
         model_log(m, MODEL_ERROR, "logStatusError", "fmi3DeserializeFMUState: expected %u bytes, got %u",
-                  (unsigned)(sizeof header + sizeof(ModelState)), (unsigned)size);
+                  (unsigned)model_serialized_size(), (unsigned)size);
         return fmi3Error;
     }
-    memcpy(&header, serializedState, sizeof header);
-    if (memcmp(header.magic, STATE_MAGIC, sizeof header.magic) != 0 || header.state_size != sizeof(ModelState)
-        || strncmp(header.token, FB_GUID, sizeof header.token) != 0
-        || (header.model_exchange != 0 && header.model_exchange != 1)) {
-        model_log(m, MODEL_ERROR, "logStatusError", "fmi3DeserializeFMUState: not a state of this FMU "
-                  "(instantiation token %s)", FB_GUID);
+    if (problem) {
+        model_log(m, MODEL_ERROR, "logStatusError", "fmi3DeserializeFMUState: not a state of this FMU (instantiation token %s)",
+                  FB_GUID);
         return fmi3Error;
     }
     if (!*FMUState) {
@@ -868,8 +847,7 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte seriali
             return fmi3Error;
         }
     }
-    memcpy(&((SavedState *)*FMUState)->state, serializedState + sizeof header, sizeof(ModelState));
-    ((SavedState *)*FMUState)->model_exchange = header.model_exchange;
+    *(SavedState *)*FMUState = read;
     return fmi3OK;
 }
 
