@@ -23,6 +23,11 @@
    from a Reference-FMUs release: it cannot be downloaded here) as a second floor, run the same
    way (100 s, output interval 0.01 s, its x0 recorded), alternating with the other two in every
    round.  And the C model in-process per mechanism (benchmarks/native/inprocess.c, Case 1).
+7. Every mechanism's FMI 3.0 native FMU in co-simulation against its FMI 2.0 twin, VanDerPol's
+   FMI 2.0 build (``--vanderpol``) and VanDerPol's FMI 3.0 build (``--vanderpol3 PATH``:
+   build_vanderpol.sh --fmi 3), the last informative only: issue 24's 1.5x is not set for it.
+8. Every mechanism's native FMU in Model Exchange through FMPy's CVode, FMI 2.0 and FMI 3.0,
+   each against VanDerPol's Model Exchange of the same FMI version when given.
 
 ``--quick`` is the smoke setting (tests/test_benchmarks_smoke.py): every table above but the
 sweep, from one round, with the FMPy runs cut to 20 s (Case 2's step at 10 s included), the
@@ -30,7 +35,7 @@ tolerance search to 1e-8 and 1e-9, and table 6 to the four-bar.  Its figures are
 benchmark's.
 
 Usage: python benchmarks/native_fmu.py [--repeat 5] [--sweep] [--quick] [--mechanisms fourbar,slider_crank]
-                                     [--vanderpol /tmp/VanDerPol.fmu]
+                                     [--vanderpol /tmp/VanDerPol.fmu] [--vanderpol3 /tmp/VanDerPol3.fmu]
 """
 from __future__ import annotations
 
@@ -206,27 +211,43 @@ def record_one(fmu: Path, output: str, stop: float, **start_values) -> float:
 VANDERPOL_IDENTIFIER, VANDERPOL_OUTPUT = "VanDerPol", "x0"
 
 
-def check_vanderpol(path: Path) -> str | None:
-    """Why ``path`` is not the Reference-FMUs' VanDerPol FMU for this platform, or None."""
+def check_vanderpol(path: Path, fmi_version: int = 2) -> str | None:
+    """Why ``path`` is not the Reference-FMUs' VanDerPol FMU of FMI ``fmi_version`` (2 or 3) for
+    this platform, or None."""
+    import fmpy
     from fmpy import read_model_description
+    build = f"benchmarks/native/build_vanderpol.sh{' --fmi 3' if fmi_version == 3 else ''} SRC_DIR {path}"
     if not path.is_file():
-        return f"{path}: no such file (build it: benchmarks/native/build_vanderpol.sh SRC_DIR {path})"
+        return f"{path}: no such file (build it: {build})"
     if not zipfile.is_zipfile(path):
         return f"{path}: not an FMU (not a zip file)"
     try:
         md = read_model_description(str(path))
     except Exception as exc:        # FMPy raises several kinds for a broken modelDescription.xml
         return f"{path}: its modelDescription.xml cannot be read ({exc})"
-    if md.coSimulation is None or md.coSimulation.modelIdentifier != VANDERPOL_IDENTIFIER:
-        return (f"{path}: not the Reference-FMUs' VanDerPol (co-simulation model identifier "
-                f"{md.coSimulation.modelIdentifier if md.coSimulation else 'none'!r})")
-    if VANDERPOL_OUTPUT not in {v.name for v in md.modelVariables}:
+    if md.fmiVersion != f"{fmi_version}.0":
+        return f"{path}: an FMI {md.fmiVersion} FMU, not FMI {fmi_version}.0 (build it: {build})"
+    for kind, interface in (("co-simulation", md.coSimulation), ("model exchange", md.modelExchange)):
+        if interface is None or interface.modelIdentifier != VANDERPOL_IDENTIFIER:
+            return (f"{path}: not the Reference-FMUs' VanDerPol ({kind} model identifier "
+                    f"{interface.modelIdentifier if interface else 'none'!r})")
+    if VANDERPOL_OUTPUT not in {v.name for v in md.modelVariables if v.causality == "output"}:
         return f"{path}: VanDerPol without the output {VANDERPOL_OUTPUT!r}"
+    # FMI 2.0's folders are linux64, darwin64, win64; FMI 3.0's platform tuples, e.g. x86_64-linux
+    folder = fmpy.platform if fmi_version == 2 else fmpy.platform_tuple
     with zipfile.ZipFile(path) as z:
-        folder = {"linux": "linux64", "darwin": "darwin64", "win32": "win64"}.get(sys.platform, sys.platform)
         if not any(n.startswith(f"binaries/{folder}/") for n in z.namelist()):
             return f"{path}: no binaries/{folder}/ for this machine"
     return None
+
+
+def built_native(directory: Path, name: str, fmi_version: int = 2) -> Path:
+    """A shipped mechanism's native FMU (FMI ``fmi_version``) built from the working tree into
+    ``directory`` once: the tables below share it."""
+    from fmu_src.native_build import build_native_fmu
+    path = directory / f"{name}_fmi{fmi_version}.fmu"
+    return path if path.exists() else \
+        build_native_fmu(path, mechanism=name, validate=False, fmi_version=fmi_version).path
 
 
 def mechanisms_against_floor(names: list[str], fourbar_native: Path, repeat: int, stop: float,
@@ -234,7 +255,6 @@ def mechanisms_against_floor(names: list[str], fourbar_native: Path, repeat: int
     """Table 6: each mechanism's native FMU against its floor (and VanDerPol's, when given), and
     its C model in-process."""
     from fmpy import read_model_description
-    from fmu_src.native_build import build_native_fmu
     vdp_head = f" | VanDerPol s | native / VanDerPol (target <= {FLOOR_TARGET:g}x)" if vanderpol else ""
     lines = [f"| mechanism | rtol, atol | native s | floor s | native / floor (target <= {FLOOR_TARGET:g}x)"
              f"{vdp_head} | RHS evaluations (in-process, 100 s) | ms in-process (100 s) "
@@ -243,8 +263,7 @@ def mechanisms_against_floor(names: list[str], fourbar_native: Path, repeat: int
     if vanderpol:
         record_one(vanderpol, VANDERPOL_OUTPUT, stop)                    # warm-up: first load
     for name in names:
-        native = fourbar_native if name == "fourbar" else \
-            build_native_fmu(directory / f"{name}.fmu", mechanism=name, validate=False).path
+        native = fourbar_native if name == "fourbar" else built_native(directory, name)
         floor = directory / f"Floor_{name}.fmu"
         floor = floor if floor.exists() else build_floor(directory, name)
         output = next(v.name for v in read_model_description(str(native)).modelVariables if v.causality == "output")
@@ -282,30 +301,47 @@ def mechanisms_against_floor(names: list[str], fourbar_native: Path, repeat: int
 
 
 def fmi3_against_floor(names: list[str], repeat: int, stop: float, directory: Path,
-                       vanderpol: Path | None = None) -> list[str]:
+                       vanderpol: Path | None = None, vanderpol3: Path | None = None) -> list[str]:
     """Each mechanism's FMI 3.0 native FMU in co-simulation through FMPy, against its FMI 2.0 twin
-    (the same C model: the difference is the FMI layer and FMPy's FMI 3.0 path) and VanDerPol's
-    FMI 2.0 floor; 100 s recording one output at the FMU's default tolerance."""
+    (the same C model: the difference is the FMI layer and FMPy's FMI 3.0 path), VanDerPol's FMI
+    2.0 build (issue 24's floor) and VanDerPol's FMI 3.0 build (FMPy's FMI 3.0 path on both
+    sides: informative, no target), each when given; 100 s recording one output at the FMU's
+    default tolerance."""
     from fmpy import read_model_description
-    from fmu_src.native_build import build_native_fmu
 
-    head = " | VanDerPol s | FMI 3.0 / VanDerPol" if vanderpol else ""
+    floors = [(version, path, label) for version, path, label in
+              ((2, vanderpol, "FMI 3.0 / VanDerPol FMI 2.0"),
+               (3, vanderpol3, "FMI 3.0 / VanDerPol FMI 3.0 (informative, not a target)")) if path]
+    head = "".join(f" | VanDerPol FMI {version}.0 s | {label}" for version, _, label in floors)
     lines = [f"| mechanism | FMI 3.0 s | FMI 2.0 s | FMI 3.0 / FMI 2.0{head} |",
-             "|---|---|---|---|" + ("---|---|" if vanderpol else "")]
+             "|---|---|---|---|" + "---|---|" * len(floors)]
+    for _, path, _ in floors:
+        record_one(path, VANDERPOL_OUTPUT, stop)                          # warm-up: first load
     for name in names:
-        fmi2 = build_native_fmu(directory / f"{name}_2.fmu", mechanism=name, validate=False).path
-        fmi3 = build_native_fmu(directory / f"{name}_3.fmu", mechanism=name, validate=False, fmi_version=3).path
+        fmi2, fmi3 = built_native(directory, name, 2), built_native(directory, name, 3)
         output = next(v.name for v in read_model_description(str(fmi2)).modelVariables if v.causality == "output")
-        record_one(fmi3, output, stop)                                    # warm-up: first load
-        record_one(fmi2, output, stop)
-        rounds = [(record_one(fmi3, output, stop), record_one(fmi2, output, stop),
-                   record_one(vanderpol, VANDERPOL_OUTPUT, stop) if vanderpol else math.nan) for _ in range(repeat)]
+        runs = [(fmi3, output), (fmi2, output)] + [(path, VANDERPOL_OUTPUT) for _, path, _ in floors]
+        for fmu, recorded in runs[:2]:
+            record_one(fmu, recorded, stop)                               # warm-up: first load
+        # the FMUs alternate within each round; a ratio is the median of the per-round ratios
+        rounds = [[record_one(fmu, recorded, stop) for fmu, recorded in runs] for _ in range(repeat)]
         med = statistics.median
-        a, b, v = (med(r[i] for r in rounds) for i in range(3))
-        tail = f" | {v:.3f} | {med(r[0] / r[2] for r in rounds):.2f}x" if vanderpol else ""
-        lines.append(f"| {name} | {a:.3f} | {b:.3f} | {med(r[0] / r[1] for r in rounds):.2f}x{tail} |")
-    lines += ["", f"simulate_fmu(fmi_type='CoSimulation') for {stop:g} s on the 0.01 s grid recording one output, "
-                  f"the FMUs' default tolerance (rtol = atol = 1e-10); median of {repeat} alternating rounds."]
+        cells = [f"{med(r[0] for r in rounds):.3f}"]
+        for i in range(1, len(runs)):
+            cells.append(f"{med(r[i] for r in rounds):.3f} | {med(r[0] / r[i] for r in rounds):.2f}x")
+        lines.append(f"| {name} | {' | '.join(cells)} |")
+    x0 = f"; {VANDERPOL_OUTPUT} for VanDerPol" if floors else ""
+    lines += ["", f"simulate_fmu(fmi_type='CoSimulation') for {stop:g} s on the 0.01 s grid recording one output "
+                  f"(the first{x0}), the FMUs' default tolerance (rtol = atol = 1e-10); median of {repeat} rounds, "
+                  "the FMUs alternating, each ratio the median of the per-round ratios.  FMI 3.0 / FMI 2.0: the "
+                  "same C model, so the difference is the FMI layer and FMPy's FMI 3.0 path."
+                  + ("  VanDerPol FMI 2.0: the Reference-FMUs' (v0.0.39, benchmarks/native/build_vanderpol.sh), "
+                     "issue 24's floor; against it FMPy's FMI 3.0 path is on the native FMU's side only."
+                     if vanderpol else "")
+                  + ("  VanDerPol FMI 3.0: the same Reference-FMUs model built for FMI 3.0 "
+                     "(benchmarks/native/build_vanderpol.sh --fmi 3), so FMPy's FMI 3.0 path is on both sides; "
+                     f"its ratio is informative, not a target (issue 24's {FLOOR_TARGET:g}x is set against the "
+                     "FMI 2.0 floor, the every-mechanism table)." if vanderpol3 else "")]
     return lines
 
 
@@ -320,14 +356,15 @@ def _me_lengths(fmu: Path) -> list[str]:
 
 
 def model_exchange(names: list[str], fourbar_native: Path, repeat: int, stop: float, directory: Path,
-                   vanderpol: Path | None = None) -> list[str]:
-    """Each mechanism's native FMU in Model Exchange through FMPy's CVode, at FMPy's default
-    tolerance and at ME_TIGHT: wall time recording one output (VanDerPol's Model Exchange the
-    floor, when given), and the largest difference of the lengths and angles from co-simulation
-    at rtol = atol = 1e-13 (reported, not asserted: the accuracy is the host's solver's)."""
+                   vanderpol: Path | None = None, fmi_version: int = 2) -> list[str]:
+    """Each mechanism's FMI ``fmi_version`` native FMU (2: the four-bar's is ``fourbar_native``;
+    3: built here) in Model Exchange through FMPy's CVode, at FMPy's default tolerance and at
+    ME_TIGHT: wall time recording one output (``vanderpol``, VanDerPol's build of the same FMI
+    version, in Model Exchange the floor, when given), and the largest difference of the lengths
+    and angles from the same FMU in co-simulation at rtol = atol = 1e-13 (reported, not
+    asserted: the accuracy is the host's solver's)."""
     import numpy as np
     from fmpy import simulate_fmu
-    from fmu_src.native_build import build_native_fmu
 
     def me_run(fmu: Path, output: list[str], **kw):
         t0 = time.perf_counter()
@@ -335,13 +372,14 @@ def model_exchange(names: list[str], fourbar_native: Path, repeat: int, stop: fl
                               output_interval=0.01, output=output, **kw)
         return time.perf_counter() - t0, result
 
+    version = f"FMI {fmi_version}.0"
     vdp = statistics.median(me_run(vanderpol, [VANDERPOL_OUTPUT])[0] for _ in range(repeat)) if vanderpol else None
-    head = " | VanDerPol ME s | ratio" if vanderpol else ""
+    head = f" | VanDerPol {version} ME s | ME / VanDerPol ME" if vanderpol else ""
     lines = [f"| mechanism | CVode rtol | ME s (one output){head} | max \\|ME - CS\\| of lengths and angles, m or rad "
              f"| max constraint residual |", "|---|---|---|" + ("---|---|" if vanderpol else "") + "---|---|"]
     for name in names:
-        native = fourbar_native if name == "fourbar" else \
-            build_native_fmu(directory / f"{name}_me.fmu", mechanism=name, validate=False).path
+        native = fourbar_native if name == "fourbar" and fmi_version == 2 else \
+            built_native(directory, name, fmi_version)
         lengths = _me_lengths(native)
         cs = simulate_fmu(str(native), fmi_type="CoSimulation", stop_time=stop, output_interval=0.01, output=lengths,
                           start_values={"rtol": 1e-13, "atol": 1e-13})
@@ -351,12 +389,16 @@ def model_exchange(names: list[str], fourbar_native: Path, repeat: int, stop: fl
             diff = max(float(np.max(np.abs(me[n] - cs[n]))) for n in lengths)
             ratio = f" | {vdp:.3f} | {wall / vdp:.2f}x" if vdp else ""
             lines.append(f"| {name} | {label} | {wall:.3f}{ratio} | {diff:.2g} | {float(np.max(me['constraint_residual'])):.1g} |")
-    lines += ["", f"simulate_fmu(fmi_type='ModelExchange', solver='CVode') for {stop:g} s on the 0.01 s grid; wall time "
-                  f"the median of {repeat} runs recording the first length.  The reference is the same FMU in "
-                  "co-simulation at rtol = atol = 1e-13.  In Model Exchange the host's solver integrates the "
-                  "independent coordinates and rates: the difference is its error (the five-bar is chaotic, so "
-                  "any error grows), while the constraints hold to round-off at any tolerance (partitioning)."
-                  + ("  VanDerPol: the Reference-FMUs' in Model Exchange, the same call." if vanderpol else "")]
+    lines += ["", f"simulate_fmu(fmi_type='ModelExchange', solver='CVode') of the {version} FMUs for {stop:g} s on the "
+                  f"0.01 s grid; wall time the median of {repeat} runs recording the first length.  The reference is "
+                  "the same FMU in co-simulation at rtol = atol = 1e-13.  In Model Exchange the host's solver "
+                  "integrates the independent coordinates and rates: the difference is its error (the five-bar is "
+                  "chaotic, so any error grows), while the constraints hold to round-off at any tolerance "
+                  "(partitioning)."
+                  + (f"  VanDerPol {version}: the Reference-FMUs' (v0.0.39, benchmarks/native/build_vanderpol.sh"
+                     f"{' --fmi 3' if fmi_version == 3 else ''}) in Model Exchange, the same call at FMPy's default "
+                     f"tolerance, the median of {repeat} runs before the mechanisms'; its ratio is reported, not a "
+                     "target." if vanderpol else "")]
     return lines
 
 
@@ -397,6 +439,11 @@ def main(argv=None) -> int:
                         help="the Reference-FMUs' VanDerPol.fmu (benchmarks/native/build_vanderpol.sh SRC_DIR PATH) "
                              "as a second floor of the every-mechanism table: issue 24's (default: the "
                              "FOURBAR_VANDERPOL environment variable, so that run_all.py passes it on)")
+    parser.add_argument("--vanderpol3", type=Path, default=os.environ.get("FOURBAR_VANDERPOL3") or None,
+                        metavar="PATH",
+                        help="the Reference-FMUs' VanDerPol built for FMI 3.0 (benchmarks/native/build_vanderpol.sh "
+                             "--fmi 3 SRC_DIR PATH) as the floor of the FMI 3.0 tables, informative: no target "
+                             "(default: the FOURBAR_VANDERPOL3 environment variable)")
     parser.add_argument("--quick", action="store_true",
                         help=f"smoke setting, not the benchmark: one round, FMPy runs of {QUICK_STOP:g} s, tolerance "
                              f"search over {', '.join(f'{t:g}' for t in QUICK_SEARCH)} only (every table but the "
@@ -410,10 +457,10 @@ def main(argv=None) -> int:
     if not native.exists() or not python.exists():
         print("build both FMUs first: python build_fmu.py", file=sys.stderr)
         return 2
-    if args.vanderpol is not None:
-        problem = check_vanderpol(args.vanderpol)
+    for option, path, fmi_version in (("--vanderpol", args.vanderpol, 2), ("--vanderpol3", args.vanderpol3, 3)):
+        problem = check_vanderpol(path, fmi_version) if path is not None else None
         if problem:
-            print(f"error: --vanderpol {problem}", file=sys.stderr)
+            print(f"error: {option} {problem}", file=sys.stderr)
             return 2
     from fmu_src.mechanism.description import shipped_mechanisms
     shipped = shipped_mechanisms()
@@ -432,9 +479,11 @@ def main(argv=None) -> int:
                "### Every mechanism: the native FMU against FMPy's floor", "",
                *mechanisms_against_floor(mechanisms, native, repeat, stop, Path(tmp), args.vanderpol), "",
                "### Every mechanism in FMI 3.0 co-simulation", "",
-               *fmi3_against_floor(mechanisms, repeat, stop, Path(tmp), args.vanderpol), "",
+               *fmi3_against_floor(mechanisms, repeat, stop, Path(tmp), args.vanderpol, args.vanderpol3), "",
                "### Every mechanism in Model Exchange (FMPy's CVode)", "",
-               *model_exchange(mechanisms, native, repeat, stop, Path(tmp), args.vanderpol)]
+               *model_exchange(mechanisms, native, repeat, stop, Path(tmp), args.vanderpol), "",
+               "### Every mechanism in FMI 3.0 Model Exchange (FMPy's CVode)", "",
+               *model_exchange(mechanisms, native, repeat, stop, Path(tmp), args.vanderpol3, fmi_version=3)]
     if args.sweep:
         out += ["", "### fourbar-sweep sweeps/l2_step.toml", "", *sweeps(native)]
     print("\n".join(out))

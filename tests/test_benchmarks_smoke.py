@@ -161,6 +161,62 @@ def test_native_fmu_benchmark(native_fmu, fourbar_fmu):
             assert all(0 <= float(c) < 1.0 for c in row[2:5]), row
 
 
+def test_native_fmu_benchmark_refuses_wrong_vanderpol3(native_fmu, fourbar_fmu, tmp_path):
+    """``--vanderpol3`` takes VanDerPol's FMI 3.0 build only: an FMI 2.0 FMU (the native FMU) or a
+    missing file is refused up front, exit 2, with a message naming the option and the path."""
+    base = [sys.executable, str(REPO / "benchmarks" / "native_fmu.py"), "--quick", "--native", str(native_fmu),
+            "--fmu", str(fourbar_fmu)]
+    env = {k: v for k, v in os.environ.items() if k not in ("FOURBAR_VANDERPOL", "FOURBAR_VANDERPOL3")}
+    missing = tmp_path / "VanDerPol3.fmu"
+    for path, why in ((native_fmu, "an FMI 2.0 FMU, not FMI 3.0"), (missing, "no such file")):
+        proc = subprocess.run([*base, "--vanderpol3", str(path)], cwd=REPO, env=env, capture_output=True,
+                              text=True, timeout=120)
+        assert proc.returncode == 2, (proc.returncode, proc.stdout[-2000:], proc.stderr[-2000:])
+        assert f"error: --vanderpol3 {path}: {why}" in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+        assert "build_vanderpol.sh --fmi 3" in proc.stderr, proc.stderr     # says how to build the right one
+    # the environment variable is read the same way as the option
+    proc = subprocess.run(base, cwd=REPO, env={**env, "FOURBAR_VANDERPOL3": str(missing)}, capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 2 and f"error: --vanderpol3 {missing}: no such file" in proc.stderr, proc.stderr
+
+
+def _table(section: str) -> tuple[list[str], list[list[str]]]:
+    """The header cells and the body rows (cells) of the one markdown table in ``section``."""
+    lines = [line for line in section.splitlines() if line.startswith("|")]
+    split = [[c.strip() for c in line.strip("|").split("|")] for line in lines]
+    return split[0], split[2:]
+
+
+@pytest.mark.slow
+def test_native_fmu_benchmark_vanderpol3(native_fmu, fourbar_fmu):
+    """``--quick --vanderpol3 $FOURBAR_VANDERPOL3``: the FMI 3.0 co-simulation table gains
+    VanDerPol FMI 3.0's seconds and the native FMU's ratio to them (labelled informative), and the
+    FMI 3.0 Model Exchange table VanDerPol FMI 3.0's Model Exchange seconds.  Skipped without that
+    FMU (benchmarks/native/build_vanderpol.sh --fmi 3 SRC_DIR PATH builds it)."""
+    vanderpol3 = os.environ.get("FOURBAR_VANDERPOL3")
+    if not vanderpol3:
+        pytest.skip("FOURBAR_VANDERPOL3 not set (benchmarks/native/build_vanderpol.sh --fmi 3 SRC_DIR PATH)")
+    out = _bench("native_fmu.py", "--quick", "--native", str(native_fmu), "--fmu", str(fourbar_fmu),
+                 "--vanderpol3", vanderpol3)
+    ratio_head = "FMI 3.0 / VanDerPol FMI 3.0 (informative, not a target)"
+    head, rows = _table(_section(out, "Every mechanism in FMI 3.0 co-simulation"))
+    assert "VanDerPol FMI 3.0 s" in head and ratio_head in head, head
+    (row,) = rows
+    fmi3, vdp3 = float(row[head.index("FMI 3.0 s")]), float(row[head.index("VanDerPol FMI 3.0 s")])
+    ratio = float(row[head.index(ratio_head)].rstrip("x"))
+    assert fmi3 > 0 and vdp3 > 0, row
+    # one round: the ratio is FMI 3.0 s / VanDerPol FMI 3.0 s before both were rounded to 3
+    # decimals (each off by <= 5e-4 s) and it to 2 (<= 5e-3): the bound of that rounding
+    slack = 5e-4 * (1 + fmi3 / vdp3) / (vdp3 - 5e-4) + 5e-3
+    assert abs(ratio - fmi3 / vdp3) <= slack, (row, slack)
+
+    head, rows = _table(_section(out, "Every mechanism in FMI 3.0 Model Exchange (FMPy's CVode)"))
+    assert "VanDerPol FMI 3.0 ME s" in head and "ME / VanDerPol ME" in head, head
+    assert [r[0] for r in rows] == ["fourbar", "fourbar"], rows          # default and tight CVode rtol
+    vdp = {r[head.index("VanDerPol FMI 3.0 ME s")] for r in rows}
+    assert len(vdp) == 1 and float(vdp.pop()) > 0, rows                  # measured once, for both rows
+
+
 @pytest.mark.slow
 def test_sweep_scaling_benchmark(native_fmu):
     """``--quick``: 2 scenarios of 12 s on 1 worker, one warm cluster and one cold
