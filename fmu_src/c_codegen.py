@@ -131,6 +131,12 @@ class _Symbols:
         self.minv = [sp.Symbol(f"minv_{k}", real=True) for k in range(n)]
         self.Q = [sp.Symbol(f"Q_{k}", real=True) for k in range(n)]
         self.vector = [sp.Symbol(f"v_{k}", real=True) for k in range(n)]
+        # A direction of the state (dq, dqd) and of the multipliers (dlam), and a vector w (n) that
+        # Phi_q multiplies: the arguments of the directional derivatives (Model Exchange).
+        self.dq = [sp.Symbol(f"dq_{nm}", real=True) for nm in names]
+        self.dqd = [sp.Symbol(f"dqd_{nm}", real=True) for nm in names]
+        self.dlam = [sp.Symbol(f"dlam_{k}", real=True) for k in range(m)]
+        self.w = [sp.Symbol(f"w_{nm}", real=True) for nm in names]
         #: Phi_q with a symbol for each entry that is not a constant: its sparsity pattern
         # (constant entries, e.g. the -1 of a pin's x, are used as such)
         self.J_pattern = sp.Matrix(m, n, lambda i, k: eqs.jacobian[i, k] if eqs.jacobian[i, k].is_number
@@ -144,7 +150,18 @@ class _Symbols:
     @property
     def arrays(self) -> dict[str, list[sp.Symbol]]:
         return {"q": self.q, "tr": self.trig, "qd": self.qd, "lam": self.lam, "p": self.p, "d": self.d,
-                "J": self.J, "minv": self.minv, "Q": self.Q, "v": self.vector}
+                "J": self.J, "minv": self.minv, "Q": self.Q, "v": self.vector, "dq": self.dq, "dqd": self.dqd,
+                "dlam": self.dlam, "w": self.w}
+
+    def directional(self, expr: sp.Expr, multipliers: bool = False) -> sp.Expr:
+        """The derivative of ``expr`` (in the equations' symbols) along (dq, dqd) and, with
+        ``multipliers``, dlam: sum_k d expr / d q_k dq_k + ..., in C names."""
+        expr = sp.sympify(expr)
+        pairs = list(zip(self.eqs.q, self.dq)) + list(zip(self.eqs.qd, self.dqd))
+        if multipliers:
+            pairs += list(zip(self.eqs.multipliers, self.dlam))
+        free = expr.free_symbols
+        return self.c(sp.Add(*(sp.diff(expr, x) * dx for x, dx in pairs if x in free)))
 
 
 class _Sparse(dict):
@@ -530,6 +547,7 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
         ("void eq_accelerations(const double *J, const double *minv, const double *Q, const double *lam, "
          "double *qdd)", f"qdd = M^-1 (Q - Phi_q^T lambda) ({n}).", [("qdd", qdd)], ("J", "minv", "Q", "lam")),
     ]
+    functions += _directional_functions(eqs, sym, state_outputs, force_outputs)
     body = [_function(sym, *f) for f in functions]
     prototypes = [f"{f[0]};" for f in functions]
     dep_source, dep_prototypes, dep_header = _dependent_lu_code(sym, eqs)
@@ -622,6 +640,45 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
     source = (_HEADER.format(what=_source_label(eqs)) + "#include <math.h>\n#include \"equations.h\"\n\n"
               + "\n".join(body))
     return "\n".join(header) + "\n", source
+
+
+def _directional_functions(eqs: MechanismEquations, sym: _Symbols, state_outputs, force_outputs) -> list:
+    """The pieces of Model Exchange's directional derivatives (dae.c: dae_directional), each the
+    derivative of an expression above along a direction (dq, dqd[, dlam]) of the state, printed
+    from the same sympy expressions: nothing is differentiated by hand or numerically."""
+    n, m = eqs.n, eqs.m
+    w = sp.Matrix([sp.Symbol(f"__w{k}") for k in range(n)])
+    lam = eqs.multipliers
+    phi_q_w = eqs.jacobian * w                      # Phi_q w for a w that does not depend on q
+    phi_q_t_lam = eqs.jacobian.T * lam              # Phi_q^T lambda
+    w_c = dict(zip(w, sym.w))
+    return [
+        ("void eq_dir_jacobian_product(const double *q, const double *tr, const double *p, const double *w, "
+         "const double *dq, double *out)",
+         f"out = d(Phi_q w)/dq dq ({m}) for a fixed w ({n}).",
+         [("out", [sym.directional(e).xreplace(w_c) for e in phi_q_w])], ("q", "tr", "p", "w", "dq")),
+        ("void eq_dir_jacobian_transpose_product(const double *q, const double *tr, const double *p, "
+         "const double *lam, const double *dq, double *out)",
+         f"out = d(Phi_q^T lambda)/dq dq ({n}) for fixed multipliers.",
+         [("out", [sym.directional(e) for e in phi_q_t_lam])], ("q", "tr", "p", "lam", "dq")),
+        ("void eq_dir_dynamics(const double *q, const double *tr, const double *qd, double t, const double *p, "
+         "const double *d, const double *dq, const double *dqd, double *dQ, double *dgamma)",
+         f"The derivatives of Q ({n}) and gamma ({m}) along (dq, dqd).",
+         [("dQ", [sym.directional(e) for e in eqs.forces]), ("dgamma", [sym.directional(e) for e in eqs.gamma])],
+         ("q", "tr", "qd", "p", "d", "dq", "dqd")),
+        ("void eq_dir_mass_diagonal(const double *q, const double *tr, const double *p, const double *dq, "
+         "double *out)", f"The derivative of M's diagonal ({n}) along dq.",
+         [("out", [sym.directional(eqs.mass_matrix[i, i]) for i in range(n)])], ("q", "tr", "p", "dq")),
+        ("void eq_dir_outputs_state(const double *q, const double *tr, const double *qd, double t, const double *p, "
+         "const double *d, const double *dq, const double *dqd, double *out)",
+         "The derivatives of eq_outputs_state's outputs along (dq, dqd).",
+         [("out", [sym.directional(o.expression) for o in state_outputs])], ("q", "tr", "qd", "p", "d", "dq", "dqd")),
+        ("void eq_dir_outputs_force(const double *q, const double *tr, const double *qd, const double *lam, "
+         "double t, const double *p, const double *d, const double *dq, const double *dqd, const double *dlam, "
+         "double *out)", "The derivatives of eq_outputs_force's outputs along (dq, dqd, dlam).",
+         [("out", [sym.directional(o.expression, multipliers=True) for o in force_outputs])],
+         ("q", "tr", "qd", "lam", "p", "d", "dq", "dqd", "dlam")),
+    ]
 
 
 def _c_array(name: str, values, per_line: int = 4) -> str:

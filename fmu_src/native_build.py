@@ -234,7 +234,7 @@ def model_description(eqs: MechanismEquations, guid: str, source_files, fmi_vers
     me = ET.SubElement(root, "ModelExchange", {
         "modelIdentifier": identifier, "needsExecutionTool": "false", "completedIntegratorStepNotNeeded": "false",
         "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
-        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true", "providesDirectionalDerivative": "false"})
+        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true"})
     cs = ET.SubElement(root, "CoSimulation", {
         "modelIdentifier": identifier, "needsExecutionTool": "false",
         "canHandleVariableCommunicationStepSize": "true", "canInterpolateInputs": "false",
@@ -296,7 +296,9 @@ def fmi3_model_description(eqs: MechanismEquations, token: str) -> bytes:
               "canBeInstantiatedOnlyOncePerProcess": "false", "canGetAndSetFMUState": "true",
               "canSerializeFMUState": "true", "providesDirectionalDerivatives": "false",
               "providesAdjointDerivatives": "false", "providesPerElementDependencies": "false"}
-    ET.SubElement(root, "ModelExchange", {**common, "needsCompletedIntegratorStep": "true",
+    # directional derivatives in model exchange only (the states are its knowns; the FMU has no inputs)
+    ET.SubElement(root, "ModelExchange", {**common, "providesDirectionalDerivatives": "true",
+                                          "needsCompletedIntegratorStep": "true",
                                           "providesEvaluateDiscreteStates": "false"})
     ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true",
                                          "maxOutputDerivativeOrder": "0", "providesIntermediateUpdate": "false",

@@ -71,3 +71,29 @@ ModelStatus model_me_event_update(ModelInstance *m)
     (void)m;
     return MODEL_OK;
 }
+
+/* Directional derivatives: every known accepted, every sensitivity zero (the derivatives are). */
+void model_me_directional_start(Directional *d)
+{
+    memset(d, 0, sizeof *d);
+}
+
+ModelStatus model_me_seed(ModelInstance *m, const char *function, Directional *d, unsigned long vr, double seed)
+{
+    (void)m; (void)function; (void)d; (void)vr; (void)seed;
+    return MODEL_OK;
+}
+
+ModelStatus model_me_directional(ModelInstance *m, Directional *d)
+{
+    (void)m; (void)d;
+    return MODEL_OK;
+}
+
+ModelStatus model_me_sensitivity(ModelInstance *m, const char *function, const Directional *d, unsigned long vr,
+                                 double *value)
+{
+    (void)m; (void)function; (void)d; (void)vr;
+    *value = 0.0;
+    return MODEL_OK;
+}

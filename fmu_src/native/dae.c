@@ -497,20 +497,21 @@ static int solve(const double *p, const double *d, const double *minv, double t,
 }
 
 /* qdd of eq. (11) at a consistent configuration whose dependent block is factorised at q (c->f,
-   with c->v: velocities()), and the drivers' multipliers (lam, on their rows), by the null-space
-   form of the same equations: with V = [c->v; I] (Phi_q V = 0) and qdd = c + V a,
-   c = [block^-1 gamma; 0] (Phi_q c = gamma), the multipliers drop out of V^T (M qdd - Q) = 0:
-   (V^T M V) a = V^T (Q - M c), a K x K system; then block^T lambda = (Q - M qdd)[dependent].
-   One solve with the block's factors (and one transposed for the drivers) instead of forming
-   and factorising Phi_q M^-1 Phi_q^T: the same accelerations up to round-off. */
-static int accelerations(const ModelState *s, double t, Configuration *c, double *qdd, double *lam)
+   with c->v: velocities()) for the right-hand sides Q and gamma (M qdd + Phi_q^T lambda = Q,
+   Phi_q qdd = gamma), and, with want_lam, the multipliers (every row), by the null-space form:
+   with V = [c->v; I] (Phi_q V = 0) and qdd = c + V a, c = [block^-1 gamma; 0] (Phi_q c = gamma),
+   the multipliers drop out of V^T (M qdd - Q) = 0: (V^T M V) a = V^T (Q - M c), a K x K system;
+   then block^T lambda = (Q - M qdd)[dependent].  One solve with the block's factors (and one
+   transposed for the multipliers) instead of forming and factorising Phi_q M^-1 Phi_q^T: the same
+   accelerations up to round-off.  The right-hand side's (accelerations) and the directional
+   derivatives' (dae_directional: the same matrix, other right-hand sides). */
+static LINALG_INLINE int null_space_solve(const ModelState *s, const double *mass, Configuration *c,
+                                          const double *Q, const double *gamma, double *qdd, double *lam,
+                                          int want_lam)
 {
-    double Q[N], gamma[MA], particular[MA], b[MA], A[KA * KA], a[KA], mass_q[N];
+    double particular[MA], b[MA], A[KA * KA], a[KA];
     double (*v)[MA] = c->v;
-    const double *mass = MECH_MASS_IS_CONSTANT ? s->mass : mass_q;
     const int *dependent = s->dependent, *independent = s->independent;
-    if (!MECH_MASS_IS_CONSTANT) eq_mass_diagonal(c->q, c->tr, s->p, mass_q);
-    eq_dynamics(c->q, c->tr, c->qd, t, s->p, s->d, Q, gamma);
     block_solve(&c->f, gamma, particular);
     for (int j = 0; j < K; j++) {
         double sum = Q[independent[j]];
@@ -537,12 +538,24 @@ static int accelerations(const ModelState *s, double t, Configuration *c, double
         for (int j = 0; j < K; j++) x += v[j][i] * a[j];
         qdd[dependent[i]] = x;
     }
-    if (N_DRIVERS > 0) {
+    if (want_lam) {
         LINALG_UNROLL
         for (int i = 0; i < M; i++) b[i] = Q[dependent[i]] - mass[dependent[i]] * qdd[dependent[i]];
         block_solve_transposed(&c->f, b, lam);
     }
     return DAE_OK;
+}
+
+/* qdd of eq. (11) at a consistent configuration prepared by velocities(), and the multipliers
+   (lam: every row with want_lam, else only when there are drivers, whose power needs theirs). */
+static LINALG_INLINE int accelerations(const ModelState *s, double t, Configuration *c, double *qdd, double *lam,
+                                       int want_lam)
+{
+    double Q[N], gamma[MA], mass_q[N];
+    const double *mass = MECH_MASS_IS_CONSTANT ? s->mass : mass_q;
+    if (!MECH_MASS_IS_CONSTANT) eq_mass_diagonal(c->q, c->tr, s->p, mass_q);
+    eq_dynamics(c->q, c->tr, c->qd, t, s->p, s->d, Q, gamma);
+    return null_space_solve(s, mass, c, Q, gamma, qdd, lam, want_lam || N_DRIVERS > 0);
 }
 
 /* dy/dt for y = (q[independent], qd[independent], work): the Runge-Kutta right-hand side.  The
@@ -564,7 +577,7 @@ static int rhs(void *context, double t, const double *y, double *f)
         s->failed_evaluations++;
         return RK_FUNCTION_REJECT;
     }
-    if (!r) r = accelerations(s, t, &c, e->qdd, lam);
+    if (!r) r = accelerations(s, t, &c, e->qdd, lam, 0);
     if (r) {
         snprintf(s->rhs_message, MODEL_MESSAGE, "the reduced mass matrix V^T M V is singular at t = %.9g s", t);
         s->rhs_failed = r;
@@ -681,6 +694,90 @@ int dae_derivatives(ModelState *s, double *f)
     s->failed_evaluations = counts[3];
     if (r != RK_FUNCTION_OK) return s->rhs_failed ? s->rhs_failed : DAE_INTEGRATION;
     memcpy(f, ff, DAE_N_STATES * sizeof *f);
+    return DAE_OK;
+}
+
+/* The derivatives along a direction dy of the states (DAE_N_STATES) at the current consistent state
+   (Model Exchange: the file's partition): df of the states' derivatives (DAE_N_STATES) and dout of
+   the outputs (MECH_N_OUTPUTS, output order).  Exact, from the generated derivatives (eq_dir_*):
+   - positions: Phi(q) = 0 keeps the block's rows, so dq[dependent] = V dq[independent];
+   - rates: Phi_q qd = nu (nu depends on t only): block dqd[dependent] = -Phi_q[:, independent]
+     dqd[independent] - d(Phi_q qd)/dq dq;
+   - accelerations and multipliers: eq. (11) differentiated, M dqdd + Phi_q^T dlam = dQ - dM qdd -
+     d(Phi_q^T lambda)/dq dq and Phi_q dqdd = dgamma - d(Phi_q qdd)/dq dq, solved as eq. (11) is
+     (null_space_solve: the same matrix);
+   - a driver's power -lambda[row] nu[row]: -dlam[row] nu[row];
+   - the outputs: eq_dir_outputs_*; a driver's work: its state's direction; the constraint residual
+     is zero on every consistent state, so its derivative along them is 0.
+   The same cost as about one evaluation of the right-hand side, without Newton-Raphson (the state
+   is already consistent).  DAE_INTEGRATION or DAE_ASSEMBLY with the message in s->rhs_message. */
+int dae_directional(ModelState *s, const double *dy, double *df, double *dout)
+{
+    Configuration c;
+    double qdd[N], lam[MA], dq[N], dqd[N], h[MA], w[MA], dQ[N], dgamma[MA], g[MA], G[N], dmass[N], dqdd[N],
+        dlam[MA], mass_q[N];
+    double values[MECH_ALLOC(MECH_N_STATE_OUTPUTS)], forces[MECH_ALLOC(MECH_N_FORCE_OUTPUTS)];
+    const int *dependent = s->dependent, *independent = s->independent;
+    const double t = s->t;
+    configuration_init(&c);
+    memcpy(c.q, s->q, sizeof c.q);
+    memcpy(c.qd, s->qd, sizeof c.qd);
+    memcpy(c.tr, s->tr, sizeof c.tr);
+    jacobian_at(s->p, s->d, t, &c);
+    int r = velocities(s->declared, dependent, independent, &c, s->rhs_message);
+    if (r) return r;
+    const double *mass = MECH_MASS_IS_CONSTANT ? s->mass : mass_q;
+    if (!MECH_MASS_IS_CONSTANT) eq_mass_diagonal(c.q, c.tr, s->p, mass_q);
+    if (accelerations(s, t, &c, qdd, lam, 1)) {
+        snprintf(s->rhs_message, MODEL_MESSAGE, "the reduced mass matrix V^T M V is singular at t = %.9g s", t);
+        return DAE_INTEGRATION;
+    }
+    /* positions and rates */
+    for (int j = 0; j < K; j++) {
+        dq[independent[j]] = dy[j];
+        dqd[independent[j]] = dy[K + j];
+    }
+    for (int i = 0; i < M; i++) {
+        double x = 0.0;
+        for (int j = 0; j < K; j++) x += c.v[j][i] * dy[j];
+        dq[dependent[i]] = x;
+    }
+    eq_dir_jacobian_product(c.q, c.tr, s->p, c.qd, dq, h);
+    block_solve(&c.f, h, w);
+    for (int i = 0; i < M; i++) {
+        double x = -w[i];
+        for (int j = 0; j < K; j++) x += c.v[j][i] * dy[K + j];
+        dqd[dependent[i]] = x;
+    }
+    /* accelerations and multipliers */
+    eq_dir_dynamics(c.q, c.tr, c.qd, t, s->p, s->d, dq, dqd, dQ, dgamma);
+    eq_dir_jacobian_product(c.q, c.tr, s->p, qdd, dq, h);
+    for (int i = 0; i < M; i++) g[i] = dgamma[i] - h[i];
+    eq_dir_jacobian_transpose_product(c.q, c.tr, s->p, lam, dq, G);
+    eq_dir_mass_diagonal(c.q, c.tr, s->p, dq, dmass);
+    for (int k = 0; k < N; k++) dQ[k] -= G[k] + dmass[k] * qdd[k];
+    if (null_space_solve(s, mass, &c, dQ, g, dqdd, dlam, 1)) {
+        snprintf(s->rhs_message, MODEL_MESSAGE, "the reduced mass matrix V^T M V is singular at t = %.9g s", t);
+        return DAE_INTEGRATION;
+    }
+    for (int j = 0; j < K; j++) {
+        df[j] = dqd[independent[j]];
+        df[K + j] = dqdd[independent[j]];
+    }
+    for (int k = 0; k < N_DRIVERS; k++) {
+        const int row = DRIVERS[k][2];
+        df[2 * K + k] = -dlam[row] * c.nu[row];
+    }
+    /* outputs */
+    eq_dir_outputs_state(c.q, c.tr, c.qd, t, s->p, s->d, dq, dqd, values);
+    eq_dir_outputs_force(c.q, c.tr, c.qd, lam, t, s->p, s->d, dq, dqd, dlam, forces);
+    for (int k = 0; k < MECH_N_OUTPUTS; k++)
+        switch (OUTPUT_KINDS[k]) {
+        case MECH_OUTPUT_STATE: dout[k] = values[OUTPUT_INDICES[k]]; break;
+        case MECH_OUTPUT_FORCE: dout[k] = forces[OUTPUT_INDICES[k]]; break;
+        case MECH_OUTPUT_WORK: dout[k] = dy[2 * K + OUTPUT_INDICES[k]]; break;
+        default: dout[k] = 0.0; break;
+        }
     return DAE_OK;
 }
 

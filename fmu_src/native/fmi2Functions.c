@@ -544,15 +544,43 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
     return fmi2OK;
 }
 
+/* Model exchange only: the states' derivatives or outputs (vUnknown_ref) along a direction of the
+   states (vKnown_ref, dvKnown), exact (model.h: model_me_directional).  In co-simulation the FMU
+   has no inputs, so nothing to differentiate with respect to (providesDirectionalDerivative is
+   false there); in initialization mode the state is not assembled yet.  The value references are
+   checked before anything is computed: a refused call changes nothing. */
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[])
 {
+    Directional d;
+    double probe;
     ENTER(READABLE);
-    (void)vUnknown_ref; (void)nUnknown; (void)vKnown_ref; (void)nKnown; (void)dvKnown; (void)dvUnknown;
-    model_log(m, MODEL_ERROR, "logStatusError",
-              "fmi2GetDirectionalDerivative: not provided (providesDirectionalDerivative is false)");
-    return fmi2Error;
+    if (!m->model_exchange) {
+        model_log(m, MODEL_ERROR, "logStatusError", "fmi2GetDirectionalDerivative: not provided in co-simulation "
+                  "(providesDirectionalDerivative is false there: the FMU has no inputs)");
+        return fmi2Error;
+    }
+    if (m->state.mode == MODE_INITIALIZATION) {
+        model_log(m, MODEL_ERROR, "logStatusError", "fmi2GetDirectionalDerivative: available after "
+                  "fmi2ExitInitializationMode (the mechanism is assembled there)");
+        return fmi2Error;
+    }
+    REQUIRE_ARRAY(vUnknown_ref, nUnknown);
+    REQUIRE_ARRAY(vKnown_ref, nKnown);
+    REQUIRE_ARRAY(dvKnown, nKnown);
+    REQUIRE_ARRAY(dvUnknown, nUnknown);
+    model_me_directional_start(&d);
+    for (size_t i = 0; i < nKnown; i++)
+        if (model_me_seed(m, __func__, &d, vKnown_ref[i], dvKnown[i]) != MODEL_OK) return fmi2Error;
+    for (size_t i = 0; i < nUnknown; i++)
+        if (model_me_sensitivity(m, __func__, &d, vUnknown_ref[i], &probe) != MODEL_OK) return fmi2Error;
+    if (model_me_directional(m, &d) != MODEL_OK) {
+        m->state.mode = MODE_ERROR;
+        return fmi2Error;
+    }
+    for (size_t i = 0; i < nUnknown; i++) model_me_sensitivity(m, __func__, &d, vUnknown_ref[i], &dvUnknown[i]);
+    return fmi2OK;
 }
 
 /* -- co-simulation ------------------------------------------------------------------- */

@@ -343,6 +343,57 @@ ModelStatus model_me_derivatives(ModelInstance *m, double *dx)
     return MODEL_OK;
 }
 
+void model_me_directional_start(Directional *d)
+{
+    memset(d, 0, sizeof *d);
+}
+
+/* A variable's name for a message (value references past the table are named by number). */
+static const char *variable_name(unsigned long vr, char *buf, size_t n)
+{
+    if (vr < FB_N_VARIABLES) return NAMES[vr];
+    snprintf(buf, n, "value reference %lu", vr);
+    return buf;
+}
+
+ModelStatus model_me_seed(ModelInstance *m, const char *function, Directional *d, unsigned long vr, double seed)
+{
+    char buf[40];
+    for (int k = 0; k < FB_N_STATES; k++)
+        if ((unsigned long)STATE_VRS[k] == vr) {
+            d->dy[k] += seed;
+            return MODEL_OK;
+        }
+    return fail(m, "%s: %s is not a continuous state: the knowns of a directional derivative are the states "
+                "(the FMU has no inputs)", function, variable_name(vr, buf, sizeof buf));
+}
+
+ModelStatus model_me_directional(ModelInstance *m, Directional *d)
+{
+    ModelState *s = &m->state;
+    if (me_evaluate(m) != MODEL_OK) return MODEL_ERROR;
+    if (dae_directional(s, d->dy, d->df, d->dout)) return fail(m, "at t = %.9g s: %s", s->t, s->rhs_message);
+    return MODEL_OK;
+}
+
+ModelStatus model_me_sensitivity(ModelInstance *m, const char *function, const Directional *d, unsigned long vr,
+                                 double *value)
+{
+    char buf[40];
+    for (int k = 0; k < FB_N_STATES; k++)
+        if ((unsigned long)DERIVATIVE_VRS[k] == vr) {
+            *value = d->df[k];
+            return MODEL_OK;
+        }
+    for (int k = 0; k < MECH_N_OUTPUTS; k++)
+        if ((unsigned long)OUTPUT_VRS[k] == vr) {
+            *value = d->dout[k];
+            return MODEL_OK;
+        }
+    return fail(m, "%s: %s is neither a state's derivative nor an output: the unknowns of a directional "
+                "derivative are those of <ModelStructure>", function, variable_name(vr, buf, sizeof buf));
+}
+
 ModelStatus model_me_completed_step(ModelInstance *m)
 {
     if (me_evaluate(m) != MODEL_OK) return MODEL_ERROR;

@@ -115,6 +115,21 @@ void model_me_set_states(ModelInstance *m, const double *x);
 ModelStatus model_me_derivatives(ModelInstance *m, double *dx);
 ModelStatus model_me_completed_step(ModelInstance *m);
 ModelStatus model_me_event_update(ModelInstance *m);
+/* Model Exchange's directional derivatives (fmi2GetDirectionalDerivative, fmi3GetDirectionalDerivative):
+   sensitivity_i = sum_j d unknown_i / d known_j seed_j at the current state, the knowns being
+   continuous states (the FMU has no inputs) and the unknowns the states' derivatives or outputs
+   (dae_directional: exact, from the generated derivatives).  A layer starts a Directional with
+   model_me_directional_start, adds each known's seed (model_me_seed), computes
+   (model_me_directional) and reads each unknown (model_me_sensitivity); a value reference of the
+   wrong kind is MODEL_ERROR, logged naming the variable and the function. */
+typedef struct {
+    double dy[RK_N], df[RK_N], dout[MECH_N_OUTPUTS];
+} Directional;
+void model_me_directional_start(Directional *d);
+ModelStatus model_me_seed(ModelInstance *m, const char *function, Directional *d, unsigned long vr, double seed);
+ModelStatus model_me_directional(ModelInstance *m, Directional *d);
+ModelStatus model_me_sensitivity(ModelInstance *m, const char *function, const Directional *d, unsigned long vr,
+                                 double *value);
 /* Outputs into values[] before fmi2GetReal reads them: in initialization mode all those the start
    values give; afterwards the groups (FB_GROUP_* bits) of `groups` that outputs_pending says are
    not yet the current state's (each fmi2DoStep only marks them all pending: a host that reads one

@@ -713,14 +713,43 @@ fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference
                         "modelDescription.xml's <ModelStructure>");
 }
 
+/* Model exchange only: the states' derivatives or outputs (unknowns) along a direction of the
+   states (knowns, seed), exact (model.h: model_me_directional).  In co-simulation the FMU has no
+   inputs (providesDirectionalDerivatives is false there); in initializationMode the state is not
+   assembled yet.  Every value reference is checked before anything is computed. */
 fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
                                         const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
                                         size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
 {
+    Directional d;
+    double probe;
     ENTER(READABLE);
-    (void)unknowns; (void)nUnknowns; (void)knowns; (void)nKnowns; (void)seed; (void)nSeed; (void)sensitivity;
-    (void)nSensitivity;
-    return not_provided(m, __func__, "providesDirectionalDerivatives is false");
+    if (!m->model_exchange)
+        return not_provided(m, __func__, "in co-simulation: providesDirectionalDerivatives is false there, the FMU "
+                            "has no inputs");
+    if (m->state.mode == MODE_INITIALIZATION) {
+        model_log(m, MODEL_ERROR, "logStatusError", "%s: available after fmi3ExitInitializationMode (the mechanism "
+                  "is assembled there)", __func__);
+        return fmi3Error;
+    }
+    REQUIRE_ARRAY(unknowns, nUnknowns);
+    REQUIRE_ARRAY(knowns, nKnowns);
+    REQUIRE_ARRAY(seed, nSeed);
+    REQUIRE_ARRAY(sensitivity, nSensitivity);
+    if (!count_is(m, __func__, nSeed, nKnowns, "seeds (one per known: every variable is a scalar)")) return fmi3Error;
+    if (!count_is(m, __func__, nSensitivity, nUnknowns, "sensitivities (one per unknown: every variable is a scalar)"))
+        return fmi3Error;
+    model_me_directional_start(&d);
+    for (size_t i = 0; i < nKnowns; i++)
+        if (model_me_seed(m, __func__, &d, knowns[i], seed[i]) != MODEL_OK) return fmi3Error;
+    for (size_t i = 0; i < nUnknowns; i++)
+        if (model_me_sensitivity(m, __func__, &d, unknowns[i], &probe) != MODEL_OK) return fmi3Error;
+    if (model_me_directional(m, &d) != MODEL_OK) {
+        m->state.mode = MODE_ERROR;
+        return fmi3Error;
+    }
+    for (size_t i = 0; i < nUnknowns; i++) model_me_sensitivity(m, __func__, &d, unknowns[i], &sensitivity[i]);
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
