@@ -32,6 +32,7 @@ from support import REPO
 sys.path.insert(0, str(REPO / "benchmarks"))
 import fmi_hosts  # noqa: E402
 from fmu_src.mechanism.description import shipped_mechanisms  # noqa: E402
+from fmu_src.mechanism.table import DEFAULT_TOLERANCE  # noqa: E402
 
 pytest.importorskip("libcosimpy", reason="libcosimpy is not installed (pip install libcosimpy); "
                                          "the libcosim comparison needs it")
@@ -100,6 +101,28 @@ def test_fmusim_gives_fmpys_numbers(mechanism, runs_of, fmusim, tmp_path):
     fmu, outputs, reference = runs_of(mechanism)
     run = fmi_hosts.run_fmusim(fmusim, fmu, outputs, EXPERIMENT, tmp_path)
     _assert_agrees(fmi_hosts.compare(run, reference, EXPERIMENT), mechanism)
+
+
+@pytest.mark.parametrize("mechanism", MECHANISMS)
+def test_the_compliance_checker_gives_fmpys_numbers_in_co_simulation(mechanism, runs_of, tmp_path):
+    """fmuCheck -k cs (issue 26's hosts: the FMU Compliance Checker on FMI 2.0 co-simulation):
+    no warning or error, and FMPy's numbers (fmi_hosts.AGREEMENT['fmuCheck']); skipped where the
+    checker is not built ($FMUCHECK, or fmuCheck.linux64 on PATH; scripts/build_fmucheck.sh)."""
+    try:
+        fmucheck = fmi_hosts.find_fmucheck()
+    except fmi_hosts.HostError as exc:
+        pytest.fail(str(exc))
+    if fmucheck is None:
+        pytest.skip("no FMU Compliance Checker: set FMUCHECK=/path/to/fmuCheck.linux64 or put it on PATH "
+                    "(scripts/build_fmucheck.sh builds it)")
+    fmu, outputs, _ = runs_of(mechanism)
+    # the checker sets no parameter: FMPy at the FMU's own tolerance is its reference
+    experiment = dataclasses.replace(EXPERIMENT, rtol=DEFAULT_TOLERANCE, atol=DEFAULT_TOLERANCE)
+    reference = fmi_hosts.run_fmpy(fmu, outputs, experiment, tmp_path)
+    checked = fmi_hosts.run_fmucheck(fmucheck, fmu, outputs, stop=experiment.stop, step=experiment.step,
+                                     points=experiment.steps + 1, workdir=tmp_path, interface="cs")
+    assert checked.checker_errors == 0 and checked.checker_warnings == 0, checked.log[-3000:]
+    _assert_agrees(fmi_hosts.compare(checked.run, reference, experiment), mechanism)
 
 
 def test_the_comparison_sees_a_difference_and_a_failure(runs_of):
