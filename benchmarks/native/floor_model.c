@@ -97,3 +97,9 @@ ModelStatus model_me_sensitivity(ModelInstance *m, const char *function, const D
     *value = 0.0;
     return MODEL_OK;
 }
+
+int model_past_stop_time(ModelInstance *m, const char *function, double current_time, double step)
+{
+    (void)m; (void)function; (void)current_time; (void)step;
+    return 0;
+}

@@ -622,6 +622,7 @@ static void restart_base(ModelState *s, double *y)
     double J[MA * N], block[MA * MA], inv_diag[MA];
     int piv[MA];
     DaePoint e;
+    memset(&e, 0, sizeof e);      /* padding too: the point is copied into FMU states, serialized byte by byte */
     e.t = s->t;
     memcpy(e.q, s->q, sizeof e.q);
     memcpy(e.qd, s->qd, sizeof e.qd);

@@ -547,8 +547,8 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
 /* Model exchange only: the states' derivatives or outputs (vUnknown_ref) along a direction of the
    states (vKnown_ref, dvKnown), exact (model.h: model_me_directional).  In co-simulation the FMU
    has no inputs, so nothing to differentiate with respect to (providesDirectionalDerivative is
-   false there); in initialization mode the state is not assembled yet.  The value references are
-   checked before anything is computed: a refused call changes nothing. */
+   false there).  In initialization mode: at the state the start values give.  The value
+   references are checked before anything is computed: a refused call changes nothing. */
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[])
@@ -559,11 +559,6 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
     if (!m->model_exchange) {
         model_log(m, MODEL_ERROR, "logStatusError", "fmi2GetDirectionalDerivative: not provided in co-simulation "
                   "(providesDirectionalDerivative is false there: the FMU has no inputs)");
-        return fmi2Error;
-    }
-    if (m->state.mode == MODE_INITIALIZATION) {
-        model_log(m, MODEL_ERROR, "logStatusError", "fmi2GetDirectionalDerivative: available after "
-                  "fmi2ExitInitializationMode (the mechanism is assembled there)");
         return fmi2Error;
     }
     REQUIRE_ARRAY(vUnknown_ref, nUnknown);
@@ -623,6 +618,10 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     if (!(communicationStepSize > 0.0) || !isfinite(currentCommunicationPoint)) {
         model_log(m, MODEL_ERROR, "logStatusError", "fmi2DoStep: the step size must be positive (got %g s at t = %g s)",
                   communicationStepSize, currentCommunicationPoint);
+        m->state.mode = MODE_ERROR;
+        return fmi2Error;
+    }
+    if (model_past_stop_time(m, __func__, currentCommunicationPoint, communicationStepSize)) {   /* logged */
         m->state.mode = MODE_ERROR;
         return fmi2Error;
     }

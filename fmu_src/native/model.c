@@ -157,6 +157,22 @@ static ModelStatus me_evaluate(ModelInstance *m)
     return MODEL_OK;
 }
 
+/* In initialization mode: the state the start values give, assembled in *scratch (a copy of the
+   instance's state); 0, else 1 with why in `why` (invalid values, or no assembly). */
+static int initial_state(const ModelState *s, ModelState *scratch, char *why, size_t n)
+{
+    double guess[MECH_N], rates[MECH_N];
+    if (check_parameters(s, why, n)) return 1;
+    *scratch = *s;
+    parameters_from_values(scratch, scratch->p);
+    start_configuration(scratch, guess, rates);
+    if (dae_assemble(scratch, dae_snap_time(scratch->start_time), guess, rates)) {
+        snprintf(why, n, "%s", scratch->rhs_message);
+        return 1;
+    }
+    return 0;
+}
+
 void model_preview_outputs(ModelInstance *m, int groups)
 {
     ModelState *s = &m->state;
@@ -165,13 +181,8 @@ void model_preview_outputs(ModelInstance *m, int groups)
         /* the outputs the start values give (nothing when they are invalid or cannot be
            assembled: fmi2ExitInitializationMode will say why) */
         ModelState scratch;
-        double guess[MECH_N], rates[MECH_N];
         char problems[MSG];
-        if (check_parameters(s, problems, sizeof problems)) return;
-        scratch = *s;
-        parameters_from_values(&scratch, scratch.p);
-        start_configuration(&scratch, guess, rates);
-        if (dae_assemble(&scratch, dae_snap_time(scratch.start_time), guess, rates)) return;
+        if (initial_state(s, &scratch, problems, sizeof problems)) return;
         dae_outputs_state(scratch.p, scratch.d, scratch.t, scratch.q, scratch.tr, scratch.qd, scratch.work, out);
         dae_outputs_residual(scratch.p, scratch.d, scratch.t, scratch.q, scratch.qd, out);
         if (dae_outputs_force(scratch.p, scratch.d, scratch.t, scratch.q, scratch.qd, out, scratch.rhs_message))
@@ -371,9 +382,27 @@ ModelStatus model_me_seed(ModelInstance *m, const char *function, Directional *d
 ModelStatus model_me_directional(ModelInstance *m, Directional *d)
 {
     ModelState *s = &m->state;
+    if (s->mode == MODE_INITIALIZATION) {     /* at the state the start values give */
+        ModelState scratch;
+        char why[MSG];
+        if (initial_state(s, &scratch, why, sizeof why))
+            return fail(m, "the start values give no state to differentiate at: %s", why);
+        if (dae_me_start(&scratch) || dae_directional(&scratch, d->dy, d->df, d->dout))
+            return fail(m, "at the start: %s", scratch.rhs_message);
+        return MODEL_OK;
+    }
     if (me_evaluate(m) != MODEL_OK) return MODEL_ERROR;
     if (dae_directional(s, d->dy, d->df, d->dout)) return fail(m, "at t = %.9g s: %s", s->t, s->rhs_message);
     return MODEL_OK;
+}
+
+int model_past_stop_time(ModelInstance *m, const char *function, double current_time, double step)
+{
+    const ModelState *s = &m->state;
+    if (!(dae_snap_time(current_time + step) > dae_snap_time(s->stop_time))) return 0;
+    fail(m, "%s: a step from t = %.9g s to %.9g s goes past the stop time %.9g s the host defined at initialization",
+         function, current_time, current_time + step, s->stop_time);
+    return 1;
 }
 
 ModelStatus model_me_sensitivity(ModelInstance *m, const char *function, const Directional *d, unsigned long vr,

@@ -106,6 +106,9 @@ void model_log(ModelInstance *m, ModelStatus status, const char *category, const
 void model_reset(ModelInstance *m);                       /* start values, mode instantiated */
 ModelStatus model_initialize(ModelInstance *m);            /* check, assemble, start (exit init mode) */
 ModelStatus model_do_step(ModelInstance *m, double current_time, double step);
+/* 1, after logging why, when a step from current_time goes past a stop time the host defined
+   (FMI 2.0 and 3.0: the FMU has to return an error), on the 1 ns grid the FMU's times live on. */
+int model_past_stop_time(ModelInstance *m, const char *function, double current_time, double step);
 /* Model Exchange (dae.h): the states (FB_N_STATES values, value references FB_STATE_VRS), set and
    evaluated lazily; the derivatives; an accepted integrator step; an event's parameter changes
    (re-assembly keeping the states).  MODEL_ERROR after logging why. */
@@ -116,7 +119,8 @@ ModelStatus model_me_derivatives(ModelInstance *m, double *dx);
 ModelStatus model_me_completed_step(ModelInstance *m);
 ModelStatus model_me_event_update(ModelInstance *m);
 /* Model Exchange's directional derivatives (fmi2GetDirectionalDerivative, fmi3GetDirectionalDerivative):
-   sensitivity_i = sum_j d unknown_i / d known_j seed_j at the current state, the knowns being
+   sensitivity_i = sum_j d unknown_i / d known_j seed_j at the current state (in initialization
+   mode, the state the start values give), the knowns being
    continuous states (the FMU has no inputs) and the unknowns the states' derivatives or outputs
    (dae_directional: exact, from the generated derivatives).  A layer starts a Directional with
    model_me_directional_start, adds each known's seed (model_me_seed), computes

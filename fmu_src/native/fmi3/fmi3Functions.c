@@ -75,6 +75,9 @@ static const struct { int mode; const char *name; } STATES[] = {
 #define ALL_STATES (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_EVENT | MODE_CONTINUOUS | \
                     MODE_TERMINATED | MODE_ERROR)
 #define READABLE (MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED)
+/* fmi3Get{VariableType}: also in instantiated, where they return the start values (FMI 3.0,
+   2.3.2; unlike FMI 2.0, whose getters start in initialization mode) */
+#define GETTABLE (MODE_INSTANTIATED | READABLE)
 /* fmi3SetXXX: parameters only (the FMU has no inputs), so not in continuousTimeMode */
 #define SETTABLE (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_EVENT)
 #define ME_READABLE (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED)
@@ -388,11 +391,12 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance)
     return fmi3OK;
 }
 
-/* Model exchange: from continuousTimeMode, and (as fmi2Functions.c, FMI 2.0's fmi-standard issue
-   #275) again in eventMode.  A co-simulation instance never enters event mode (hasEventMode false). */
+/* Model exchange: from continuousTimeMode only (FMI 3.0, 3.2.1; FMI 2.0's layer also accepts it
+   in eventMode, after that standard's errata).  A co-simulation instance never enters event mode
+   (hasEventMode false). */
 fmi3Status fmi3EnterEventMode(fmi3Instance instance)
 {
-    ENTER(MODE_EVENT | MODE_CONTINUOUS);
+    ENTER(MODE_CONTINUOUS);
     ME_ONLY;
     m->state.mode = MODE_EVENT;
     return fmi3OK;
@@ -430,7 +434,7 @@ static int groups_read(const fmi3ValueReference vr[], size_t nvr)
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                           fmi3Float64 values[], size_t nValues)
 {
-    ENTER(READABLE);
+    ENTER(GETTABLE);
     REQUIRE_ARRAY(valueReferences, nValueReferences);
     REQUIRE_ARRAY(values, nValues);
     SCALARS(nValueReferences, nValues);
@@ -439,7 +443,7 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueR
         return fmi3Error;
     const int groups = nValueReferences > 0 ? groups_read(valueReferences, nValueReferences) &
                                               m->state.outputs_pending : 0;
-    if (nValueReferences > 0 && (m->state.mode == MODE_INITIALIZATION || groups)) {
+    if (nValueReferences > 0 && m->state.mode != MODE_INSTANTIATED && (m->state.mode == MODE_INITIALIZATION || groups)) {
         model_preview_outputs(m, groups);
         if (m->state.mode != MODE_INITIALIZATION && (m->state.outputs_pending & groups)) return fmi3Error;  /* logged */
     }
@@ -467,7 +471,7 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueR
 fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                          fmi3String values[], size_t nValues)
 {
-    ENTER(READABLE);
+    ENTER(GETTABLE);
     REQUIRE_ARRAY(valueReferences, nValueReferences);
     REQUIRE_ARRAY(values, nValues);
     SCALARS(nValueReferences, nValues);
@@ -518,7 +522,7 @@ static fmi3Status no_variables(ModelInstance *m, const char *function, const fmi
 fmi3Status NAME(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences, \
                 CTYPE values[], size_t nValues) \
 { \
-    ENTER(READABLE); \
+    ENTER(GETTABLE); \
     REQUIRE_ARRAY(valueReferences, nValueReferences); \
     REQUIRE_ARRAY(values, nValues); \
     return no_variables(m, __func__, valueReferences, nValueReferences, TYPE); \
@@ -557,7 +561,7 @@ NO_VARIABLES_SET(fmi3SetBoolean, fmi3Boolean, "Boolean")
 fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                          size_t valueSizes[], fmi3Binary values[], size_t nValues)
 {
-    ENTER(READABLE);
+    ENTER(GETTABLE);
     REQUIRE_ARRAY(valueReferences, nValueReferences);
     REQUIRE_ARRAY(valueSizes, nValues);
     REQUIRE_ARRAY(values, nValues);
@@ -714,9 +718,9 @@ fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference
 }
 
 /* Model exchange only: the states' derivatives or outputs (unknowns) along a direction of the
-   states (knowns, seed), exact (model.h: model_me_directional).  In co-simulation the FMU has no
-   inputs (providesDirectionalDerivatives is false there); in initializationMode the state is not
-   assembled yet.  Every value reference is checked before anything is computed. */
+   states (knowns, seed), exact (model.h: model_me_directional; in initializationMode at the state
+   the start values give).  In co-simulation the FMU has no inputs (providesDirectionalDerivatives
+   is false there).  Every value reference is checked before anything is computed. */
 fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
                                         const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
                                         size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity)
@@ -727,11 +731,6 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueRe
     if (!m->model_exchange)
         return not_provided(m, __func__, "in co-simulation: providesDirectionalDerivatives is false there, the FMU "
                             "has no inputs");
-    if (m->state.mode == MODE_INITIALIZATION) {
-        model_log(m, MODEL_ERROR, "logStatusError", "%s: available after fmi3ExitInitializationMode (the mechanism "
-                  "is assembled there)", __func__);
-        return fmi3Error;
-    }
     REQUIRE_ARRAY(unknowns, nUnknowns);
     REQUIRE_ARRAY(knowns, nKnowns);
     REQUIRE_ARRAY(seed, nSeed);
@@ -904,8 +903,10 @@ fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueRefere
     return not_provided(m, __func__, "maxOutputDerivativeOrder is 0");
 }
 
-/* A failure here, bad arguments included, leaves the instance in the error state.  The step is
-   synchronous and complete: no event, no early return, the simulation never asked to end. */
+/* A failed step, a step size that is not positive and a step past a defined stop time leave the
+   instance in the error state; NULL output pointers are refused changing nothing (as every
+   refused call).  The step is synchronous and complete: no event, no early return, the simulation
+   never asked to end. */
 fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoint, fmi3Float64 communicationStepSize,
                       fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean *eventHandlingNeeded,
                       fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime)
@@ -924,6 +925,10 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     if (!(communicationStepSize > 0.0) || !isfinite(currentCommunicationPoint)) {
         model_log(m, MODEL_ERROR, "logStatusError", "fmi3DoStep: the step size must be positive (got %g s at t = %g s)",
                   communicationStepSize, currentCommunicationPoint);
+        m->state.mode = MODE_ERROR;
+        return fmi3Error;
+    }
+    if (model_past_stop_time(m, __func__, currentCommunicationPoint, communicationStepSize)) {   /* logged */
         m->state.mode = MODE_ERROR;
         return fmi3Error;
     }
