@@ -480,7 +480,7 @@ def main(argv=None) -> int:
                *mechanisms_against_floor(mechanisms, native, repeat, stop, Path(tmp), args.vanderpol), "",
                "### Every mechanism in FMI 3.0 co-simulation", "",
                *fmi3_against_floor(mechanisms, repeat, stop, Path(tmp), args.vanderpol, args.vanderpol3), "",
-               "### Every mechanism in Model Exchange (FMPy's CVode)", "",
+               "### Every mechanism in FMI 2.0 Model Exchange (FMPy's CVode)", "",
                *model_exchange(mechanisms, native, repeat, stop, Path(tmp), args.vanderpol), "",
                "### Every mechanism in FMI 3.0 Model Exchange (FMPy's CVode)", "",
                *model_exchange(mechanisms, native, repeat, stop, Path(tmp), args.vanderpol3, fmi_version=3)]
