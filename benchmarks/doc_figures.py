@@ -62,6 +62,8 @@ MASKED = {"monitor_replay_text": re.compile(r"fitted in [0-9.]+ s"),
           "libcosim_text": re.compile(r"[0-9.]+ s wall")}
 DEMO_CASE = "case2_fault_L2"
 DEMO_IMAGE = "docs/img/monitor_case2.png"     # make demo's history plot
+#: The shipped mechanisms in docs/benchmarks.md's table against the Reference-FMUs' VanDerPol.
+SPEED_MECHANISMS = ("slider_crank", "fourbar", "fourbar_driven", "watt_sixbar", "fivebar")
 
 
 @dataclass(frozen=True)
@@ -173,6 +175,10 @@ QUOTES = (
           ("speed_wall_case1", "speed_floor_case1", "speed_ratio_case1", "speed_ratio_case2", "replay_ratio_case1",
            "replay_ratio_case2", "speed_rhs_range")),
     Quote("README.md", r"plain `fmpy.simulate_fmu` \| — \| (\S+)× \(target ≤ 1\.2×\)", ("overhead_ratio",)),
+    Quote("README.md", r"the native FMUs take (\S+)× \(slider-crank\), (\S+)× \(four-bar\), (\S+)× \(driven\s+four-bar\), "
+                       r"(\S+)× \(Watt six-bar\) and (\S+)× \(five-bar\) the Reference-FMUs' VanDerPol; at Table 1's\s+"
+                       r"tolerances (\S+)×, (\S+)×, (\S+)×, (\S+)× and (\S+)×",
+          tuple(f"vdp_{tolerance}.{mechanism}" for tolerance in ("default", "table1") for mechanism in SPEED_MECHANISMS)),
     Quote("README.md", r"\| Prophet (\d+)× / (\d+)×, harmonic (\d+)× / (\d+)× \(targets",
           ("monitor_prophet", "monitor_prophet_outputs", "monitor_harmonic", "monitor_harmonic_outputs")),
     Quote("README.md", r"\| (\d+) scenarios/min on 1 worker, (\d+) on 2 \(×(\S+)\) \|", ("scaling_1", "scaling_2", "scaling_speedup")),
@@ -233,6 +239,11 @@ SOURCES = (
     ("monitor", "docs/benchmarks.md", r"\| prophet \|(?: [^|]+ \|){5} \*\*(\d+)×\*\* \| [\d.]+ / (\d+)× \|[^\n]*\n"
                                       r"\| harmonic \|(?: [^|]+ \|){5} \*\*(\d+)×\*\* \| [\d.]+ / (\d+)× \|"),
     ("scaling", "docs/benchmarks.md", r"\| 1 \| ([\d.]+) \([^)]*\) \|[^\n]*\n\| 2 \| ([\d.]+) \([^)]*\) \| ([\d.]+) \|"),
+    # the every-mechanism table: native / VanDerPol at the default tolerance, then at Table 1's
+    *((f"vdp_{mechanism}", "docs/benchmarks.md",
+       rf"\| {mechanism} \| 1e-10, 1e-10 \(default\) \|(?: [^|]+ \|){{4}} ([\d.]+)x [^|]*\|[^\n]*\n"
+       rf"\| {mechanism} \| 1e-9, 1e-6 \(Table 1\) \|(?: [^|]+ \|){{4}} ([\d.]+)x [^|]*\|")
+      for mechanism in SPEED_MECHANISMS),
     ("l2table", "docs/detection.md", r"\| none \| prophet \| (\S+) % \| (\S+) s \| (\d+)/(\d+) \|\n"
                                      r"\| none \| harmonic \| (\S+) % \| (\S+) s \| (\d+)/(\d+) \|\n"
                                      r"\| σ = 5 mm \| prophet \| (\S+) % \| (\S+) s \| (\d+)/(\d+) \|\n"
@@ -319,6 +330,9 @@ def copied_figures(root: Path = REPO) -> dict[str, str]:
     put("acc_constraint", ("accuracy.3", "accuracy.6", "accuracy.9", "accuracy.12"),
         lambda *v: sig(max(float(x) for x in v)))
     put("overhead_ratio", ("overhead.1",), f2)
+    for mechanism in SPEED_MECHANISMS:
+        put(f"vdp_default.{mechanism}", (f"vdp_{mechanism}.1",), f2)
+        put(f"vdp_table1.{mechanism}", (f"vdp_{mechanism}.2",), f2)
     put("monitor_prophet", ("monitor.1",), str)
     put("monitor_prophet_outputs", ("monitor.2",), str)
     put("monitor_harmonic", ("monitor.3",), str)
