@@ -491,23 +491,24 @@ def report(results: list[MechanismResult], experiment: Experiment, fmusim: Path 
     ]
 
 
-def write_section(path: Path, lines: list[str]) -> None:
-    """Replace what lies between BEGIN and END in ``path`` by ``lines``."""
+def write_section(path: Path, lines: list[str], begin: str = BEGIN, end: str = END) -> None:
+    """Replace what lies between the marker lines ``begin`` and ``end`` in ``path`` by ``lines``."""
     text = path.read_text(encoding="utf-8")
-    head, _, rest = text.partition(BEGIN + "\n")
-    _, _, tail = rest.partition(END)
-    path.write_text(head + BEGIN + "\n" + "\n".join(lines) + "\n" + END + tail, encoding="utf-8")
+    head, _, rest = text.partition(begin + "\n")
+    _, _, tail = rest.partition(end)
+    path.write_text(head + begin + "\n" + "\n".join(lines) + "\n" + end + tail, encoding="utf-8")
 
 
-def _markers_problem(path: Path) -> str:
+def markers_problem(path: Path, begin: str = BEGIN, end: str = END) -> str:
+    """Why ``path`` cannot take a generated section between ``begin`` and ``end`` ("" when it can)."""
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         return f"--write {path}: cannot be read: {exc.strerror or exc}"
     if not os.access(path, os.W_OK):
         return f"--write {path}: this user cannot write it"
-    if text.count(BEGIN + "\n") != 1 or text.count(END) != 1 or text.index(BEGIN) > text.index(END):
-        return (f"--write {path}: the file must hold the line {BEGIN!r} once, and later the line {END!r} "
+    if text.count(begin + "\n") != 1 or text.count(end) != 1 or text.index(begin) > text.index(end):
+        return (f"--write {path}: the file must hold the line {begin!r} once, and later the line {end!r} "
                 "(the table goes between them)")
     return ""
 
@@ -541,7 +542,7 @@ def main(argv=None) -> int:
         if fmusim is None:
             parser.error("--write documents three hosts, but no fmusim was found (--fmusim PATH, $FMUSIM or "
                          "fmusim on PATH; scripts/build_fmusim.sh builds one)")
-        problem = _markers_problem(Path(args.write))
+        problem = markers_problem(Path(args.write))
         if problem:
             parser.error(problem)
     mechanisms = tuple(dict.fromkeys(args.mechanism)) if args.mechanism else shipped

@@ -70,24 +70,13 @@ def unwritable_folder(tmp_path: Path) -> Path:
 
 
 # -- one FMU flavour against another (tests/test_fmu_model_exchange.py, test_fmu_fmi3.py) --------
-#: CVode's relative tolerance in the model-exchange runs; FMPy sets its absolute tolerance to
-#: rtol x each state's nominal (1 here).  Measured over 10 s against co-simulation at 1e-13:
-#: 6e-10 m (four-bar) to 5e-9 m (slider-crank) at 1e-13, 1e-10 to 6.5e-10 m at 1e-14 (CVode's
-#: BDF error, not the FMU's).
-CVODE_RTOL = 1e-14
-#: The co-simulation reference's rtol = atol (DOP853 in the FMU).
-COSIM_TOL = 1e-13
-#: Span compared (s): 10 s, the chaotic five-bar 2 s (two correct integrations of it part by
-#: 4e-7 m at 10 s; at 2 s they agree to 1e-10 m).
-FLAVOUR_SPAN = {"fivebar": 2.0}
-#: |one flavour - FMI 2.0 co-simulation| on the lengths and angles: issue 26's bound.
-FLAVOUR_AGREE = 1e-9
+# Their tolerances and the outputs compared live with the benchmark that reports the same
+# comparisons (benchmarks/fmi_flavours.py, docs/fmi_hosts.md's flavour table): one home.
+sys.path.insert(0, str(REPO / "benchmarks"))
+from fmi_flavours import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, FLAVOUR_SPAN,  # noqa: E402,F401
+                          lengths_and_angles)
+
 #: constraint_residual of every row whatever the host's tolerances (coordinate partitioning).
 RESIDUAL = 1e-12
 
 
-def lengths_and_angles(fmu) -> list[str]:
-    """The FMU's outputs in m or rad (the ones the flavours are compared on)."""
-    from fmpy import read_model_description
-    return [v.name for v in read_model_description(str(fmu)).modelVariables
-            if v.causality == "output" and v.unit in ("m", "rad")]
