@@ -209,31 +209,53 @@ def test_fmi3_co_simulation_refuses_with_a_message(mechanism_fmus, tmp_path, cap
 
 @pytest.mark.parametrize("flavour", ["native", "native3"], ids=["fmi2", "fmi3"])
 def test_in_initialization_mode_they_are_those_of_the_start(flavour, mechanism_fmus, tmp_path):
-    """FMI 2.0 and 3.0 allow the call in initialization mode: the derivatives at the state the
-    start values give, the numbers right after the initialization."""
+    """FMI 2.0 and 3.0 allow the call in initialization mode, where the knowns are the
+    initialization's: the states' start parameters (theta2_start, omega2_start), and the states
+    are initial unknowns.  The derivatives are those at the state the start values give: the
+    numbers right after the initialization.  A call that fails there (a start value that
+    cannot be assembled) leaves the instance in initialization mode, where the host corrects it."""
     fmu = mechanism_fmus.get("fourbar", flavour)
     md = read_model_description(str(fmu))
     v = _variables(md)
+    vr = {x.name: x.valueReference for x in md.modelVariables}
+    states = [x.name for x in md.modelVariables if x.valueReference in v.states]
+    starts = [vr[f"{name}_start"] for name in states]
     unknowns, seed = v.derivatives + v.outputs, [1.0] * len(v.states)
     unzip = extract(str(fmu), unzipdir=str(tmp_path))
-    if flavour == "native3":
+    fmi3 = flavour == "native3"
+    if fmi3:
         fmu = FMU3Model(guid=md.instantiationToken, unzipDirectory=unzip,
                         modelIdentifier=md.modelExchange.modelIdentifier, instanceName="me")
-        fmu.instantiate()
-        fmu.enterInitializationMode(startTime=0.0)
-        during = fmu.getDirectionalDerivative(unknowns, v.states, seed, len(unknowns))
-        fmu.exitInitializationMode()
-        after = fmu.getDirectionalDerivative(unknowns, v.states, seed, len(unknowns))
+        derivative = lambda u, k, s: fmu.getDirectionalDerivative(u, k, s, len(u))      # noqa: E731
+        set_real = fmu.setFloat64
     else:
         fmu = FMU2Model(guid=md.guid, unzipDirectory=unzip, modelIdentifier=md.modelExchange.modelIdentifier,
                         instanceName="me")
-        fmu.instantiate()
-        fmu.setupExperiment(startTime=0.0)
-        fmu.enterInitializationMode()
-        during = fmu.getDirectionalDerivative(unknowns, v.states, seed)
+        derivative, set_real = fmu.getDirectionalDerivative, fmu.setReal
+    fmu.instantiate()
+    try:
+        if fmi3:
+            fmu.enterInitializationMode(startTime=0.0)
+        else:
+            fmu.setupExperiment(startTime=0.0)
+            fmu.enterInitializationMode()
+        # L2 = 10 m cannot close the loop (the crank tip at 30 deg is 7.55 m from the rocker pivot,
+        # the coupler and rocker reach 6.5 m): refused, the instance still initializing
+        set_real([vr["L2"]], [10.0])
+        with pytest.raises(FMICallException):
+            derivative(unknowns, starts, seed)
+        set_real([vr["L2"]], [1.0])
+        during = np.array(derivative(unknowns, starts, seed))
+        by_states = np.array(derivative(unknowns, v.states, seed))
+        identity = np.array(derivative(v.states, starts, seed))
         fmu.exitInitializationMode()
-        after = fmu.getDirectionalDerivative(unknowns, v.states, seed)
-    fmu.freeInstance()
+        after = np.array(derivative(unknowns, v.states, seed))
+        with pytest.raises(FMICallException):             # start parameters are no knowns after it
+            derivative(unknowns, starts, seed)
+    finally:
+        fmu.freeInstance()
+    assert np.array_equal(during, by_states)            # a state and its start value are one known there
+    assert np.array_equal(identity, seed)                # d(state)/d(its start value) = 1
     # after initialization the dependent coordinates are solved again from the states (Newton-
     # Raphson to round-off), so the two agree to round-off, not bit for bit (measured: 1 ulp)
     assert np.isfinite(during).all() and np.allclose(during, after, rtol=1e-12, atol=1e-12)

@@ -16,6 +16,7 @@ fmu_src/native/fmi3/fmi3Functions.c, in FMPy and fmusim, co-simulation and model
 from __future__ import annotations
 
 import ctypes
+import math
 import re
 import sys
 import zipfile
@@ -30,7 +31,7 @@ from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
 from fmu_src.mechanism.description import load_mechanism, shipped_mechanisms
-from support import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, FLAVOUR_SPAN, REPO, RESIDUAL,
+from support import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, REPO, RESIDUAL, flavour_span,
                      lengths_and_angles)
 
 sys.path.insert(0, str(REPO / "benchmarks"))
@@ -116,7 +117,7 @@ def test_linux_binary_needs_no_glibc_newer_than_2_17(mechanism_fmus, tmp_path):
 def test_fmpy_co_simulation_equals_fmi2(mechanism, mechanism_fmus):
     fmu = mechanism_fmus.get(mechanism, "native3")
     names = lengths_and_angles(fmu)
-    stop = FLAVOUR_SPAN.get(mechanism, 10.0)
+    stop = flavour_span(mechanism)
     ref = _fmi2_reference(mechanism_fmus, mechanism, names, stop)
     cs = simulate_fmu(str(fmu), fmi_type="CoSimulation", stop_time=stop, output_interval=0.01,
                       start_values={"rtol": COSIM_TOL, "atol": COSIM_TOL}, output=names)
@@ -130,7 +131,7 @@ def test_fmpy_co_simulation_equals_fmi2(mechanism, mechanism_fmus):
 def test_fmpy_model_exchange_agrees_with_fmi2_co_simulation(mechanism, mechanism_fmus):
     fmu = mechanism_fmus.get(mechanism, "native3")
     names = lengths_and_angles(fmu)
-    stop = FLAVOUR_SPAN.get(mechanism, 10.0)
+    stop = flavour_span(mechanism)
     ref = _fmi2_reference(mechanism_fmus, mechanism, names, stop)
     me = simulate_fmu(str(fmu), fmi_type="ModelExchange", solver="CVode", relative_tolerance=CVODE_RTOL,
                       stop_time=stop, output_interval=0.01, output=names + ["constraint_residual"])
@@ -158,7 +159,7 @@ def test_fmusim_runs_fmi3_and_agrees_with_fmi2_co_simulation(mechanism, interfac
     fmusim = _fmusim()
     fmu = mechanism_fmus.get(mechanism, "native3")
     names = tuple(lengths_and_angles(fmu))
-    stop = FLAVOUR_SPAN.get(mechanism, 10.0)
+    stop = flavour_span(mechanism)
     me = interface == "ModelExchange"
     experiment = fmi_hosts.Experiment(stop=stop, rtol=COSIM_TOL, atol=COSIM_TOL)
     run = fmi_hosts.run_fmusim(fmusim, fmu, names, experiment, tmp_path,
@@ -312,6 +313,11 @@ def test_refusals_are_errors_with_a_message_and_change_nothing(lib):
         # instantiated: the start values can be read (FMI 3.0, 2.3.2), no doStep before initialization
         status, starts = lib.get(cs, ["L2", "time"])
         assert status == FMI3_OK and starts == [1.0, 0.0]
+        # and the outputs those start values give (theta2 has no start attribute: not 0.0 but
+        # the start angle, 30 deg; x2 the crank's centre there), equal to initialization's
+        status, previewed = lib.get(cs, ["theta2", "x2"])
+        assert status == FMI3_OK and previewed[0] == pytest.approx(math.radians(30.0), abs=1e-15)
+        assert previewed[1] == pytest.approx(0.5 * math.cos(math.radians(30.0)), abs=1e-15)
         assert lib.do_step(cs, 0.0, 0.01)[0] == FMI3_ERROR and "fmi3DoStep is not allowed" in lib.last_error()
         assert f.fmi3EnterInitializationMode(cs, False, 0.0, 0.0, False, 0.0) == FMI3_OK
         assert f.fmi3ExitInitializationMode(cs) == FMI3_OK                       # -> stepMode

@@ -547,8 +547,10 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
 /* Model exchange only: the states' derivatives or outputs (vUnknown_ref) along a direction of the
    states (vKnown_ref, dvKnown), exact (model.h: model_me_directional).  In co-simulation the FMU
    has no inputs, so nothing to differentiate with respect to (providesDirectionalDerivative is
-   false there).  In initialization mode: at the state the start values give.  The value
-   references are checked before anything is computed: a refused call changes nothing. */
+   false there).  In initialization mode: at the state the start values give, the states' start
+   parameters also accepted as knowns (the states are initial unknowns there); a failure there
+   leaves the instance in initialization mode.  The value references are checked before anything
+   is computed: a refused call changes nothing. */
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[])
@@ -570,8 +572,9 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
         if (model_me_seed(m, __func__, &d, vKnown_ref[i], dvKnown[i]) != MODEL_OK) return fmi2Error;
     for (size_t i = 0; i < nUnknown; i++)
         if (model_me_sensitivity(m, __func__, &d, vUnknown_ref[i], &probe) != MODEL_OK) return fmi2Error;
-    if (model_me_directional(m, &d) != MODEL_OK) {
-        m->state.mode = MODE_ERROR;
+    if (model_me_directional(m, &d) != MODEL_OK) {      /* logged why */
+        /* in initialization mode it ran on a copy: the host may still correct the start values */
+        if (m->state.mode != MODE_INITIALIZATION) m->state.mode = MODE_ERROR;
         return fmi2Error;
     }
     for (size_t i = 0; i < nUnknown; i++) model_me_sensitivity(m, __func__, &d, vUnknown_ref[i], &dvUnknown[i]);

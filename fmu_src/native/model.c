@@ -39,6 +39,7 @@ static const int OUTPUT_VRS[MECH_N_OUTPUTS] = MECH_OUTPUT_VRS;
 static const int OUTPUT_KINDS[MECH_N_OUTPUTS] = MECH_OUTPUT_KINDS;
 static const char *const COORDINATES[MECH_N] = MECH_COORDINATE_NAMES;
 static const int STATE_VRS[] = FB_STATE_VRS;
+static const int STATE_START_VRS[] = FB_STATE_START_VRS;
 static const int DERIVATIVE_VRS[] = FB_DERIVATIVE_VRS;
 enum { KIND_TUNABLE = 0, KIND_FIXED = 1 };
 
@@ -177,9 +178,10 @@ void model_preview_outputs(ModelInstance *m, int groups)
 {
     ModelState *s = &m->state;
     double out[MECH_N_OUTPUTS];
-    if (s->mode == MODE_INITIALIZATION) {
+    if (s->mode == MODE_INITIALIZATION || s->mode == MODE_INSTANTIATED) {
         /* the outputs the start values give (nothing when they are invalid or cannot be
-           assembled: fmi2ExitInitializationMode will say why) */
+           assembled: fmi2ExitInitializationMode will say why); in instantiated (FMI 3.0's
+           getters) at the default start time */
         ModelState scratch;
         char problems[MSG];
         if (initial_state(s, &scratch, problems, sizeof problems)) return;
@@ -370,11 +372,18 @@ static const char *variable_name(unsigned long vr, char *buf, size_t n)
 ModelStatus model_me_seed(ModelInstance *m, const char *function, Directional *d, unsigned long vr, double seed)
 {
     char buf[40];
+    const int initializing = m->state.mode == MODE_INITIALIZATION;
     for (int k = 0; k < FB_N_STATES; k++)
-        if ((unsigned long)STATE_VRS[k] == vr) {
+        /* in initialization mode a state's start parameter too: the state is its start value there */
+        if ((unsigned long)STATE_VRS[k] == vr || (initializing && STATE_START_VRS[k] >= 0 &&
+                                                  (unsigned long)STATE_START_VRS[k] == vr)) {
             d->dy[k] += seed;
             return MODEL_OK;
         }
+    if (initializing)
+        return fail(m, "%s: %s is neither a continuous state nor a state's start parameter: in initialization mode "
+                    "those are the knowns of a directional derivative (derivatives with respect to other parameters "
+                    "are not provided)", function, variable_name(vr, buf, sizeof buf));
     return fail(m, "%s: %s is not a continuous state: the knowns of a directional derivative are the states "
                 "(the FMU has no inputs)", function, variable_name(vr, buf, sizeof buf));
 }
@@ -414,6 +423,12 @@ ModelStatus model_me_sensitivity(ModelInstance *m, const char *function, const D
             *value = d->df[k];
             return MODEL_OK;
         }
+    if (m->state.mode == MODE_INITIALIZATION)    /* the states are initial unknowns there */
+        for (int k = 0; k < FB_N_STATES; k++)
+            if ((unsigned long)STATE_VRS[k] == vr) {
+                *value = d->dy[k];
+                return MODEL_OK;
+            }
     for (int k = 0; k < MECH_N_OUTPUTS; k++)
         if ((unsigned long)OUTPUT_VRS[k] == vr) {
             *value = d->dout[k];

@@ -75,8 +75,8 @@ static const struct { int mode; const char *name; } STATES[] = {
 #define ALL_STATES (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_EVENT | MODE_CONTINUOUS | \
                     MODE_TERMINATED | MODE_ERROR)
 #define READABLE (MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED)
-/* fmi3Get{VariableType}: also in instantiated, where they return the start values (FMI 3.0,
-   2.3.2; unlike FMI 2.0, whose getters start in initialization mode) */
+/* fmi3Get{VariableType}: also in instantiated (FMI 3.0, 2.3.2; unlike FMI 2.0, whose getters
+   start in initialization mode): the start values, and the outputs and states they give */
 #define GETTABLE (MODE_INSTANTIATED | READABLE)
 /* fmi3SetXXX: parameters only (the FMU has no inputs), so not in continuousTimeMode */
 #define SETTABLE (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_EVENT)
@@ -443,9 +443,10 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueR
         return fmi3Error;
     const int groups = nValueReferences > 0 ? groups_read(valueReferences, nValueReferences) &
                                               m->state.outputs_pending : 0;
-    if (nValueReferences > 0 && m->state.mode != MODE_INSTANTIATED && (m->state.mode == MODE_INITIALIZATION || groups)) {
-        model_preview_outputs(m, groups);
-        if (m->state.mode != MODE_INITIALIZATION && (m->state.outputs_pending & groups)) return fmi3Error;  /* logged */
+    const int before_start = m->state.mode == MODE_INSTANTIATED || m->state.mode == MODE_INITIALIZATION;
+    if (nValueReferences > 0 && (before_start || groups)) {
+        model_preview_outputs(m, groups);      /* before the start: what the start values give */
+        if (!before_start && (m->state.outputs_pending & groups)) return fmi3Error;  /* logged */
     }
     for (size_t i = 0; i < nValueReferences; i++)
         values[i] = valueReferences[i] == VR_TIME ? model_time(m) : m->state.values[valueReferences[i]];
@@ -719,7 +720,8 @@ fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference
 
 /* Model exchange only: the states' derivatives or outputs (unknowns) along a direction of the
    states (knowns, seed), exact (model.h: model_me_directional; in initializationMode at the state
-   the start values give).  In co-simulation the FMU has no inputs (providesDirectionalDerivatives
+   the start values give, the states' start parameters also accepted as knowns, and a failure
+   leaves the instance in initializationMode).  In co-simulation the FMU has no inputs (providesDirectionalDerivatives
    is false there).  Every value reference is checked before anything is computed. */
 fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
                                         const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
@@ -743,8 +745,9 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueRe
         if (model_me_seed(m, __func__, &d, knowns[i], seed[i]) != MODEL_OK) return fmi3Error;
     for (size_t i = 0; i < nUnknowns; i++)
         if (model_me_sensitivity(m, __func__, &d, unknowns[i], &probe) != MODEL_OK) return fmi3Error;
-    if (model_me_directional(m, &d) != MODEL_OK) {
-        m->state.mode = MODE_ERROR;
+    if (model_me_directional(m, &d) != MODEL_OK) {      /* logged why */
+        /* in initialization mode it ran on a copy: the host may still correct the start values */
+        if (m->state.mode != MODE_INITIALIZATION) m->state.mode = MODE_ERROR;
         return fmi3Error;
     }
     for (size_t i = 0; i < nUnknowns; i++) model_me_sensitivity(m, __func__, &d, unknowns[i], &sensitivity[i]);
