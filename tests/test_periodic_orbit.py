@@ -2,13 +2,14 @@
 
 The five-bar (two degrees of freedom) is the case: ``cases/fivebar_fault_L5.toml`` starts on
 the periodic orbit of its slower mode, which the script finds.  The checks are physical:
-the accelerations vanish at the equilibrium; a tiny swing's period tends to the linear
-mode's (an independent route to the period: shooting on the nonlinear motion against the
-eigenvalues of the directional derivatives); the FMU released at the printed start is back
+the accelerations vanish at the equilibrium; a tiny swing's period and start tend to the
+linear mode's (an independent route: shooting on the nonlinear motion against the eigen-
+decomposition of the directional derivatives); the FMU released at the printed start is back
 at it, at rest, after whole periods; the shipped case holds those start values.
 """
 from __future__ import annotations
 
+import importlib.util
 import math
 import re
 import subprocess
@@ -22,6 +23,15 @@ from support import REPO
 
 SCRIPT = [sys.executable, str(REPO / "scripts" / "periodic_orbit.py")]
 NEAR = ["--near", "-90", "-90"]          # deg: both cranks hanging down
+
+
+def _module():
+    """scripts/periodic_orbit.py as a module, for its results at full precision."""
+    spec = importlib.util.spec_from_file_location("periodic_orbit", REPO / "scripts" / "periodic_orbit.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("periodic_orbit", module)     # its dataclasses look their module up there
+    spec.loader.exec_module(sys.modules["periodic_orbit"])
+    return sys.modules["periodic_orbit"]
 
 
 def _run(*args, check_exit: int | None = 0) -> subprocess.CompletedProcess:
@@ -89,34 +99,45 @@ def test_the_shipped_case_starts_on_the_orbit_and_the_swing_repeats(fivebar):
 
 
 @pytest.mark.slow
-def test_a_small_swing_has_the_linear_modes_period(fivebar):
-    """The nonlinear period (shooting) tends to 2 pi / sqrt(-eigenvalue) (directional
-    derivatives) as the amplitude goes to 0; the difference is quadratic in it: 1e-3 rad gives
-    about 2e-7 relative (0.136 rad gives 3.8e-3), so 1e-5 leaves room and would catch an
-    eigenvalue or a shape that is wrong."""
-    for mode in (1, 2):
-        out = _run(fivebar, *NEAR, "--mode", mode, "--amplitude", "0.001").stdout
-        linear = _mode_periods(out)[mode - 1]
-        _, period = _orbit(out)
-        assert period == pytest.approx(linear, rel=1e-5), (mode, period, linear)
+def test_a_small_swing_has_the_linear_modes_period_and_shape(fivebar, tmp_path):
+    """As the amplitude A goes to 0 the periodic orbit tends to the linear mode: its period to
+    2 pi / sqrt(-eigenvalue) and its start to the equilibrium + A x the mode shape (both from
+    the directional derivatives; the orbit from shooting on the nonlinear motion).  The
+    differences shrink with A (measured, slower mode): at 0.136 rad the period is 3.8e-3 longer
+    and the offset / A is 0.04 off the shape (largest entry 1); at A = 1e-3, 2e-7 and 1.3e-4.
+    So 1e-5 and 5e-3 leave room, and would catch a wrong eigenvalue or a wrong shape."""
+    orbit_module = _module()
+    fmu = orbit_module.MechanismFMU(fivebar, tmp_path, {})
+    try:
+        modes = orbit_module.normal_modes(fmu, np.radians([-90.0, -90.0]))
+        for mode in (1, 2):
+            amplitude = 1e-3
+            orbit = orbit_module.periodic_orbit(fmu, modes, mode, amplitude)
+            assert orbit.period == pytest.approx(modes.periods[mode - 1], rel=1e-5), mode
+            offset = (orbit.start - modes.equilibrium) / amplitude
+            assert np.allclose(offset, modes.shapes[:, mode - 1], rtol=0, atol=5e-3), (mode, offset)
+    finally:
+        fmu.close()
 
 
-def test_the_equilibrium_is_at_rest_and_stable(fivebar):
-    from fmpy import read_model_description
-    out = _run(fivebar, *NEAR).stdout
-    q = [math.radians(float(v)) for v in re.findall(r"= (\S+) deg", out.splitlines()[0])]
-    periods = _mode_periods(out)
-    assert len(q) == 2 and len(periods) == 2 and periods[0] > periods[1] > 0     # slowest first
-    # released there at rest it stays (1e-9 rad over 5 s: round-off, amplified by nothing
-    # since the equilibrium is stable)
-    md = read_model_description(str(fivebar))
-    assert {v.name for v in md.modelVariables} >= {"theta2_start", "theta5_start"}
+def test_the_equilibrium_is_at_rest_and_stable(fivebar, tmp_path):
+    orbit_module = _module()
+    fmu = orbit_module.MechanismFMU(fivebar, tmp_path, {})
+    try:
+        modes = orbit_module.normal_modes(fmu, np.radians([-90.0, -90.0]))
+        # the accelerations vanish there (Newton-Raphson stops below 1e-12 rad; g / L ~ 10 s^-2)
+        assert np.max(np.abs(fmu.accelerations(modes.equilibrium))) < 1e-10
+        equilibrium = modes.equilibrium
+    finally:
+        fmu.close()
+    assert np.all(modes.eigenvalues < 0) and modes.periods[0] > modes.periods[1] > 0     # stable, slowest first
+    # released there at rest it stays: 1e-9 rad over 5 s (a start 1e-12 rad off swings 1e-12 rad
+    # about it; the integrator at 1e-12 adds its own error, far below 1e-9)
     result = simulate_fmu(str(fivebar), stop_time=5.0, output_interval=0.01, output=["theta2", "theta5"],
-                          start_values={"theta2_start": q[0], "theta5_start": q[1], "rtol": 1e-12, "atol": 1e-12})
-    # the printed angles have 4 decimals of a degree: 1e-6 rad off the equilibrium at most,
-    # so the swing about it stays within 2e-6 rad
-    assert np.max(np.abs(result["theta2"] - q[0])) < 2e-6
-    assert np.max(np.abs(result["theta5"] - q[1])) < 2e-6
+                          start_values={"theta2_start": equilibrium[0], "theta5_start": equilibrium[1],
+                                        "rtol": 1e-12, "atol": 1e-12})
+    assert np.max(np.abs(result["theta2"] - equilibrium[0])) < 1e-9
+    assert np.max(np.abs(result["theta5"] - equilibrium[1])) < 1e-9
 
 
 def test_what_it_cannot_do_is_said(fivebar, mechanism_fmus, tmp_path):
@@ -134,3 +155,10 @@ def test_what_it_cannot_do_is_said(fivebar, mechanism_fmus, tmp_path):
     assert "L9" in proc.stderr
     proc = _run(tmp_path / "missing.fmu", check_exit=2)
     assert "no such file" in proc.stderr
+    for args, words in ((["--amplitude", "0"], "nonzero amplitude"), (["--near", "nan", "nan"], "not a finite number"),
+                        (["--set", "L5=nan"], "finite number"), (["--set", "theta2=1"], "not a parameter"),
+                        (["--mode", "0"], "a mode number")):
+        proc = _run(fivebar, *args, check_exit=2)
+        assert words in proc.stderr, (args, proc.stderr)
+    proc = _run(fivebar, *NEAR, "--set", "L5=-1", check_exit=2)      # the FMU's own reason
+    assert "L5 = -1.0 m: must be a finite positive number" in proc.stderr
