@@ -288,6 +288,7 @@ def run_fmusim(fmusim: Path, fmu: Path, outputs: tuple[str, ...], experiment: Ex
     for name in outputs:
         command += ["--output-variable", name]
     command += ["--output-file", str(out), str(Path(fmu).resolve())]
+    out.unlink(missing_ok=True)          # never read an earlier run's file as this one's
     start = time.perf_counter()
     try:
         proc = subprocess.run(command, cwd=workdir, env={}, capture_output=True, text=True, timeout=TIMEOUT)

@@ -73,7 +73,7 @@ def unwritable_folder(tmp_path: Path) -> Path:
 # Their tolerances and the outputs compared live with the benchmark that reports the same
 # comparisons (benchmarks/fmi_flavours.py, docs/fmi_hosts.md's flavour table): one home.
 sys.path.insert(0, str(REPO / "benchmarks"))
-from fmi_flavours import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, FLAVOUR_SPAN,  # noqa: E402,F401
+from fmi_flavours import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, flavour_span,  # noqa: E402,F401
                           lengths_and_angles)
 
 #: constraint_residual of every row whatever the host's tolerances (coordinate partitioning).

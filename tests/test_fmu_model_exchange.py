@@ -18,7 +18,7 @@ from fmpy.fmi2 import FMU2Model
 from scipy.integrate import DOP853
 
 from fmu_src.mechanism.description import shipped_mechanisms
-from support import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, FLAVOUR_SPAN, REPO, RESIDUAL,
+from support import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, REPO, RESIDUAL, flavour_span,
                      lengths_and_angles)
 
 sys.path.insert(0, str(REPO / "benchmarks"))
@@ -31,7 +31,7 @@ MECHANISMS = shipped_mechanisms()
 def test_model_exchange_in_fmpy_agrees_with_co_simulation(mechanism, mechanism_fmus):
     fmu = str(mechanism_fmus.get(mechanism, "native"))
     names = lengths_and_angles(fmu)
-    stop = FLAVOUR_SPAN.get(mechanism, 10.0)
+    stop = flavour_span(mechanism)
     cs = simulate_fmu(fmu, fmi_type="CoSimulation", stop_time=stop, output_interval=0.01,
                       start_values={"rtol": COSIM_TOL, "atol": COSIM_TOL}, output=names)
     me = simulate_fmu(fmu, fmi_type="ModelExchange", solver="CVode", relative_tolerance=CVODE_RTOL, stop_time=stop,
@@ -63,7 +63,7 @@ def test_model_exchange_in_fmusim_agrees_with_co_simulation(mechanism, mechanism
         pytest.skip("no fmusim: set FMUSIM=/path/to/fmusim or put fmusim on PATH (scripts/build_fmusim.sh)")
     fmu = mechanism_fmus.get(mechanism, "native")
     names = tuple(lengths_and_angles(fmu))
-    stop = FLAVOUR_SPAN.get(mechanism, 10.0)
+    stop = flavour_span(mechanism)
     run = fmi_hosts.run_fmusim(fmusim, fmu, names, fmi_hosts.Experiment(stop=stop), tmp_path,
                                model_exchange_tolerance=CVODE_RTOL)
     assert run.exit_code == 0 and run.values is not None, run.message
