@@ -145,6 +145,7 @@ class MechanismFMU:
                  and d.dependencies[0].name in self.states]
         self.coordinates = tuple(q for q, _ in pairs)
         self.rates = tuple(r for _, r in pairs)
+        self.units = tuple(variables[q].unit for q in self.coordinates)     # "rad", or "m" for a slider
         if not self.coordinates:
             raise UsageError(f"{path}: the mechanism has no free coordinate (a driven one moves as its driver "
                              "says): nothing swings")
@@ -204,7 +205,7 @@ class MechanismFMU:
             f = np.zeros(self.nx)
             self.model.getDerivatives(self._pointer(f), self.nx)
         except Exception as exc:        # noqa: BLE001
-            raise OrbitError(f"at {_degrees(self.coordinates, q)}: {_last_message(str(exc))}") from None
+            raise OrbitError(f"at {_where(self, q)}: {_last_message(str(exc))}") from None
         return f[self.iw]
 
     def stiffness(self, q: np.ndarray) -> np.ndarray:
@@ -218,7 +219,7 @@ class MechanismFMU:
                 seed[i] = 1.0
                 columns.append(self.model.getDirectionalDerivative(rows, [self.vr[s] for s in self.states], seed))
         except Exception as exc:        # noqa: BLE001
-            raise OrbitError(f"at {_degrees(self.coordinates, q)}: {_last_message(str(exc))}") from None
+            raise OrbitError(f"at {_where(self, q)}: {_last_message(str(exc))}") from None
         return np.array(columns, dtype=float).T
 
     def half_swing(self, start: np.ndarray, half: float) -> np.ndarray:
@@ -236,7 +237,7 @@ class MechanismFMU:
             self.slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=half)
             return np.array(self.slave.getReal([self.vr[r] for r in self.rates]), dtype=float)
         except Exception as exc:        # noqa: BLE001  (FMICallException)
-            raise OrbitError(f"released at {_degrees(self.coordinates, start)} for {half:.6g} s: "
+            raise OrbitError(f"released at {_where(self, start)} for {half:.6g} s: "
                              f"{_last_message(str(exc))}") from None
 
     def close(self) -> None:
@@ -256,16 +257,16 @@ def normal_modes(fmu: MechanismFMU, near: np.ndarray) -> Modes:
         try:
             step = np.linalg.solve(fmu.stiffness(q), -fmu.accelerations(q))
         except np.linalg.LinAlgError:
-            raise OrbitError(f"d q''/d q is singular at {_degrees(fmu.coordinates, q)}: no Newton-Raphson step "
+            raise OrbitError(f"d q''/d q is singular at {_where(fmu, q)}: no Newton-Raphson step "
                              "from there; try --near another guess") from None
         q += step
         if not np.all(np.isfinite(q)):
-            raise OrbitError(f"Newton-Raphson diverged from {_degrees(fmu.coordinates, near)}; try --near closer "
+            raise OrbitError(f"Newton-Raphson diverged from {_where(fmu, near)}; try --near closer "
                              "to an equilibrium")
         if np.max(np.abs(step)) < EQUILIBRIUM_STEP:
             eigenvalues, shapes = np.linalg.eig(fmu.stiffness(q))
             if np.any(np.abs(eigenvalues.imag) > 1e-9 * np.abs(eigenvalues.real)) or np.any(eigenvalues.real >= 0):
-                raise OrbitError(f"the equilibrium at {_degrees(fmu.coordinates, q)} is not stable (eigenvalues of "
+                raise OrbitError(f"the equilibrium at {_where(fmu, q)} is not stable (eigenvalues of "
                                  f"d q''/d q: {eigenvalues}): nothing swings about it; try --near another one")
             eigenvalues, shapes = eigenvalues.real, shapes.real
             order = np.argsort(-eigenvalues)          # slowest (smallest |eigenvalue|) first
@@ -273,7 +274,7 @@ def normal_modes(fmu: MechanismFMU, near: np.ndarray) -> Modes:
             for k in range(shapes.shape[1]):
                 shapes[:, k] /= shapes[np.argmax(np.abs(shapes[:, k])), k]
             return Modes(fmu.coordinates, q, eigenvalues, shapes)
-    raise OrbitError(f"no equilibrium found near {_degrees(fmu.coordinates, near)}: Newton-Raphson did not converge "
+    raise OrbitError(f"no equilibrium found near {_where(fmu, near)}: Newton-Raphson did not converge "
                      f"in {EQUILIBRIUM_ITERATIONS} iterations; try --near closer to one")
 
 
@@ -308,8 +309,10 @@ def periodic_orbit(fmu: MechanismFMU, modes: Modes, mode: int, amplitude: float)
     return Orbit(start_of(found.x), 2.0 * float(found.x[-1]), rates)
 
 
-def _degrees(names, q) -> str:
-    return ", ".join(f"{n} = {math.degrees(v):.4f} deg" for n, v in zip(names, q))
+def _where(fmu: "MechanismFMU", q) -> str:
+    """The coordinates as a user reads them: angles in degrees, lengths in m."""
+    return ", ".join(f"{n} = {math.degrees(v):.4f} deg" if unit == "rad" else f"{n} = {v:.6f} {unit or ''}".rstrip()
+                     for n, unit, v in zip(fmu.coordinates, fmu.units, q))
 
 
 def _setting(text: str) -> tuple[str, float]:
@@ -354,15 +357,20 @@ def _mode(text: str) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="periodic_orbit.py", description=__doc__.split("\n\n")[0],
-        epilog="Prints the equilibrium, the normal modes and, with --amplitude, a case file's start values.")
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="Prints the equilibrium, the normal modes and, with --amplitude, a case file's start values.\n\n"
+               "example (cases/fivebar_fault_L5.toml's start):\n"
+               "  python scripts/periodic_orbit.py build/FiveBarNative.fmu --near -90 -90 --mode 1 --amplitude 0.136\n\n"
+               "exit status: 0 found, 1 not found (the message says why), 2 bad arguments or an unsuitable FMU")
     parser.add_argument("fmu", type=Path, help="a native FMU (build/<Name>Native.fmu)")
-    parser.add_argument("--near", type=_finite, nargs="+", metavar="DEG",
-                        help="where to look for the equilibrium, one angle per coordinate in degrees "
-                             "(default: the FMU's start configuration)")
+    parser.add_argument("--near", type=_finite, nargs="+", metavar="VALUE",
+                        help="where to look for the equilibrium, one value per independent coordinate: an angle "
+                             "in degrees, a slider's position in m (default: the FMU's start configuration)")
     parser.add_argument("--mode", type=_mode, default=1, help="which mode to swing in, 1 the slowest (default 1)")
     parser.add_argument("--amplitude", type=_amplitude,
-                        help="rad from the equilibrium of the mode's largest coordinate at release, either sign "
-                             "(nonzero); without it only the equilibrium and the modes")
+                        help="how far from the equilibrium the mode's largest coordinate is released, in its "
+                             "unit (rad, or m for a slider), either sign (nonzero); without it only the equilibrium "
+                             "and the modes")
     parser.add_argument("--set", type=_setting, action="append", default=[], metavar="NAME=VALUE",
                         help="a parameter's value (repeatable)")
     args = parser.parse_args(argv)
@@ -378,9 +386,10 @@ def main(argv: list[str] | None = None) -> int:
                                      f"got {len(args.near)}")
                 if not 1 <= args.mode <= n:
                     raise UsageError(f"--mode {args.mode}: the mechanism has {n} mode(s)")
-                near = np.radians(args.near) if args.near is not None else fmu.start_configuration()
+                near = fmu.start_configuration() if args.near is None else \
+                    np.array([math.radians(v) if unit == "rad" else v for v, unit in zip(args.near, fmu.units)])
                 modes = normal_modes(fmu, near)
-                print(f"equilibrium at rest: {_degrees(modes.coordinates, modes.equilibrium)}")
+                print(f"equilibrium at rest: {_where(fmu, modes.equilibrium)}")
                 for k in range(n):
                     shape = " : ".join(f"{v:.4f}" for v in modes.shapes[:, k])
                     print(f"mode {k + 1}: period {modes.periods[k]:.6f} s (small swings), shape "
@@ -388,13 +397,15 @@ def main(argv: list[str] | None = None) -> int:
                 if args.amplitude is None:
                     return 0
                 orbit = periodic_orbit(fmu, modes, args.mode, args.amplitude)
+                rate_unit = " or ".join(dict.fromkeys(f"{unit or '1'}/s" for unit in fmu.units))
                 print(f"periodic orbit of mode {args.mode}: period {orbit.period:.10f} s; rates half a period "
-                      f"later {np.max(np.abs(orbit.rates_at_half)):.1e} rad/s")
+                      f"later {np.max(np.abs(orbit.rates_at_half)):.1e} {rate_unit}")
                 print("[parameters]")
                 for name, value in fmu.settings.items():
                     print(f"{name} = {value!r}")
-                for q, v in zip(fmu.coordinates, orbit.start):
-                    print(f"{q}_start = {float(v)!r}    # rad ({math.degrees(v):.4f} deg)")
+                for q, unit, v in zip(fmu.coordinates, fmu.units, orbit.start):
+                    note = f"rad ({math.degrees(v):.4f} deg)" if unit == "rad" else unit or ""
+                    print(f"{q}_start = {float(v)!r}    # {note}")
                 for r in fmu.rates:
                     print(f"{r}_start = 0.0")
             finally:
