@@ -27,7 +27,6 @@ which), 2 usage error.
 """
 from __future__ import annotations
 
-import argparse
 import datetime as dt
 import sys
 import tempfile
@@ -213,45 +212,17 @@ def report(rows: list[Row], fmusim: Path | None, command: str) -> list[str]:
 
 
 def main(argv=None) -> int:
-    from fmu_src.mechanism.description import shipped_mechanisms
-    shipped = shipped_mechanisms()
-    parser = argparse.ArgumentParser(
-        description=__doc__.splitlines()[0],
-        epilog="exit status: 0 every flavour agrees, 1 a build failed or a flavour disagrees, 2 usage error")
-    parser.add_argument("--fmusim", metavar="PATH",
-                        help="the fmusim executable (default: $FMUSIM, else fmusim on PATH; none: FMPy only; "
-                             "build one with scripts/build_fmusim.sh)")
-    parser.add_argument("--mechanism", nargs="+", metavar="NAME",
-                        help=f"only these mechanisms (default: all shipped: {', '.join(shipped)})")
-    parser.add_argument("--write", metavar="FILE",
-                        help="also put the table between the marker lines of FILE (docs/fmi_hosts.md); needs every "
-                             "mechanism and an fmusim")
-    args = parser.parse_args(argv)
-    unknown = [m for m in args.mechanism or () if m not in shipped]
-    if unknown:
-        parser.error(f"unknown mechanism {', '.join(map(repr, unknown))}: the shipped ones are {', '.join(shipped)}")
-    try:
-        fmusim = fmi_hosts.find_fmusim(args.fmusim)
-    except fmi_hosts.HostError as exc:
-        parser.error(str(exc))
-    if args.write:
-        if args.mechanism and set(args.mechanism) != set(shipped):
-            parser.error("--write writes the table of every shipped mechanism: leave out --mechanism")
-        if fmusim is None:
-            parser.error("--write documents fmusim's columns too, but no fmusim was found (--fmusim PATH, $FMUSIM "
-                         "or fmusim on PATH; scripts/build_fmusim.sh builds one)")
-        problem = fmi_hosts.markers_problem(Path(args.write), BEGIN, END)
-        if problem:
-            parser.error(problem)
-    mechanisms = tuple(dict.fromkeys(args.mechanism)) if args.mechanism else shipped
-    if fmusim is None:
+    cli = fmi_hosts.command_line(argv, __doc__.splitlines()[0],
+                                 "0 every flavour agrees, 1 a build failed or a flavour disagrees", "FMPy only",
+                                 "fmusim's columns too", BEGIN, END)
+    if cli.fmusim is None:
         print("no fmusim (--fmusim, $FMUSIM or PATH): FMPy's columns only", file=sys.stderr)
-    rows = run_benchmark(mechanisms, fmusim, progress=lambda s: print(s, file=sys.stderr, flush=True))
-    lines = report(rows, fmusim, "python benchmarks/fmi_flavours.py --fmusim PATH --write docs/fmi_hosts.md")
+    rows = run_benchmark(cli.mechanisms, cli.fmusim, progress=lambda s: print(s, file=sys.stderr, flush=True))
+    lines = report(rows, cli.fmusim, "python benchmarks/fmi_flavours.py --fmusim PATH --write docs/fmi_hosts.md")
     print("\n".join(lines))
-    if args.write:
-        fmi_hosts.write_section(Path(args.write), lines, BEGIN, END)
-        print(f"wrote the table into {args.write}", file=sys.stderr)
+    if cli.write:
+        fmi_hosts.write_section(cli.write, lines, BEGIN, END)
+        print(f"wrote the table into {cli.write}", file=sys.stderr)
     return 0 if all(r.ok for r in rows) else 1
 
 

@@ -514,15 +514,26 @@ def markers_problem(path: Path, begin: str = BEGIN, end: str = END) -> str:
     return ""
 
 
-def main(argv=None) -> int:
+@dataclass(frozen=True)
+class CommandLine:
+    """What a benchmark that writes a marked section of a page was asked: the mechanisms, the
+    fmusim (None: left out) and the page to write (None: print only)."""
+
+    mechanisms: tuple[str, ...]
+    fmusim: Path | None
+    write: Path | None
+
+
+def command_line(argv, description: str, exit_status: str, without_fmusim: str, fmusim_needed_for: str,
+                 begin: str = BEGIN, end: str = END) -> CommandLine:
+    """The options this benchmark and benchmarks/fmi_flavours.py share (--fmusim, --mechanism,
+    --write), checked: exit 2 with a message for an unknown mechanism, a named fmusim that is not
+    one, or a --write that lacks every mechanism, an fmusim or the page's marker lines."""
     from fmu_src.mechanism.description import shipped_mechanisms
     shipped = shipped_mechanisms()
-    parser = argparse.ArgumentParser(
-        description=__doc__.splitlines()[0],
-        epilog="exit status: 0 every host ran and agrees with FMPy, 1 a build or a host failed or disagrees, "
-               "2 usage error")
+    parser = argparse.ArgumentParser(description=description, epilog=f"exit status: {exit_status}, 2 usage error")
     parser.add_argument("--fmusim", metavar="PATH",
-                        help="the fmusim executable (default: $FMUSIM, else fmusim on PATH; none: fmusim is left out; "
+                        help=f"the fmusim executable (default: $FMUSIM, else fmusim on PATH; none: {without_fmusim}; "
                              "build one with scripts/build_fmusim.sh)")
     parser.add_argument("--mechanism", nargs="+", metavar="NAME",
                         help=f"only these mechanisms (default: all shipped: {', '.join(shipped)})")
@@ -541,22 +552,30 @@ def main(argv=None) -> int:
         if args.mechanism and set(args.mechanism) != set(shipped):
             parser.error("--write writes the table of every shipped mechanism: leave out --mechanism")
         if fmusim is None:
-            parser.error("--write documents three hosts, but no fmusim was found (--fmusim PATH, $FMUSIM or "
-                         "fmusim on PATH; scripts/build_fmusim.sh builds one)")
-        problem = markers_problem(Path(args.write))
+            parser.error(f"--write documents {fmusim_needed_for}, but no fmusim was found (--fmusim PATH, $FMUSIM "
+                         "or fmusim on PATH; scripts/build_fmusim.sh builds one)")
+        problem = markers_problem(Path(args.write), begin, end)
         if problem:
             parser.error(problem)
     mechanisms = tuple(dict.fromkeys(args.mechanism)) if args.mechanism else shipped
+    return CommandLine(mechanisms, fmusim, Path(args.write) if args.write else None)
+
+
+def main(argv=None) -> int:
+    cli = command_line(argv, __doc__.splitlines()[0],
+                       "0 every host ran and agrees with FMPy, 1 a build or a host failed or disagrees",
+                       "fmusim is left out", "three hosts")
     experiment = Experiment()
-    if fmusim is None:
+    if cli.fmusim is None:
         print("no fmusim (--fmusim, $FMUSIM or PATH): running FMPy and libcosim only", file=sys.stderr)
-    results = run_benchmark(mechanisms, experiment, fmusim, progress=lambda s: print(s, file=sys.stderr, flush=True))
+    results = run_benchmark(cli.mechanisms, experiment, cli.fmusim,
+                            progress=lambda s: print(s, file=sys.stderr, flush=True))
     command = "python benchmarks/fmi_hosts.py --fmusim PATH --write docs/fmi_hosts.md"
-    lines = report(results, experiment, fmusim, command)
+    lines = report(results, experiment, cli.fmusim, command)
     print("\n".join(lines))
-    if args.write:
-        write_section(Path(args.write), lines)
-        print(f"wrote the table into {args.write}", file=sys.stderr)
+    if cli.write:
+        write_section(cli.write, lines)
+        print(f"wrote the table into {cli.write}", file=sys.stderr)
     return 0 if all(r.ok for r in results) else 1
 
 

@@ -7,6 +7,8 @@ import re
 import sys
 from pathlib import Path
 
+import pytest
+
 REPO = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 FOURBAR_RUN = str(BIN / "fourbar-run")
@@ -75,6 +77,34 @@ def unwritable_folder(tmp_path: Path) -> Path:
 sys.path.insert(0, str(REPO / "benchmarks"))
 from fmi_flavours import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, flavour_span,  # noqa: E402,F401
                           lengths_and_angles)
+import fmi_hosts  # noqa: E402
+
+
+def fmusim_or_skip() -> Path:
+    """The fmusim to test with ($FMUSIM or PATH); the test is skipped where there is none, and
+    fails when $FMUSIM names something that is not one (say so, do not skip)."""
+    try:
+        found = fmi_hosts.find_fmusim()
+    except fmi_hosts.HostError as exc:
+        pytest.fail(str(exc))
+    if found is None:
+        pytest.skip("no fmusim: set FMUSIM=/path/to/fmusim or put fmusim on PATH. fmusim is built from the "
+                    "Modelica Reference-FMUs' sources (v0.0.39, the last version with fmusim) by "
+                    "scripts/build_fmusim.sh SRC_DIR OUT_DIR; docs/fmi_hosts.md, 'Every shipped mechanism in "
+                    "three hosts'")
+    return found
+
+
+def fmucheck_or_skip() -> Path:
+    """The FMU Compliance Checker ($FMUCHECK or fmuCheck.linux64 on PATH), as fmusim_or_skip."""
+    try:
+        found = fmi_hosts.find_fmucheck()
+    except fmi_hosts.HostError as exc:
+        pytest.fail(str(exc))
+    if found is None:
+        pytest.skip("no FMU Compliance Checker: set FMUCHECK=/path/to/fmuCheck.linux64 or put it on PATH "
+                    "(scripts/build_fmucheck.sh builds it)")
+    return found
 
 #: constraint_residual of every row whatever the host's tolerances (coordinate partitioning).
 RESIDUAL = 1e-12

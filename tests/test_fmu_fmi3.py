@@ -32,7 +32,7 @@ from fmpy.validation import validate_fmu
 
 from fmu_src.mechanism.description import load_mechanism, shipped_mechanisms
 from support import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, REPO, RESIDUAL, flavour_span,
-                     lengths_and_angles)
+                     fmusim_or_skip, lengths_and_angles)
 
 sys.path.insert(0, str(REPO / "benchmarks"))
 import fmi_hosts  # noqa: E402   (the hosts' runners: one home)
@@ -141,22 +141,12 @@ def test_fmpy_model_exchange_agrees_with_fmi2_co_simulation(mechanism, mechanism
 
 
 # -- fmusim ----------------------------------------------------------------------------------
-def _fmusim():
-    try:
-        fmusim = fmi_hosts.find_fmusim()
-    except fmi_hosts.HostError as exc:
-        pytest.fail(str(exc))
-    if fmusim is None:
-        pytest.skip("no fmusim: set FMUSIM=/path/to/fmusim or put fmusim on PATH (scripts/build_fmusim.sh)")
-    return fmusim
-
-
 @pytest.mark.parametrize("interface", ["CoSimulation", "ModelExchange"])
 @pytest.mark.parametrize("mechanism", MECHANISMS)
 def test_fmusim_runs_fmi3_and_agrees_with_fmi2_co_simulation(mechanism, interface, mechanism_fmus,
                                                              tmp_path):
     """fmusim (Reference-FMUs v0.0.39 here), its own CVode for model exchange; skipped without fmusim."""
-    fmusim = _fmusim()
+    fmusim = fmusim_or_skip()
     fmu = mechanism_fmus.get(mechanism, "native3")
     names = tuple(lengths_and_angles(fmu))
     stop = flavour_span(mechanism)

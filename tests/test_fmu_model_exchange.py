@@ -19,7 +19,7 @@ from scipy.integrate import DOP853
 
 from fmu_src.mechanism.description import shipped_mechanisms
 from support import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, REPO, RESIDUAL, flavour_span,
-                     lengths_and_angles)
+                     fmucheck_or_skip, fmusim_or_skip, lengths_and_angles)
 
 sys.path.insert(0, str(REPO / "benchmarks"))
 import fmi_hosts  # noqa: E402   (the hosts' runners: one home)
@@ -55,12 +55,7 @@ def test_constraints_hold_at_the_hosts_default_tolerance(mechanism, mechanism_fm
 def test_model_exchange_in_fmusim_agrees_with_co_simulation(mechanism, mechanism_fmus, tmp_path):
     """fmusim (the Reference-FMUs' host) integrating with its own CVode; skipped without fmusim
     ($FMUSIM or PATH; scripts/build_fmusim.sh builds it)."""
-    try:
-        fmusim = fmi_hosts.find_fmusim()
-    except fmi_hosts.HostError as exc:
-        pytest.fail(str(exc))
-    if fmusim is None:
-        pytest.skip("no fmusim: set FMUSIM=/path/to/fmusim or put fmusim on PATH (scripts/build_fmusim.sh)")
+    fmusim = fmusim_or_skip()
     fmu = mechanism_fmus.get(mechanism, "native")
     names = tuple(lengths_and_angles(fmu))
     stop = flavour_span(mechanism)
@@ -75,17 +70,6 @@ def test_model_exchange_in_fmusim_agrees_with_co_simulation(mechanism, mechanism
     assert worst <= FLAVOUR_AGREE, (mechanism, worst)
 
 
-def _fmucheck():
-    try:
-        found = fmi_hosts.find_fmucheck()
-    except fmi_hosts.HostError as exc:
-        pytest.fail(str(exc))
-    if found is None:
-        pytest.skip("no FMU Compliance Checker: set FMUCHECK=/path/to/fmuCheck.linux64 or put it on PATH "
-                    "(scripts/build_fmucheck.sh builds it)")
-    return found
-
-
 @pytest.mark.parametrize("mechanism", ["fourbar", "fourbar_driven"])
 def test_the_compliance_checker_finds_nothing_and_runs_model_exchange(mechanism, mechanism_fmus, tmp_path):
     """fmuCheck -k me: the model description and the model-exchange calls raise no warning or
@@ -95,7 +79,7 @@ def test_the_compliance_checker_finds_nothing_and_runs_model_exchange(mechanism,
     0.01 s rows (its rows fall at the Euler steps), measured 1.2e-4 m on the four-bar."""
     fmu = mechanism_fmus.get(mechanism, "native")
     names = tuple(n for n in lengths_and_angles(fmu) if n[:1] in "xy")[:6]
-    checked = fmi_hosts.run_fmucheck(_fmucheck(), fmu, names, stop=1.0, step=1e-5, points=101, workdir=tmp_path)
+    checked = fmi_hosts.run_fmucheck(fmucheck_or_skip(), fmu, names, stop=1.0, step=1e-5, points=101, workdir=tmp_path)
     assert checked.checker_errors == 0 and checked.checker_warnings == 0, checked.log[-3000:]
     run = checked.run
     assert run.values is not None and len(run.time) >= 100, run.message

@@ -27,7 +27,7 @@ import sys
 import numpy as np
 import pytest
 
-from support import REPO
+from support import REPO, fmucheck_or_skip, fmusim_or_skip
 
 sys.path.insert(0, str(REPO / "benchmarks"))
 import fmi_hosts  # noqa: E402
@@ -41,11 +41,6 @@ MECHANISMS = shipped_mechanisms()
 #: 5 s of the benchmark's experiment (20 s): 501 communication points, past the first second in
 #: which every shipped mechanism moves through most of its motion (a fast crank turns ~5 times).
 EXPERIMENT = fmi_hosts.Experiment(stop=5.0)
-
-NO_FMUSIM = ("no fmusim: set FMUSIM=/path/to/fmusim or put fmusim on PATH. fmusim is built from the "
-             "Modelica Reference-FMUs' sources (v0.0.39, the last version with fmusim) by "
-             "scripts/build_fmusim.sh SRC_DIR OUT_DIR; docs/fmi_hosts.md, 'Every shipped mechanism in three hosts'")
-
 
 @pytest.fixture(scope="module")
 def runs_of(mechanism_fmus, tmp_path_factory):
@@ -67,13 +62,7 @@ def runs_of(mechanism_fmus, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def fmusim():
-    try:
-        found = fmi_hosts.find_fmusim()
-    except fmi_hosts.HostError as exc:           # FMUSIM set, but wrong: say so, do not skip
-        pytest.fail(str(exc))
-    if found is None:
-        pytest.skip(NO_FMUSIM)
-    return found
+    return fmusim_or_skip()
 
 
 def _assert_agrees(agreement: fmi_hosts.Agreement, mechanism: str) -> None:
@@ -108,13 +97,7 @@ def test_the_compliance_checker_gives_fmpys_numbers_in_co_simulation(mechanism, 
     """fmuCheck -k cs (issue 26's hosts: the FMU Compliance Checker on FMI 2.0 co-simulation):
     no warning or error, and FMPy's numbers (fmi_hosts.AGREEMENT['fmuCheck']); skipped where the
     checker is not built ($FMUCHECK, or fmuCheck.linux64 on PATH; scripts/build_fmucheck.sh)."""
-    try:
-        fmucheck = fmi_hosts.find_fmucheck()
-    except fmi_hosts.HostError as exc:
-        pytest.fail(str(exc))
-    if fmucheck is None:
-        pytest.skip("no FMU Compliance Checker: set FMUCHECK=/path/to/fmuCheck.linux64 or put it on PATH "
-                    "(scripts/build_fmucheck.sh builds it)")
+    fmucheck = fmucheck_or_skip()
     fmu, outputs, _ = runs_of(mechanism)
     # the checker sets no parameter: FMPy at the FMU's own tolerance is its reference
     experiment = dataclasses.replace(EXPERIMENT, rtol=DEFAULT_TOLERANCE, atol=DEFAULT_TOLERANCE)
