@@ -16,7 +16,7 @@ from types import ModuleType
 from pathlib import Path
 
 from .derivation import MechanismEquations, derive
-from .description import Mechanism, MechanismError, load_mechanism
+from .description import Mechanism, MechanismError, load_mechanism, resolve_mechanism
 
 __all__ = ["CheckedMechanism", "check_mechanism", "prepare_mechanism", "start_state"]
 
@@ -42,19 +42,21 @@ _PREPARED: dict[tuple, CheckedMechanism] = {}
 def prepare_mechanism(spec: str | Path | Mechanism) -> CheckedMechanism:
     """Load (a shipped name, a path or a Mechanism), derive, generate and check a mechanism.
 
-    Raises MechanismError naming what is wrong.  Cached per file and modification time.
+    Raises MechanismError naming what is wrong.  Cached per file and modification time, looked
+    up before the file is parsed (a hit costs a stat, not a parse).
     """
     from .python_code import generate_module, load_module
 
     if isinstance(spec, Mechanism):
         mech, key = spec, ("object", id(spec))
     else:
-        mech = load_mechanism(spec)
-        path = Path(mech.source).resolve()
+        path = resolve_mechanism(str(spec)).resolve()
         key = (str(path), path.stat().st_mtime_ns)
     hit = _PREPARED.get(key)
     if hit is not None and (key[0] != "object" or hit.mechanism is spec):
         return hit
+    if not isinstance(spec, Mechanism):
+        mech = load_mechanism(spec)
     eqs = derive(mech)
     source = generate_module(eqs)
     checked = check_mechanism(eqs, source, load_module(source, mech.name))
