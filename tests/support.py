@@ -110,3 +110,53 @@ def fmucheck_or_skip() -> Path:
 RESIDUAL = 1e-12
 
 
+
+
+# -- FMU log messages in a test ----------------------------------------------------------
+# FMPy's logger proxy (fmpy.logging.addLoggerProxy formats an FMU's printf-style message) keeps
+# the Python logger of the LAST callbacks given to it in one process-wide C variable, which
+# FMPy's own default callbacks (simulate_fmu, an FMU2Slave instantiated without callbacks) go
+# through too.  A test's own ctypes logger would be freed with the test and leave that variable
+# dangling (the next FMU that logs in the worker segfaults), or, kept alive, would swallow the
+# messages FMPy prints for the tests after it.  So every test logger is this one router, alive
+# for the process: a message goes to the sink registered for the instance's componentEnvironment,
+# any other to FMPy's printer (orchestrator/instance.py does the same for fourbar-run).
+_SINKS: dict[int, object] = {}
+_KEPT: list = []
+
+
+def _route_message(env, instance_name, status, category, message) -> None:
+    from fmpy.fmi1 import printLogMessage
+
+    sink = _SINKS.get(env or 0)
+    if sink is None:
+        printLogMessage(env, instance_name, status, category, message)
+    else:
+        sink(status, message.decode(errors="replace"))
+
+
+_ROUTER = None
+
+
+def logged_callbacks(sink):
+    """FMI 2.0 callbacks (for ``FMU2Slave.instantiate(callbacks=...)``) whose messages, formatted,
+    go to ``sink(status, text)``; kept alive for the process."""
+    global _ROUTER
+    from ctypes import byref
+
+    from fmpy.fmi2 import (calloc, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, free)
+    from fmpy.logging import addLoggerProxy
+
+    if _ROUTER is None:
+        _ROUTER = fmi2CallbackLoggerTYPE(_route_message)
+    env = 1_000_000 + len(_KEPT)            # apart from the orchestrator's ids (1, 2, ...)
+    _SINKS[env] = sink
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = _ROUTER
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    callbacks.componentEnvironment = env
+    addLoggerProxy(byref(callbacks))
+    _KEPT.append(callbacks)
+    return callbacks

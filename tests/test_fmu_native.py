@@ -29,7 +29,6 @@ import shutil
 import subprocess
 import sys
 import zipfile
-from ctypes import byref
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,12 +36,11 @@ import numpy as np
 import pytest
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import (FMU2Slave, calloc, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, free)
-from fmpy.logging import addLoggerProxy
+from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
 from native_host.references import ReferenceUnavailable, build_today_native_fmu, python_run
+from support import logged_callbacks
 from reference_theta2 import simulate as reference
 
 pytestmark = pytest.mark.slow    # whole 100 s runs and FMU builds; `make check` leaves them out
@@ -79,19 +77,13 @@ def positions(result, names) -> np.ndarray:
 
 # -- a slave driven by hand ---------------------------------------------------------------
 LOG: list[str] = []
-_LOGGER = fmi2CallbackLoggerTYPE(lambda env, name, status, category, message:
-                                 LOG.append(message.decode(errors="replace")))
 
 
 class Slave:
     """An instantiated native FMU (FMPy's FMU2Slave) with a logger that lives as long as the module."""
 
     def __init__(self, unzipdir, md, name="fourbar"):
-        callbacks = fmi2CallbackFunctions()
-        callbacks.logger = _LOGGER
-        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        addLoggerProxy(byref(callbacks))
+        callbacks = logged_callbacks(lambda status, text: LOG.append(text))
         self.callbacks = callbacks
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
         self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,

@@ -21,13 +21,12 @@ import shutil
 import struct
 import subprocess
 import sys
-import zipfile
-from ctypes import byref
 from pathlib import Path
 
 import pytest
 
 from native_host.strict_host import compile_host, find_cc, run_host, unpack
+from support import logged_callbacks
 
 REPO = Path(__file__).resolve().parents[1]
 GLIBC_BASELINE = (2, 17)        # manylinux2014
@@ -138,17 +137,10 @@ def test_after_a_failed_initialization_every_read_is_an_error(native_fmu, target
     says so; fmi2Reset makes it usable again."""
     from fmpy import read_model_description
     from fmpy.fmi1 import FMICallException
-    from fmpy.fmi2 import (FMU2Slave, calloc, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, free)
-    from fmpy.logging import addLoggerProxy
+    from fmpy.fmi2 import FMU2Slave
 
     log: list[tuple[int, str]] = []
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = fmi2CallbackLoggerTYPE(lambda env, name, status, category, message:
-                                              log.append((status, message.decode(errors="replace"))))
-    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-    addLoggerProxy(byref(callbacks))
+    callbacks = logged_callbacks(lambda status, text: log.append((status, text)))
     md = read_model_description(str(native_fmu))
     vr = {v.name: v.valueReference for v in md.modelVariables}
     slave = FMU2Slave(guid=md.guid, unzipDirectory=str(target.root), modelIdentifier="FourBarNative",

@@ -10,18 +10,15 @@ from __future__ import annotations
 
 import math
 import shutil
-from ctypes import byref
 
 import numpy as np
 import pytest
 from fmpy import extract, read_model_description, simulate_fmu
-from fmpy.fmi2 import (FMU2Slave, calloc, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, free)
+from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi1 import FMICallException
-from fmpy.logging import addLoggerProxy
-from numpy.testing import assert_allclose
 
 from reference_theta2 import simulate as reference
+from support import logged_callbacks
 
 pytestmark = pytest.mark.slow    # whole 100 s runs; `make check` leaves them out
 
@@ -73,19 +70,8 @@ def run(fmu, stop=100.0, start_values=None, l2_step=None, output=ALL, capture_lo
 LOG: list[str] = []
 
 
-def _collect(env, instance, status, category, message):
-    LOG.append(message.decode(errors="replace"))
-
-
-_LOG_THUNK = fmi2CallbackLoggerTYPE(_collect)
-
-
 def _logged_instance(md, unzipdir):
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = _LOG_THUNK
-    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-    addLoggerProxy(byref(callbacks))
+    callbacks = logged_callbacks(lambda status, text: LOG.append(text))
     instance = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,
                          modelIdentifier=md.coSimulation.modelIdentifier, instanceName="FourBar")
     instance.instantiate(callbacks=callbacks, loggingOn=True)   # pythonfmu logs only when on
