@@ -13,7 +13,9 @@ gives both FMUs:
   ``Phi_q M^-1 Q - gamma`` and ``M^-1 (Q - Phi_q^T lambda)``, are printed over the entries of
   ``Phi_q`` that are not identically zero (constant ones as constants).  The sines and cosines
   of the angle coordinates are computed once per configuration (``eq_trig``) and passed to every
-  function.  The header holds the sizes and tables the generic C needs: coordinates, angles,
+  function.  For the declared partition, the reduced constraints of ``c_reduction`` (the loop
+  closures left once each body's x and y are solved in closed form) with their derivatives
+  (``eq_red_*``): what the native right-hand side solves.  The header holds the sizes and tables the generic C needs: coordinates, angles,
   the independent coordinates and their start-value parameters, where assembly starts, the
   drivers, which joint each constraint row belongs to (for messages), the outputs' kinds.  No
   equation is transcribed by hand.
@@ -42,13 +44,14 @@ from pathlib import Path
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
+from .c_reduction import Reduction, reduce_constraints
 from .mechanism.derivation import MechanismEquations
 from .mechanism.description import MechanismError
 from .mechanism.python_code import _guess   # the pythonfmu FMU's GUESS: one home
 from .mechanism.table import model_exchange_states, native_variable_table
 from .mechanism_model.variables import INTEGRATOR_NAMES, POSITIVE
 
-__all__ = ["generate_c_sources", "GENERATED_FILES", "c_sizes"]
+__all__ = ["generate_c_sources", "GENERATED_FILES", "c_sizes", "declared_reduction"]
 
 #: The files generate_c_sources returns.
 GENERATED_FILES = ("equations.c", "equations.h", "variables.h", "rk_tableaus.c")
@@ -133,6 +136,7 @@ class _Symbols:
         self.vector = [sp.Symbol(f"v_{k}", real=True) for k in range(n)]
         # A direction of the state (dq, dqd) and of the multipliers (dlam), and a vector w (n) that
         # Phi_q multiplies: the arguments of the directional derivatives (Model Exchange).
+        self.qdd = [sp.Symbol(f"qdd_{nm}", real=True) for nm in names]
         self.dq = [sp.Symbol(f"dq_{nm}", real=True) for nm in names]
         self.dqd = [sp.Symbol(f"dqd_{nm}", real=True) for nm in names]
         self.dlam = [sp.Symbol(f"dlam_{k}", real=True) for k in range(m)]
@@ -149,7 +153,7 @@ class _Symbols:
 
     @property
     def arrays(self) -> dict[str, list[sp.Symbol]]:
-        return {"q": self.q, "tr": self.trig, "qd": self.qd, "lam": self.lam, "p": self.p, "d": self.d,
+        return {"q": self.q, "tr": self.trig, "qd": self.qd, "qdd": self.qdd, "lam": self.lam, "p": self.p, "d": self.d,
                 "J": self.J, "minv": self.minv, "Q": self.Q, "v": self.vector, "dq": self.dq, "dqd": self.dqd,
                 "dlam": self.dlam, "w": self.w}
 
@@ -307,13 +311,102 @@ def _jacobian_column_code(sym: "_Symbols", eqs: MechanismEquations) -> tuple[str
     return "\n".join(lines) + "\n", "void eq_jacobian_column(const double *J, int k, double *out);"
 
 
-def _dependent_lu_code(sym: "_Symbols", eqs: MechanismEquations) -> tuple[str, list[str], list[str]]:
+def _declared_static_lu(sym: "_Symbols", eqs: MechanismEquations) -> _StaticLU:
+    """The static factorisation of the declared partition's dependent block (columns: the
+    coordinates not independent, in increasing order)."""
+    dependent = [i for i in range(eqs.n) if i not in eqs.independent]
+    return _static_lu(sp.Matrix(eqs.m, eqs.m, lambda i, j: sym.J_pattern[i, dependent[j]]))
+
+
+def _declared_reduction(eqs: MechanismEquations, lu: _StaticLU) -> Reduction | None:
+    """``c_reduction.reduce_constraints`` on the static factorisation's pivots and Schur complement."""
+    dependent = [i for i in range(eqs.n) if i not in eqs.independent]
+    return reduce_constraints(eqs, [(p.row, dependent[p.col]) for p in lu.pivots], lu.rows,
+                              [dependent[c] for c in lu.cols])
+
+
+def declared_reduction(eqs: MechanismEquations) -> Reduction | None:
+    """The reduced constraints the native FMU's right-hand side solves for the declared partition
+    (None: it keeps the full system)."""
+    return _declared_reduction(eqs, _declared_static_lu(_Symbols(eqs), eqs))
+
+
+def _reduced_functions(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) -> tuple[list, list[str]]:
+    """The declared partition's reduced constraints (``c_reduction``), printed: the functions
+    (``_function``'s arguments) and the header lines.  MECH_RED is 0, and no function printed,
+    where the reduction does not exist (dae.c keeps the full system)."""
+    red = _declared_reduction(eqs, lu)
+    if red is None:
+        return [], ["#define MECH_RED 0"]
+    c = lambda matrix: [sym.c(e) for e in matrix]          # noqa: E731  (row-major)
+    R, E, K = len(red.z), len(red.eliminated), len(eqs.independent)
+    ints = lambda values: _braced(str(int(v)) for v in values)   # noqa: E731
+    column = lambda symbols, indices: sp.Matrix(len(indices), 1, [symbols[i] for i in indices])   # noqa: E731
+    z_of, i_of = (lambda v: column(v, red.z)), (lambda v: column(v, eqs.independent))  # noqa: E731
+    qd, qdd, dq = list(eqs.qd), [sp.Symbol(f"__qdd{k}") for k in range(eqs.n)], [sp.Symbol(f"__dq{k}") for k in range(eqs.n)]
+    to_c = dict(zip(qdd, sym.qdd)) | dict(zip(dq, sym.dq))
+
+    def product(matrix: sp.Matrix, vector: sp.Matrix) -> list[sp.Expr]:
+        return list(matrix * vector) if matrix.cols else [sp.Integer(0)] * matrix.rows
+
+    def in_c(exprs) -> list[sp.Expr]:
+        return [sym.c(sp.sympify(e)).xreplace(to_c) for e in exprs]
+
+    rate_rhs = [-(b + rt) for b, rt in zip(product(red.B, i_of(qd)), red.r_t)]
+    closed_rates = [a + b + gt for a, b, gt in zip(product(red.G_z, z_of(qd)), product(red.G_i, i_of(qd)), red.g_t)]
+    closed_acc = [a + b + k for a, b, k in zip(product(red.G_z, z_of(qdd)), product(red.G_i, i_of(qdd)), red.kappa)]
+    closed_dir = [a + b for a, b in zip(product(red.G_z, z_of(dq)), product(red.G_i, i_of(dq)))]
+    functions = [
+        ("void eq_red_residual(const double *q, const double *tr, double t, const double *p, const double *d, "
+         "double *r)", f"r ({R}): the reduced constraints (c_reduction) at q's independent and MECH_RED_Z "
+         "coordinates.", [("r", c(red.residual))], ("q", "tr", "p", "d")),
+        ("void eq_red_newton(const double *q, const double *tr, double t, const double *p, const double *d, "
+         "double *r, double *S)", f"r ({R}) and S = dr/dz ({R} x {R}, row-major): a Newton-Raphson iteration.",
+         [("r", c(red.residual)), ("S", c(red.S))], ("q", "tr", "p", "d")),
+        ("void eq_red_closed(const double *q, const double *tr, double t, const double *p, const double *d, "
+         "double *x)", f"x ({E}): the MECH_RED_E coordinates in closed form.",
+         [("x", c(red.closed_form))], ("q", "tr", "p", "d")),
+        ("void eq_red_jacobians(const double *q, const double *tr, const double *p, double *S, double *B)",
+         f"At a solution: S = dr/dz ({R} x {R}) and B = dr/dq_independent ({R} x {K}), row-major.",
+         [("S", c(red.S)), ("B", c(red.B))], ("q", "tr", "p")),
+        ("void eq_red_rate_rhs(const double *q, const double *tr, const double *qd, double t, const double *p, "
+         "const double *d, double *b)", f"b = -(B qd[independent] + r_t) ({R}): S zd = b.",
+         [("b", in_c(rate_rhs))], ("q", "tr", "qd", "p", "d")),
+        ("void eq_red_closed_rates(const double *q, const double *tr, const double *qd, double t, const double *p, "
+         "const double *d, double *out)", f"The MECH_RED_E coordinates' rates ({E}) from qd's independent and "
+         "MECH_RED_Z entries.", [("out", in_c(closed_rates))], ("q", "tr", "qd", "p", "d")),
+        ("void eq_red_closed_accelerations(const double *q, const double *tr, const double *qd, const double *qdd, "
+         "double t, const double *p, const double *d, double *out)",
+         f"The MECH_RED_E coordinates' accelerations ({E}) from qdd's independent and MECH_RED_Z entries.",
+         [("out", in_c(closed_acc))], ("q", "tr", "qd", "qdd", "p", "d")),
+        ("void eq_red_closed_direction(const double *q, const double *tr, const double *p, const double *dq, "
+         "double *out)", f"G_z dq[MECH_RED_Z] + G_i dq[independent] ({E}): how the MECH_RED_E coordinates move.",
+         [("out", in_c(closed_dir))], ("q", "tr", "p", "dq")),
+        ("void eq_red_convective(const double *q, const double *tr, const double *qd, double t, const double *p, "
+         "const double *d, double *gamma)",
+         f"gamma ({R}): S zdd + B qdd[independent] + gamma = 0.", [("gamma", c(red.gamma))],
+         ("q", "tr", "qd", "p", "d")),
+    ]
+    trig_of = {i: a for a, i in enumerate(sym.angles)}
+    header = [
+        "/* The declared partition's reduced constraints (fmu_src/c_reduction.py, eq_red_*): Newton-Raphson",
+        "   solves for the MECH_RED_Z coordinates (the Schur complement's, in its order) only; the",
+        "   MECH_RED_E ones (the static pivots') follow in closed form. */",
+        "#define MECH_RED 1",
+        f"#define MECH_RED_Z {ints(_padded([str(v) for v in red.z], '-1'))}",
+        f"#define MECH_RED_E {ints(_padded([str(v) for v in red.eliminated], '-1'))}",
+        f"#define MECH_RED_N_E {E}",
+        "/* Per MECH_RED_Z and MECH_RED_E coordinate, its angle's index in MECH_ANGLES (-1: not an angle). */",
+        f"#define MECH_RED_Z_ANGLE {ints(_padded([str(trig_of.get(i, -1)) for i in red.z], '-1'))}",
+        f"#define MECH_RED_E_ANGLE {ints(_padded([str(trig_of.get(i, -1)) for i in red.eliminated], '-1'))}",
+        f"#define MECH_RED_E_ANGLES {sum(1 for i in red.eliminated if i in trig_of)}",
+    ]
+    return functions, header
+
+
+def _dependent_lu_code(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) -> tuple[str, list[str], list[str]]:
     """The generated factorisation and solves of the declared partition's dependent block
     (``_StaticLU``): C source, prototypes, header lines."""
-    n, m = eqs.n, eqs.m
-    dependent = [i for i in range(n) if i not in eqs.independent]
-    block = sp.Matrix(m, m, lambda i, j: sym.J_pattern[i, dependent[j]])
-    lu = _static_lu(block)
     printer = _Printer()
     # Workspace: the multipliers and upper entries that are not constants, then the Schur complement.
     stored: list[sp.Expr] = []
@@ -548,9 +641,12 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
          "double *qdd)", f"qdd = M^-1 (Q - Phi_q^T lambda) ({n}).", [("qdd", qdd)], ("J", "minv", "Q", "lam")),
     ]
     functions += _directional_functions(eqs, sym, state_outputs, force_outputs)
+    lu = _declared_static_lu(sym, eqs)
+    reduced, reduced_header = _reduced_functions(sym, eqs, lu)
+    functions += reduced
     body = [_function(sym, *f) for f in functions]
     prototypes = [f"{f[0]};" for f in functions]
-    dep_source, dep_prototypes, dep_header = _dependent_lu_code(sym, eqs)
+    dep_source, dep_prototypes, dep_header = _dependent_lu_code(sym, eqs, lu)
     column_source, column_prototype = _jacobian_column_code(sym, eqs)
     body += [dep_source, column_source]
     prototypes += dep_prototypes + [column_prototype]
@@ -632,6 +728,7 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
         f"#define MECH_OUTPUT_KINDS {ints(kinds)}",
         f"#define MECH_OUTPUT_INDICES {ints(indices)}",
         *dep_header,
+        *reduced_header,
         "",
         *prototypes,
         "",

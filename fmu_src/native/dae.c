@@ -32,6 +32,15 @@
  * most DAE_RESCUES times per communication step.
  *
  * The same algorithm, tolerances and decisions as dae.py, computed with less work:
+ * - for the declared partition, the right-hand side and the reported states solve the reduced
+ *   constraints (fmu_src/c_reduction.py, eq_red_*): each body's x and y, solved in closed form
+ *   from the joint rows that are linear in them, leave the loop closures in the dependent angles
+ *   (2 for the four-bar, 4 for the Watt six-bar), which Newton-Raphson solves with their own
+ *   Jacobian (the dependent block's Schur complement, so the assembly branch reads the same);
+ *   rates and accelerations follow from the reduced derivatives and V^T M V as below
+ *   (reduced_positions, reduced_rates, reduced_accelerations).  Where that does not converge or
+ *   lands on another branch, the full system below decides (and continues from the base); after
+ *   a re-partition the full system serves;
  * - the prediction is the quintic Hermite interpolant of the last accepted step's start and
  *   end (positions, rates and accelerations; 1.8 Newton-Raphson iterations per evaluation on
  *   the four-bar at 1e-10 against 3.0 with dae.py's second-order Taylor step from the end,
@@ -401,16 +410,19 @@ static void jacobian_at(const double *p, const double *d, double t, Configuratio
 
 /* -- the predictor ------------------------------------------------------------------------- */
 
-/* q at time t predicted from the accepted states: the quintic Hermite interpolant of the last
-   accepted step's start and end (positions, rates, accelerations), else (after a restart) the
-   second-order Taylor step from the base that dae.py's _state takes. */
-static void predict(const ModelState *s, double t, double *q)
+/* The coordinates `list` of q (NULL: the first n) at time t predicted from the accepted states: the
+   quintic Hermite interpolant of the last accepted step's start and end (positions, rates,
+   accelerations), else (after a restart) the second-order Taylor step from the base that dae.py's
+   _state takes. */
+static void predict_listed(const ModelState *s, double t, const int *list, int n, double *q)
 {
     const DaePoint *p1 = &s->base, *p0 = &s->before;
     if (!(p0->t < p1->t)) {
         const double dt = t - p1->t, half = 0.5 * dt * dt;
-        LINALG_UNROLL
-        for (int i = 0; i < N; i++) q[i] = p1->q[i] + p1->qd[i] * dt + p1->qdd[i] * half;
+        for (int k = 0; k < n; k++) {
+            const int i = list ? list[k] : k;
+            q[i] = p1->q[i] + p1->qd[i] * dt + p1->qdd[i] * half;
+        }
         return;
     }
     const double h = p1->t - p0->t, x = (t - p0->t) / h;
@@ -419,11 +431,17 @@ static void predict(const ModelState *s, double t, double *q)
     const double H0 = 1.0 - 10.0 * x_3 + 15.0 * x_4 - 6.0 * x_5, H5 = 1.0 - H0;
     const double H1 = (x - 6.0 * x_3 + 8.0 * x_4 - 3.0 * x_5) * h, H4 = (-4.0 * x_3 + 7.0 * x_4 - 3.0 * x_5) * h;
     const double H2 = 0.5 * (x_2 - 3.0 * x_3 + 3.0 * x_4 - x_5) * h * h, H3 = 0.5 * (x_3 - 2.0 * x_4 + x_5) * h * h;
-    LINALG_UNROLL
-    for (int i = 0; i < N; i++)
+    for (int k = 0; k < n; k++) {
+        const int i = list ? list[k] : k;
         q[i] = H0 * p0->q[i] + H1 * p0->qd[i] + H2 * p0->qdd[i] + H3 * p1->qdd[i] + H4 * p1->qd[i] + H5 * p1->q[i];
+    }
 }
 
+/* All of q predicted (predict_listed). */
+static void predict(const ModelState *s, double t, double *q)
+{
+    predict_listed(s, t, NULL, N, q);
+}
 /* c->q at (y's independent coordinates, t) by following the assembly branch from the base (dae.py's
    _continuation): the independent coordinates and time moved there in 2, 4, 8, then 32 equal
    steps, each solved by Newton-Raphson from the previous one and required to stay on the base's
@@ -558,6 +576,228 @@ static LINALG_INLINE int accelerations(const ModelState *s, double t, Configurat
     return null_space_solve(s, mass, c, Q, gamma, qdd, lam, want_lam || N_DRIVERS > 0);
 }
 
+#if MECH_RED
+/* -- the reduced system ------------------------------------------------------------------- */
+
+enum { NE = MECH_RED_N_E, NEA = MECH_ALLOC(MECH_RED_N_E) };
+static const int RED_Z[RA] = MECH_RED_Z;          /* the Schur complement's coordinates (indices in q) */
+static const int RED_E[NEA] = MECH_RED_E;         /* the static pivots' coordinates, in closed form */
+static const int RED_Z_ANGLE[RA] = MECH_RED_Z_ANGLE;     /* their angles' places in ANGLES (-1: none) */
+static const int RED_E_ANGLE[NEA] = MECH_RED_E_ANGLE;
+
+/* The reduced path serves the declared partition with the independent coordinates in the file's
+   order (the generated derivatives' columns), and at most one driver (its power below). */
+static int reduced_applies(const ModelState *s)
+{
+    return s->declared && N_DRIVERS <= 1 && memcmp(s->independent, INDEPENDENT, K * sizeof(int)) == 0;
+}
+
+/* tr for the coordinates `list` (indices in q) whose angle places are `angle` (-1: not an angle),
+   moved from q_old to q (trig_move's rule). */
+static void trig_move_listed(const int *list, const int *angle, int count, const double *q_old, const double *q,
+                             double *tr)
+{
+    for (int k = 0; k < count; k++) {
+        const int a = angle[k], i = list[k];
+        if (a < 0) continue;
+        const double delta = q[i] - q_old[i];
+        if (delta == 0.0) continue;
+        if (!(fabs(delta) <= TRIG_STEP)) {
+            tr[2 * a] = cos(q[i]);
+            tr[2 * a + 1] = sin(q[i]);
+            continue;
+        }
+        const double d2 = delta * delta;
+        const double cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0));
+        const double sd = delta * (1.0 - d2 * (1.0 / 6.0 - d2 * (1.0 / 120.0)));
+        const double c0 = tr[2 * a], s0 = tr[2 * a + 1];
+        tr[2 * a] = c0 * cd - s0 * sd;
+        tr[2 * a + 1] = s0 * cd + c0 * sd;
+    }
+}
+
+/* The reduced system's Jacobian S = dr/dz (the dependent block's Schur complement), factorised. */
+typedef struct {
+    double S[RA * RA], inv_diag[RA];
+    int piv[RA];
+} ReducedLU;
+
+/* positions() on the reduced constraints (fmu_src/c_reduction.py): the prediction (predict()'s
+   for the MECH_RED_Z coordinates and the angles in closed form), Newton-Raphson on r(z) = 0 for z
+   only, with positions()'s stopping rule and chord iteration, then the MECH_RED_E coordinates
+   from their closed forms.  c->q, c->tr, c->sign (the block's determinant's sign: MECH_DEP_SIGN
+   times its Schur complement's) are set.  0, or 1 when the full path must decide (no
+   convergence, a singular S, or another assembly branch than the base's: it then continues). */
+static int reduced_positions(ModelState *s, double t, const double *y, Configuration *c)
+{
+    double r[RA], dz[RA], ratio[RA], z_old[RA], q_pred[N];
+    ReducedLU f;
+    double *q = c->q;
+    const double *p = s->p, *d = s->d;
+    int sign = 1;
+    predict_listed(s, t, RED_Z, R, q);
+    if (MECH_RED_E_ANGLES > 0) predict_listed(s, t, RED_E, NE, q);   /* their cos and sin rotate from there */
+    for (int a = 0; a < R; a++) q_pred[RED_Z[a]] = q[RED_Z[a]];     /* trig_move_listed's old values */
+    for (int e = 0; e < NE; e++) if (RED_E_ANGLE[e] >= 0) q_pred[RED_E[e]] = q[RED_E[e]];
+    for (int j = 0; j < K; j++) {
+        q[INDEPENDENT[j]] = y[j];
+        c->qd[INDEPENDENT[j]] = y[K + j];
+    }
+    trig_rotate(s->base.q, s->base.tr, q, c->tr);
+    if (R > 0) {
+        int fresh = 1, converged = 0;
+        double previous = INFINITY;
+        for (int iteration = 0; iteration < DAE_NEWTON_ITERATIONS && !converged; iteration++) {
+            s->newton_iterations++;
+            if (fresh) {
+                eq_red_newton(q, c->tr, t, p, d, r, f.S);
+                if (lu_factor(R, f.S, f.piv, f.inv_diag)) return 1;
+                sign = lu_det_sign(R, f.piv, f.inv_diag);
+            } else {
+                eq_red_residual(q, c->tr, t, p, d, r);
+            }
+            lu_solve(R, f.S, f.piv, f.inv_diag, r, dz);
+            double step = 0.0;
+            LINALG_UNROLL
+            for (int a = 0; a < R; a++) {
+                z_old[a] = q[RED_Z[a]];
+                const double qi = z_old[a] - dz[a];
+                q[RED_Z[a]] = qi;
+                ratio[a] = fabs(dz[a]) / (1.0 + fabs(qi));
+            }
+            step = ratio[0];
+            for (int a = 1; a < R; a++) step = ratio[a] > step || isnan(ratio[a]) ? ratio[a] : step;
+            if (!isfinite(step)) return 1;
+            for (int a = 0; a < R; a++) q_pred[RED_Z[a]] = z_old[a];
+            trig_move_listed(RED_Z, RED_Z_ANGLE, R, q_pred, q, c->tr);
+            converged = fresh ? step <= DAE_NEWTON_STEP
+                              : step <= DAE_NEWTON_STEP && step * step <= DAE_NEWTON_STEP * DAE_NEWTON_STEP * previous;
+            fresh = !fresh && !(step <= 0.25 * previous);
+            previous = step;
+        }
+        if (!converged) return 1;
+    }
+    c->sign = MECH_DEP_SIGN * sign;
+    if (c->sign != s->base.sign) return 1;
+    {
+        double x[NEA];
+        eq_red_closed(q, c->tr, t, p, d, x);
+        LINALG_UNROLL
+        for (int e = 0; e < NE; e++) q[RED_E[e]] = x[e];
+        if (MECH_RED_E_ANGLES > 0) trig_move_listed(RED_E, RED_E_ANGLE, NE, q_pred, q, c->tr);
+    }
+    return 0;
+}
+
+/* velocities() on the reduced system at reduced_positions()'s solution: S zd = -(B qd[independent]
+   + r_t), the MECH_RED_E rates from their closed forms; f: S factorised there, B in B. */
+static int reduced_rates(const ModelState *s, double t, Configuration *c, ReducedLU *f, double *B)
+{
+    double b[RA], zd[RA], x[NEA];
+    eq_red_jacobians(c->q, c->tr, s->p, f->S, B);
+    if (R > 0) {
+        if (lu_factor(R, f->S, f->piv, f->inv_diag)) return 1;
+        eq_red_rate_rhs(c->q, c->tr, c->qd, t, s->p, s->d, b);
+        lu_solve(R, f->S, f->piv, f->inv_diag, b, zd);
+        LINALG_UNROLL
+        for (int a = 0; a < R; a++) c->qd[RED_Z[a]] = zd[a];
+    }
+    eq_red_closed_rates(c->q, c->tr, c->qd, t, s->p, s->d, x);
+    LINALG_UNROLL
+    for (int e = 0; e < NE; e++) c->qd[RED_E[e]] = x[e];
+    return 0;
+}
+
+/* accelerations() on the reduced system: V = [dz/dq_independent; dq_E/dq_independent; I] from
+   S vz_j = -B[:, j] and the closed forms' directions, the particular accelerations (zero
+   independent ones) from S zdd = -gamma and the closed forms', then (V^T M V) a = V^T (Q - M
+   particular), as null_space_solve.  *power: with one driver, its power -lambda nu =
+   qd^T (M qdd - Q) (eq. (11) times qd; Phi_q qd = nu, which only the driver's row has). */
+static int reduced_accelerations(const ModelState *s, double t, const Configuration *c, const ReducedLU *f,
+                                 const double *B, double *qdd, double *power)
+{
+    double vz[KA][RA], ve[KA][NEA], zc[RA], ec[NEA], dq[N], Q[N], mass_q[N], A[KA * KA], acc[KA];
+    const double *q = c->q, *qd = c->qd;
+    memset(dq, 0, sizeof dq);
+    for (int j = 0; j < K; j++) {
+        double b[RA];
+        LINALG_UNROLL
+        for (int a = 0; a < R; a++) b[a] = -B[a * K + j];
+        if (R > 0) lu_solve(R, f->S, f->piv, f->inv_diag, b, vz[j]);
+        LINALG_UNROLL
+        for (int a = 0; a < R; a++) dq[RED_Z[a]] = vz[j][a];
+        for (int l = 0; l < K; l++) dq[INDEPENDENT[l]] = l == j ? 1.0 : 0.0;
+        eq_red_closed_direction(q, c->tr, s->p, dq, ve[j]);
+    }
+    memset(dq, 0, sizeof dq);                     /* dq: the particular accelerations */
+    if (R > 0) {
+        double g[RA];
+        eq_red_convective(q, c->tr, qd, t, s->p, s->d, g);
+        LINALG_UNROLL
+        for (int a = 0; a < R; a++) g[a] = -g[a];
+        lu_solve(R, f->S, f->piv, f->inv_diag, g, zc);
+        LINALG_UNROLL
+        for (int a = 0; a < R; a++) dq[RED_Z[a]] = zc[a];
+    }
+    eq_red_closed_accelerations(q, c->tr, qd, dq, t, s->p, s->d, ec);
+    const double *mass = MECH_MASS_IS_CONSTANT ? s->mass : mass_q;
+    if (!MECH_MASS_IS_CONSTANT) eq_mass_diagonal(q, c->tr, s->p, mass_q);
+    eq_forces(q, c->tr, qd, t, s->p, Q);
+    for (int j = 0; j < K; j++) {
+        double sum = Q[INDEPENDENT[j]];
+        LINALG_UNROLL
+        for (int a = 0; a < R; a++) sum += vz[j][a] * (Q[RED_Z[a]] - mass[RED_Z[a]] * zc[a]);
+        LINALG_UNROLL
+        for (int e = 0; e < NE; e++) sum += ve[j][e] * (Q[RED_E[e]] - mass[RED_E[e]] * ec[e]);
+        acc[j] = sum;
+        for (int l = 0; l <= j; l++) {
+            double m = j == l ? mass[INDEPENDENT[j]] : 0.0;
+            LINALG_UNROLL
+            for (int a = 0; a < R; a++) m += mass[RED_Z[a]] * vz[j][a] * vz[l][a];
+            LINALG_UNROLL
+            for (int e = 0; e < NE; e++) m += mass[RED_E[e]] * ve[j][e] * ve[l][e];
+            A[j * K + l] = m;
+        }
+    }
+    if (K == 1) {
+        acc[0] /= A[0];
+    } else if (K > 1) {
+        if (cholesky_factor(K, A, ZEROS)) return 1;
+        cholesky_solve(K, A, ZEROS, acc);
+    }
+    for (int j = 0; j < K; j++) qdd[INDEPENDENT[j]] = acc[j];
+    LINALG_UNROLL
+    for (int a = 0; a < R; a++) {
+        double v = zc[a];
+        for (int j = 0; j < K; j++) v += vz[j][a] * acc[j];
+        qdd[RED_Z[a]] = v;
+    }
+    LINALG_UNROLL
+    for (int e = 0; e < NE; e++) {
+        double v = ec[e];
+        for (int j = 0; j < K; j++) v += ve[j][e] * acc[j];
+        qdd[RED_E[e]] = v;
+    }
+    if (N_DRIVERS == 1) {
+        double w = 0.0;
+        for (int i = 0; i < N; i++) w += qd[i] * (mass[i] * qdd[i] - Q[i]);
+        *power = w;
+    }
+    return 0;
+}
+
+/* The right-hand side's configuration, rates and accelerations on the reduced system: 0, or 1
+   when the full path must take over (reduced_positions). */
+static int reduced_evaluation(ModelState *s, double t, const double *y, Configuration *c, double *qdd,
+                              double *power)
+{
+    ReducedLU f;
+    double B[RA * KA];
+    return reduced_positions(s, t, y, c) || reduced_rates(s, t, c, &f, B)
+        || reduced_accelerations(s, t, c, &f, B, qdd, power);
+}
+#endif
+
 /* dy/dt for y = (q[independent], qd[independent], work): the Runge-Kutta right-hand side.  The
    evaluation is kept in s->last (a base when it ends an accepted step). */
 static int rhs(void *context, double t, const double *y, double *f)
@@ -568,6 +808,25 @@ static int rhs(void *context, double t, const double *y, double *f)
     double lam[MA];
     s->rhs_evaluations++;
     e->t = NAN;                   /* not an evaluation until it succeeds */
+#if MECH_RED
+    double power = 0.0;
+    if (reduced_applies(s) && !reduced_evaluation(s, t, y, &c, e->qdd, &power)) {
+        e->t = t;
+        e->sign = c.sign;
+        memcpy(e->q, c.q, sizeof e->q);
+        memcpy(e->qd, c.qd, sizeof e->qd);
+        memcpy(e->tr, c.tr, sizeof e->tr);
+        if (t == s->base.t) s->base = *e;
+        for (int j = 0; j < K; j++) {
+            f[j] = y[K + j];
+            f[K + j] = e->qdd[s->independent[j]];
+        }
+        if (N_DRIVERS == 1) f[2 * K] = power;
+        if (2 * K + N_DRIVERS == 0) f[0] = 0.0;
+        return RK_FUNCTION_OK;
+    }
+#endif
+    s->full_evaluations++;
     int r = state_at(s, t, y, &c);
     if (r == DAE_ASSEMBLY) {
         s->rhs_failed = r;        /* read only when the integrator reports a failure (a start's) */
@@ -680,8 +939,8 @@ void dae_me_accept(ModelState *s)
 int dae_derivatives(ModelState *s, double *f)
 {
     const DaePoint base = s->base, last = s->last;
-    const unsigned long counts[4] = {s->rhs_evaluations, s->newton_iterations, s->continuations,
-                                     s->failed_evaluations};
+    const unsigned long counts[5] = {s->rhs_evaluations, s->newton_iterations, s->continuations,
+                                     s->failed_evaluations, s->full_evaluations};
     double y[RK_N], ff[RK_N];
     memset(y, 0, sizeof y);
     dae_states(s, y);
@@ -693,6 +952,7 @@ int dae_derivatives(ModelState *s, double *f)
     s->newton_iterations = counts[1];
     s->continuations = counts[2];
     s->failed_evaluations = counts[3];
+    s->full_evaluations = counts[4];
     if (r != RK_FUNCTION_OK) return s->rhs_failed ? s->rhs_failed : DAE_INTEGRATION;
     memcpy(f, ff, DAE_N_STATES * sizeof *f);
     return DAE_OK;
@@ -1066,6 +1326,23 @@ static int repartition(ModelState *s)
     return dae_start(s, s->solver.h_abs) == DAE_OK;
 }
 
+/* The reported state at a communication point (state_at's): on the reduced system where it
+   applies, with c->J's entries that vary and c->nu for the partition's review. */
+static int reported_state(ModelState *s, double t, const double *y, Configuration *c)
+{
+#if MECH_RED
+    if (reduced_applies(s)) {
+        ReducedLU f;
+        double B[RA * KA];
+        if (!reduced_positions(s, t, y, c) && !reduced_rates(s, t, c, &f, B)) {
+            jacobian_at(s->p, s->d, t, c);
+            return DAE_OK;
+        }
+    }
+#endif
+    return state_at(s, t, y, c);
+}
+
 int dae_advance(ModelState *s, double t_end)
 {
     RKSolver *solver = &s->solver;
@@ -1118,7 +1395,7 @@ int dae_advance(ModelState *s, double t_end)
             snprintf(s->rhs_message, MODEL_MESSAGE, "%s produced a non-finite state before t = %.9g s", method, t_end);
             return DAE_INTEGRATION;
         }
-    int r = state_at(s, t_end, y, &c);
+    int r = reported_state(s, t_end, y, &c);
     if (r) {
         s->rhs_failed = r;
         return rhs_failure(s, t_end);

@@ -316,11 +316,11 @@ fmi2Status fmi2Terminate(fmi2Component c)
     ENTER(MODE_STEP_COMPLETE | MODE_STEP_FAILED | MODE_EVENT | MODE_CONTINUOUS);
     m->state.mode = MODE_TERMINATED;
     /* the integration's statistics (with logging on: a host that wants to know how hard it was) */
-    model_log(m, MODEL_OK, "logAll", "statistics at t = %.9g s: %lu right-hand-side evaluations, %lu by "
+    model_log(m, MODEL_OK, "logAll", "statistics at t = %.9g s: %lu right-hand-side evaluations (%lu on the full system), %lu by "
               "continuation from the last accepted state, %lu at trial points not reached (their steps "
               "rejected); %lu Newton-Raphson iterations, %lu integrator starts, %lu re-partitions", m->state.t,
-              m->state.rhs_evaluations, m->state.continuations, m->state.failed_evaluations,
-              m->state.newton_iterations, m->state.starts, m->state.repartitions);
+              m->state.rhs_evaluations, m->state.full_evaluations, m->state.continuations,
+              m->state.failed_evaluations, m->state.newton_iterations, m->state.starts, m->state.repartitions);
     return fmi2OK;
 }
 

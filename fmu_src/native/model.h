@@ -68,6 +68,7 @@ typedef struct {
     unsigned long newton_iterations;
     unsigned long continuations;                /* trial points reached by continuation from the base */
     unsigned long failed_evaluations;           /* trial points not reached: the step was rejected */
+    unsigned long full_evaluations;             /* right-hand sides not served by the reduced system (dae.c) */
     int rhs_failed;                             /* DAE_ASSEMBLY or DAE_INTEGRATION (dae.h), with: */
     char rhs_message[MODEL_MESSAGE];
     /* Model Exchange: the states the host set (at time t) and, when me_fresh, the current state is

@@ -6,7 +6,7 @@
  * its stages lie where neither the predictor nor, often, the continuation from the last accepted
  * state reaches, and the integrator must reject it and retry shorter steps.  Prints one line:
  *   <the outputs at stop, %.17g, in value-reference order> | <rhs evaluations> <continuations>
- *   <failed evaluations> <integrator starts> <re-partitions>
+ *   <failed evaluations> <integrator starts> <re-partitions> <evaluations on the full system>
  * Exit status 1 (with the FMU's message on stderr) when a call fails.
  * Arguments: first_step tol stop
  */
@@ -62,8 +62,8 @@ int main(int argc, char **argv)
         if (fmi2GetReal(c, &vr, 1, &v) != fmi2OK) return 1;
         printf("%.17g ", v);
     }
-    printf("| %lu %lu %lu %lu %lu\n", s->rhs_evaluations, s->continuations, s->failed_evaluations, s->starts,
-           s->repartitions);
+    printf("| %lu %lu %lu %lu %lu %lu\n", s->rhs_evaluations, s->continuations, s->failed_evaluations, s->starts,
+           s->repartitions, s->full_evaluations);
     fmi2FreeInstance(c);
     return 0;
 }

@@ -406,11 +406,11 @@ fmi3Status fmi3Terminate(fmi3Instance instance)
 {
     ENTER(MODE_STEP_COMPLETE | MODE_EVENT | MODE_CONTINUOUS);
     m->state.mode = MODE_TERMINATED;
-    model_log(m, MODEL_OK, "logAll", "statistics at t = %.9g s: %lu right-hand-side evaluations, %lu by "
+    model_log(m, MODEL_OK, "logAll", "statistics at t = %.9g s: %lu right-hand-side evaluations (%lu on the full system), %lu by "
               "continuation from the last accepted state, %lu at trial points not reached (their steps "
               "rejected); %lu Newton-Raphson iterations, %lu integrator starts, %lu re-partitions", m->state.t,
-              m->state.rhs_evaluations, m->state.continuations, m->state.failed_evaluations,
-              m->state.newton_iterations, m->state.starts, m->state.repartitions);
+              m->state.rhs_evaluations, m->state.full_evaluations, m->state.continuations,
+              m->state.failed_evaluations, m->state.newton_iterations, m->state.starts, m->state.repartitions);
     return fmi3OK;
 }
 
