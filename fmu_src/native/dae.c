@@ -119,6 +119,9 @@ static const int DEP_COLS[RA] = MECH_DEP_COLS;
 static const int ZEROS[KA] = {0};       /* a dense matrix's envelope (cholesky_factor) */
 static const int ANGLES[MECH_ALLOC(MECH_N_ANGLES)] = MECH_ANGLES;
 static const int S_ENVELOPE[MA] = MECH_RANGE_ENVELOPE;
+static const unsigned long long DEP_PATTERN[MA] = MECH_DEP_PATTERN;     /* the declared block's structure */
+static const int DEP_NONZERO_AT[MECH_ALLOC(MECH_DEP_NONZEROS)] = MECH_DEP_NONZERO_AT;
+static const int DEP_NONZERO_J[MECH_ALLOC(MECH_DEP_NONZEROS)] = MECH_DEP_NONZERO_J;
 static const int DRIVERS[MECH_ALLOC(MECH_N_DRIVERS)][3] = MECH_DRIVERS;
 static const char *const ROW_NAMES[MA] = MECH_ROW_NAMES;
 static const int OUTPUT_KINDS[MECH_N_OUTPUTS] = MECH_OUTPUT_KINDS;
@@ -1263,8 +1266,15 @@ static int better_partition(const ModelState *s, const double *J, int *independe
     double block[MA * MA];
     int row[MA], cols[MA];
     if (K == 0) return 0;
-    dependent_block(J, s->dependent, block);
-    if (lu_pivot_ratio_sparse(M, block, row, cols) >= DAE_REPARTITION_REVIEW) return 0;
+    if (s->declared && MECH_DEP_HAS_PATTERN) {
+        /* the declared block's structure is known: its nonzero entries gathered, its masks given */
+        memset(block, 0, sizeof block);
+        for (int k = 0; k < MECH_DEP_NONZEROS; k++) block[DEP_NONZERO_AT[k]] = J[DEP_NONZERO_J[k]];
+        if (lu_pivot_ratio_sparse(M, block, DEP_PATTERN, row, cols) >= DAE_REPARTITION_REVIEW) return 0;
+    } else {
+        dependent_block(J, s->dependent, block);
+        if (lu_pivot_ratio_sparse(M, block, NULL, row, cols) >= DAE_REPARTITION_REVIEW) return 0;
+    }
     choose_partition(J, independent, dependent);
     if (memcmp(independent, s->independent, K * sizeof(int)) == 0) return 0;
     dependent_block(J, s->dependent, block);
