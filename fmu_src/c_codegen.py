@@ -201,6 +201,8 @@ def _function(symbols: _Symbols, signature: str, doc: str, outputs: list[tuple[s
     lines += [f"    const double {sym} = {printer.doprint(expr)};" for sym, expr in replacements]
     pos = 0
     for target, entries in indexed:
+        if not entries:
+            lines.append(f"    (void){target};")      # an empty output (e.g. B of a mechanism without freedom)
         lines += [f"    {target}[{k}] = {printer.doprint(e)};"
                   for (k, _), e in zip(entries, reduced[pos:pos + len(entries)])]
         pos += len(entries)
@@ -338,7 +340,19 @@ def _reduced_functions(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) 
     red = _declared_reduction(eqs, lu)
     if red is None:
         return [], ["#define MECH_RED 0"]
-    c = lambda matrix: [sym.c(e) for e in matrix]          # noqa: E731  (row-major)
+    # An angle in closed form (a driven crank: theta = s_ref + v (t - t_ref)) that depends on neither
+    # z nor a trig function is computed first (eq_red_closed_angles) and its cos and sin taken once
+    # with the others' (trig_rotate): every other expression reads them instead of calling libm on
+    # its closed form.  The derivatives were taken with it substituted, so they are exact either way.
+    angle_first = [i for i in red.eliminated if i in sym.angles]
+    z_symbols = {eqs.q[i] for i in red.z}
+    first_forms = [red.closed_form[red.eliminated.index(i)] for i in angle_first]
+    if any(f.free_symbols & z_symbols or f.atoms(sp.cos, sp.sin) for f in first_forms):
+        angle_first = []
+    rename = {}
+    for i, form in zip(angle_first, first_forms):
+        rename |= {sp.cos(form): sp.cos(eqs.q[i]), sp.sin(form): sp.sin(eqs.q[i])}
+    c = lambda matrix: [sym.c(sp.sympify(e).xreplace(rename)) for e in matrix]   # noqa: E731  (row-major)
     R, E, K = len(red.z), len(red.eliminated), len(eqs.independent)
     ints = lambda values: _braced(str(int(v)) for v in values)   # noqa: E731
     column = lambda symbols, indices: sp.Matrix(len(indices), 1, [symbols[i] for i in indices])   # noqa: E731
@@ -350,7 +364,7 @@ def _reduced_functions(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) 
         return list(matrix * vector) if matrix.cols else [sp.Integer(0)] * matrix.rows
 
     def in_c(exprs) -> list[sp.Expr]:
-        return [sym.c(sp.sympify(e)).xreplace(to_c) for e in exprs]
+        return [sym.c(sp.sympify(e).xreplace(rename)).xreplace(to_c) for e in exprs]
 
     rate_rhs = [-(b + rt) for b, rt in zip(product(red.B, i_of(qd)), red.r_t)]
     closed_rates = [a + b + gt for a, b, gt in zip(product(red.G_z, z_of(qd)), product(red.G_i, i_of(qd)), red.g_t)]
@@ -366,6 +380,9 @@ def _reduced_functions(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) 
         ("void eq_red_closed(const double *q, const double *tr, double t, const double *p, const double *d, "
          "double *x)", f"x ({E}): the MECH_RED_E coordinates in closed form.",
          [("x", c(red.closed_form))], ("q", "tr", "p", "d")),
+        ("void eq_red_closed_angles(const double *q, double t, const double *p, const double *d, double *x)",
+         f"x ({len(angle_first)}): the MECH_RED_FIRST angles in closed form, before the rest.",
+         [("x", [sym.c(f) for f in first_forms] if angle_first else [])], ("q", "p", "d")),
         ("void eq_red_jacobians(const double *q, const double *tr, const double *p, double *S, double *B)",
          f"At a solution: S = dr/dz ({R} x {R}) and B = dr/dq_independent ({R} x {K}), row-major.",
          [("S", c(red.S)), ("B", c(red.B))], ("q", "tr", "p")),
@@ -400,6 +417,11 @@ def _reduced_functions(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) 
         f"#define MECH_RED_Z_ANGLE {ints(_padded([str(trig_of.get(i, -1)) for i in red.z], '-1'))}",
         f"#define MECH_RED_E_ANGLE {ints(_padded([str(trig_of.get(i, -1)) for i in red.eliminated], '-1'))}",
         f"#define MECH_RED_E_ANGLES {sum(1 for i in red.eliminated if i in trig_of)}",
+        "/* The angles in closed form taken first (indices in q): the other expressions read their cos and sin;",
+        "   when they are all the MECH_RED_E angles, MECH_RED_ANGLES_FIRST is 1. */",
+        f"#define MECH_RED_FIRST {ints(_padded([str(i) for i in angle_first], '-1'))}",
+        f"#define MECH_RED_N_FIRST {len(angle_first)}",
+        f"#define MECH_RED_ANGLES_FIRST {int(len(angle_first) == sum(1 for i in red.eliminated if i in trig_of))}",
     ]
     return functions, header
 

@@ -587,6 +587,9 @@ static const int RED_Z[RA] = MECH_RED_Z;          /* the Schur complement's coor
 static const int RED_E[NEA] = MECH_RED_E;         /* the static pivots' coordinates, in closed form */
 static const int RED_Z_ANGLE[RA] = MECH_RED_Z_ANGLE;     /* their angles' places in ANGLES (-1: none) */
 static const int RED_E_ANGLE[NEA] = MECH_RED_E_ANGLE;
+static const int RED_FIRST[MECH_ALLOC(MECH_RED_N_FIRST)] = MECH_RED_FIRST;   /* angles in closed form, first */
+/* angles in closed form that depend on z: predicted, then moved to their closed forms after Newton-Raphson */
+#define LATE_ANGLES (MECH_RED_E_ANGLES > 0 && !MECH_RED_ANGLES_FIRST)
 
 /* The reduced path serves the declared partition with the independent coordinates in the file's
    order (the generated derivatives' columns), and at most one driver (its power below). */
@@ -639,12 +642,18 @@ static int reduced_positions(ModelState *s, double t, const double *y, Configura
     const double *p = s->p, *d = s->d;
     int sign = 1;
     predict_listed(s, t, RED_Z, R, q);
-    if (MECH_RED_E_ANGLES > 0) predict_listed(s, t, RED_E, NE, q);   /* their cos and sin rotate from there */
+    if (LATE_ANGLES) predict_listed(s, t, RED_E, NE, q);     /* their cos and sin rotate from there */
     for (int a = 0; a < R; a++) q_pred[RED_Z[a]] = q[RED_Z[a]];     /* trig_move_listed's old values */
-    for (int e = 0; e < NE; e++) if (RED_E_ANGLE[e] >= 0) q_pred[RED_E[e]] = q[RED_E[e]];
+    if (LATE_ANGLES)
+        for (int e = 0; e < NE; e++) if (RED_E_ANGLE[e] >= 0) q_pred[RED_E[e]] = q[RED_E[e]];
     for (int j = 0; j < K; j++) {
         q[INDEPENDENT[j]] = y[j];
         c->qd[INDEPENDENT[j]] = y[K + j];
+    }
+    if (MECH_RED_N_FIRST > 0) {             /* a driven angle: exact before the rest reads its cos and sin */
+        double x[MECH_ALLOC(MECH_RED_N_FIRST)];
+        eq_red_closed_angles(q, t, p, d, x);
+        for (int k = 0; k < MECH_RED_N_FIRST; k++) q[RED_FIRST[k]] = x[k];
     }
     trig_rotate(s->base.q, s->base.tr, q, c->tr);
     if (R > 0) {
@@ -687,7 +696,7 @@ static int reduced_positions(ModelState *s, double t, const double *y, Configura
         eq_red_closed(q, c->tr, t, p, d, x);
         LINALG_UNROLL
         for (int e = 0; e < NE; e++) q[RED_E[e]] = x[e];
-        if (MECH_RED_E_ANGLES > 0) trig_move_listed(RED_E, RED_E_ANGLE, NE, q_pred, q, c->tr);
+        if (LATE_ANGLES) trig_move_listed(RED_E, RED_E_ANGLE, NE, q_pred, q, c->tr);
     }
     return 0;
 }
