@@ -184,6 +184,19 @@ def test_same_variables_as_the_pythonfmu_fmu(native_fmu, fourbar_fmu):
                                                                   ("der(omega2)", "local", "rad/s2")]
 
 
+@pytest.mark.parametrize("mechanism", ["fourbar", "watt_sixbar"])
+def test_binaries_are_stored_and_the_rest_deflated(mechanism, mechanism_fmus, native_fmu):
+    """A host extracts binaries/ at every load (FMPy's simulate_fmu at every call): they are
+    stored, not deflated (native_build.BINARY_COMPRESSION; the FMI standard allows both), so
+    that loading does not inflate them.  What a run does not extract stays compressed.  (The
+    FMI 3.0 FMU is written by the same code.)"""
+    with zipfile.ZipFile(native_fmu if mechanism == "fourbar" else mechanism_fmus.get(mechanism)) as z:
+        entries = z.infolist()
+    binaries = [e for e in entries if e.filename.startswith("binaries/")]
+    assert binaries and all(e.compress_type == zipfile.ZIP_STORED for e in binaries)
+    assert all(e.compress_type == zipfile.ZIP_DEFLATED for e in entries if e not in binaries)
+
+
 def test_ships_its_sources_and_needs_no_python(native_fmu):
     from fmu_src.native_build import GENERATED, HAND_WRITTEN
     with zipfile.ZipFile(native_fmu) as z:

@@ -126,6 +126,7 @@ static const int DRIVERS[MECH_ALLOC(MECH_N_DRIVERS)][3] = MECH_DRIVERS;
 static const char *const ROW_NAMES[MA] = MECH_ROW_NAMES;
 static const int OUTPUT_KINDS[MECH_N_OUTPUTS] = MECH_OUTPUT_KINDS;
 static const int OUTPUT_INDICES[MECH_N_OUTPUTS] = MECH_OUTPUT_INDICES;
+static const int STATE_GROUP[MECH_ALLOC(MECH_N_STATE_GROUP)] = MECH_STATE_GROUP;
 static const char *const INTEGRATOR_NAMES[FB_N_INTEGRATORS] = FB_INTEGRATOR_NAMES;
 
 /* The whole dependent block's LU kernels (a partition other than the declared one, the review). */
@@ -1437,12 +1438,10 @@ void dae_outputs_state(const double *p, const double *d, double t, const double 
     if (tr_q) memcpy(tr, tr_q, sizeof tr);
     else eq_trig(q, tr);
     eq_outputs_state(q, tr, qd, t, p, d, values);
-    for (int k = 0; k < MECH_N_OUTPUTS; k++)
-        switch (OUTPUT_KINDS[k]) {
-        case MECH_OUTPUT_STATE: out[k] = values[OUTPUT_INDICES[k]]; break;
-        case MECH_OUTPUT_WORK: out[k] = work[OUTPUT_INDICES[k]]; break;
-        default: break;
-        }
+    for (int g = 0; g < MECH_N_STATE_GROUP; g++) {
+        const int k = STATE_GROUP[g];
+        out[k] = OUTPUT_KINDS[k] == MECH_OUTPUT_STATE ? values[OUTPUT_INDICES[k]] : work[OUTPUT_INDICES[k]];
+    }
 }
 
 void dae_outputs_residual(const double *p, const double *d, double t, const double *q, const double *qd,

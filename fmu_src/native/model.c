@@ -37,6 +37,7 @@ static const int START_RATE_VRS[MECH_ALLOC(MECH_K)] = MECH_START_RATE_VRS;
 static const double GUESS[MECH_N] = MECH_GUESS;
 static const int OUTPUT_VRS[MECH_N_OUTPUTS] = MECH_OUTPUT_VRS;
 static const int OUTPUT_KINDS[MECH_N_OUTPUTS] = MECH_OUTPUT_KINDS;
+static const int STATE_GROUP[MECH_ALLOC(MECH_N_STATE_GROUP)] = MECH_STATE_GROUP;
 static const char *const COORDINATES[MECH_N] = MECH_COORDINATE_NAMES;
 static const int STATE_VRS[] = FB_STATE_VRS;
 static const int STATE_START_VRS[] = FB_STATE_START_VRS;
@@ -127,6 +128,10 @@ static ModelStatus publish(ModelInstance *m)
 /* Copy the outputs of kind `kind` from out (output order) into values[]. */
 static void store_outputs(ModelState *s, const double *out, int kind)
 {
+    if (kind == MECH_OUTPUT_STATE) {                 /* read at every step: its own list */
+        for (int g = 0; g < MECH_N_STATE_GROUP; g++) s->values[OUTPUT_VRS[STATE_GROUP[g]]] = out[STATE_GROUP[g]];
+        return;
+    }
     for (int k = 0; k < MECH_N_OUTPUTS; k++)
         if (OUTPUT_KINDS[k] == kind || (kind == MECH_OUTPUT_STATE && OUTPUT_KINDS[k] == MECH_OUTPUT_WORK))
             s->values[OUTPUT_VRS[k]] = out[k];

@@ -16,6 +16,21 @@ const RKTableau *rk_tableau(int method)
     }
 }
 
+/* sum[j] = sum over k < n of coef[k * stride] K[k][j], k ascending (numpy's dot of K's columns with
+   a tableau row or column).  A coefficient that is exactly zero is skipped: adding its product
+   (+-0 for a finite stage) leaves every sum as it was, and DOP853's rows are 40 % zeros.  (A
+   stage that is infinite only comes from prepare_dense's rejected extra stages, whose every
+   column of P has a nonzero entry: the interpolant is not finite either way.) */
+static void combine(const RKSolver *s, int n, const double *coef, int stride, double *sum)
+{
+    for (int j = 0; j < RK_N; j++) sum[j] = 0.0;
+    for (int k = 0; k < n; k++) {
+        const double c = coef[k * stride];
+        if (c == 0.0) continue;
+        for (int j = 0; j < RK_N; j++) sum[j] += s->K[k][j] * c;
+    }
+}
+
 /* RMS norm of a vector of RK_N entries (scipy's common.norm). */
 static double rms(const double *x)
 {
@@ -91,21 +106,16 @@ static int attempt(RKSolver *s, const RKTableau *tab, RKFunction fun, void *ctx,
     double dy[RK_N], ys[RK_N];
     for (int j = 0; j < RK_N; j++) s->K[0][j] = s->f[j];
     for (int st = 1; st < n; st++) {
-        const double *a = tab->A + st * stride;
+        combine(s, st, tab->A + st * stride, 1, dy);
         for (int j = 0; j < RK_N; j++) {
-            double sum = 0.0;
-            for (int k = 0; k < st; k++) sum += s->K[k][j] * a[k];
-            dy[j] = sum * h;
+            dy[j] *= h;
             ys[j] = s->y[j] + dy[j];
         }
         s->nfev++;
         if ((r = fun(ctx, s->t + tab->C[st] * h, ys, s->K[st])) != RK_FUNCTION_OK) return r;
     }
-    for (int j = 0; j < RK_N; j++) {
-        double sum = 0.0;
-        for (int k = 0; k < n; k++) sum += s->K[k][j] * tab->B[k];
-        y_new[j] = s->y[j] + h * sum;
-    }
+    combine(s, n, tab->B, 1, dy);
+    for (int j = 0; j < RK_N; j++) y_new[j] = s->y[j] + h * dy[j];
     s->nfev++;
     if ((r = fun(ctx, s->t + h, y_new, f_new)) != RK_FUNCTION_OK) return r;
     for (int j = 0; j < RK_N; j++) s->K[n][j] = f_new[j];
@@ -116,12 +126,11 @@ static double error_norm(const RKSolver *s, const RKTableau *tab, double h, cons
 {
     const int n = tab->n_stages;
     if (tab->kind == RK_KIND_DOP853) {
-        double e5 = 0.0, e3 = 0.0;
+        double e5 = 0.0, e3 = 0.0, sum5[RK_N], sum3[RK_N];
+        combine(s, n + 1, tab->E, 1, sum5);
+        combine(s, n + 1, tab->E3, 1, sum3);
         for (int j = 0; j < RK_N; j++) {
-            double s5 = 0.0, s3 = 0.0;
-            for (int k = 0; k <= n; k++) { s5 += s->K[k][j] * tab->E[k]; s3 += s->K[k][j] * tab->E3[k]; }
-            s5 /= scale[j];
-            s3 /= scale[j];
+            const double s5 = sum5[j] / scale[j], s3 = sum3[j] / scale[j];
             e5 += s5 * s5;
             e3 += s3 * s3;
         }
@@ -129,11 +138,8 @@ static double error_norm(const RKSolver *s, const RKTableau *tab, double h, cons
         return fabs(h) * e5 / sqrt((e5 + 0.01 * e3) * RK_N);
     }
     double err[RK_N];
-    for (int j = 0; j < RK_N; j++) {
-        double sum = 0.0;
-        for (int k = 0; k <= n; k++) sum += s->K[k][j] * tab->E[k];
-        err[j] = sum * h / scale[j];
-    }
+    combine(s, n + 1, tab->E, 1, err);
+    for (int j = 0; j < RK_N; j++) err[j] = err[j] * h / scale[j];
     return rms(err);
 }
 
@@ -196,12 +202,8 @@ static RKResult prepare_dense(RKSolver *s, const RKTableau *tab, RKFunction fun,
         const int stride = tab->n_stages_extended;
         double ys[RK_N];
         for (int st = tab->n_stages + 1; st < tab->n_stages_extended; st++) {
-            const double *a = tab->A + st * stride;
-            for (int j = 0; j < RK_N; j++) {
-                double sum = 0.0;
-                for (int k = 0; k < st; k++) sum += s->K[k][j] * a[k];
-                ys[j] = s->y_old[j] + sum * h;
-            }
+            combine(s, st, tab->A + st * stride, 1, ys);
+            for (int j = 0; j < RK_N; j++) ys[j] = s->y_old[j] + ys[j] * h;
             s->nfev++;
             const int r = fun(ctx, s->t_old + tab->C[st] * h, ys, s->K[st]);
             if (r == RK_FUNCTION_ERROR) return RK_ERROR_RHS;
@@ -213,19 +215,13 @@ static RKResult prepare_dense(RKSolver *s, const RKTableau *tab, RKFunction fun,
             s->dense[0][j] = delta;
             s->dense[1][j] = h * f_old - delta;
             s->dense[2][j] = 2.0 * delta - h * (s->f[j] + f_old);
-            for (int i = 0; i < tab->n_dense - 3; i++) {
-                double sum = 0.0;
-                for (int k = 0; k < tab->n_stages_extended; k++) sum += tab->P[i * stride + k] * s->K[k][j];
-                s->dense[3 + i][j] = h * sum;
-            }
+        }
+        for (int i = 0; i < tab->n_dense - 3; i++) {
+            combine(s, tab->n_stages_extended, tab->P + i * stride, 1, s->dense[3 + i]);
+            for (int j = 0; j < RK_N; j++) s->dense[3 + i][j] *= h;
         }
     } else {
-        for (int c = 0; c < tab->n_dense; c++)
-            for (int j = 0; j < RK_N; j++) {
-                double sum = 0.0;
-                for (int k = 0; k <= tab->n_stages; k++) sum += s->K[k][j] * tab->P[k * tab->n_dense + c];
-                s->dense[c][j] = sum;
-            }
+        for (int c = 0; c < tab->n_dense; c++) combine(s, tab->n_stages + 1, tab->P + c, tab->n_dense, s->dense[c]);
     }
     s->dense_ready = 1;
     return RK_OK;
