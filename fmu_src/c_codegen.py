@@ -351,7 +351,14 @@ def _reduced_functions(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) 
         angle_first = []
     rename = {}
     for i, form in zip(angle_first, first_forms):
-        rename |= {sp.cos(form): sp.cos(eqs.q[i]), sp.sin(form): sp.sin(eqs.q[i])}
+        if form.is_number:        # a constant angle's cos and sin are numbers: renaming them would rename every 0 or 1
+            continue
+        for fn in (sp.cos, sp.sin):
+            # sympy takes a sign or a half turn out at once (sin(-X) is -sin(X), cos(pi - X) is -cos(X)):
+            # the function that occurs in the expressions is the core, the angle's value its multiple
+            coefficient, core = fn(form).as_coeff_Mul()
+            if core.func is fn:
+                rename[core] = fn(eqs.q[i]) / coefficient
     c = lambda matrix: [sym.c(sp.sympify(e).xreplace(rename)) for e in matrix]   # noqa: E731  (row-major)
     R, E, K = len(red.z), len(red.eliminated), len(eqs.independent)
     ints = lambda values: _braced(str(int(v)) for v in values)   # noqa: E731
@@ -383,9 +390,11 @@ def _reduced_functions(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) 
         ("void eq_red_closed_angles(const double *q, double t, const double *p, const double *d, double *x)",
          f"x ({len(angle_first)}): the MECH_RED_FIRST angles in closed form, before the rest.",
          [("x", [sym.c(f) for f in first_forms] if angle_first else [])], ("q", "p", "d")),
-        ("void eq_red_jacobians(const double *q, const double *tr, const double *p, double *S, double *B)",
-         f"At a solution: S = dr/dz ({R} x {R}) and B = dr/dq_independent ({R} x {K}), row-major.",
-         [("S", c(red.S)), ("B", c(red.B))], ("q", "tr", "p")),
+        ("void eq_red_jacobians(const double *q, const double *tr, double t, const double *p, const double *d, "
+         "double *S, double *B)",
+         f"At a solution: S = dr/dz ({R} x {R}) and B = dr/dq_independent ({R} x {K}), row-major (they depend on "
+         "time where a closed form mixes a driver's motion with other coordinates).",
+         [("S", c(red.S)), ("B", c(red.B))], ("q", "tr", "p", "d")),
         ("void eq_red_rate_rhs(const double *q, const double *tr, const double *qd, double t, const double *p, "
          "const double *d, double *b)", f"b = -(B qd[independent] + r_t) ({R}): S zd = b.",
          [("b", in_c(rate_rhs))], ("q", "tr", "qd", "p", "d")),
@@ -396,9 +405,10 @@ def _reduced_functions(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) 
          "double t, const double *p, const double *d, double *out)",
          f"The MECH_RED_E coordinates' accelerations ({E}) from qdd's independent and MECH_RED_Z entries.",
          [("out", in_c(closed_acc))], ("q", "tr", "qd", "qdd", "p", "d")),
-        ("void eq_red_closed_direction(const double *q, const double *tr, const double *p, const double *dq, "
-         "double *out)", f"G_z dq[MECH_RED_Z] + G_i dq[independent] ({E}): how the MECH_RED_E coordinates move.",
-         [("out", in_c(closed_dir))], ("q", "tr", "p", "dq")),
+        ("void eq_red_closed_direction(const double *q, const double *tr, double t, const double *p, "
+         "const double *d, const double *dq, double *out)",
+         f"G_z dq[MECH_RED_Z] + G_i dq[independent] ({E}): how the MECH_RED_E coordinates move.",
+         [("out", in_c(closed_dir))], ("q", "tr", "p", "d", "dq")),
         ("void eq_red_convective(const double *q, const double *tr, const double *qd, double t, const double *p, "
          "const double *d, double *gamma)",
          f"gamma ({R}): S zdd + B qdd[independent] + gamma = 0.", [("gamma", c(red.gamma))],

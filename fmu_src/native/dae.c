@@ -707,7 +707,7 @@ static int reduced_positions(ModelState *s, double t, const double *y, Configura
 static int reduced_rates(const ModelState *s, double t, Configuration *c, ReducedLU *f, double *B)
 {
     double b[RA], zd[RA], x[NEA];
-    eq_red_jacobians(c->q, c->tr, s->p, f->S, B);
+    eq_red_jacobians(c->q, c->tr, t, s->p, s->d, f->S, B);
     if (R > 0) {
         if (lu_factor(R, f->S, f->piv, f->inv_diag)) return 1;
         eq_red_rate_rhs(c->q, c->tr, c->qd, t, s->p, s->d, b);
@@ -740,7 +740,7 @@ static int reduced_accelerations(const ModelState *s, double t, const Configurat
         LINALG_UNROLL
         for (int a = 0; a < R; a++) dq[RED_Z[a]] = vz[j][a];
         for (int l = 0; l < K; l++) dq[INDEPENDENT[l]] = l == j ? 1.0 : 0.0;
-        eq_red_closed_direction(q, c->tr, s->p, dq, ve[j]);
+        eq_red_closed_direction(q, c->tr, t, s->p, s->d, dq, ve[j]);
     }
     memset(dq, 0, sizeof dq);                     /* dq: the particular accelerations */
     if (R > 0) {
