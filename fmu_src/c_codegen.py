@@ -415,6 +415,7 @@ def _reduced_functions(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) 
          ("q", "tr", "qd", "p", "d")),
     ]
     trig_of = {i: a for a, i in enumerate(sym.angles)}
+    e_angles = sum(1 for i in red.eliminated if i in trig_of)
     header = [
         "/* The declared partition's reduced constraints (fmu_src/c_reduction.py, eq_red_*): Newton-Raphson",
         "   solves for the MECH_RED_Z coordinates (the Schur complement's, in its order) only; the",
@@ -426,12 +427,12 @@ def _reduced_functions(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) 
         "/* Per MECH_RED_Z and MECH_RED_E coordinate, its angle's index in MECH_ANGLES (-1: not an angle). */",
         f"#define MECH_RED_Z_ANGLE {ints(_padded([str(trig_of.get(i, -1)) for i in red.z], '-1'))}",
         f"#define MECH_RED_E_ANGLE {ints(_padded([str(trig_of.get(i, -1)) for i in red.eliminated], '-1'))}",
-        f"#define MECH_RED_E_ANGLES {sum(1 for i in red.eliminated if i in trig_of)}",
+        f"#define MECH_RED_E_ANGLES {e_angles}",
         "/* The angles in closed form taken first (indices in q): the other expressions read their cos and sin;",
         "   when they are all the MECH_RED_E angles, MECH_RED_ANGLES_FIRST is 1. */",
         f"#define MECH_RED_FIRST {ints(_padded([str(i) for i in angle_first], '-1'))}",
         f"#define MECH_RED_N_FIRST {len(angle_first)}",
-        f"#define MECH_RED_ANGLES_FIRST {int(len(angle_first) == sum(1 for i in red.eliminated if i in trig_of))}",
+        f"#define MECH_RED_ANGLES_FIRST {int(len(angle_first) == e_angles)}",
     ]
     return functions, header
 
@@ -716,6 +717,7 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
             indices.append(0)
         else:
             raise ValueError(f"output {o.name!r} has neither an expression nor a run-time meaning")
+    state_group = [k for k, kind in enumerate(kinds) if kind in (OUTPUT_STATE, OUTPUT_WORK)]
     starts = list(zip(mech.start[::2], mech.start[1::2]))
     mass_constant = not (eqs.mass_matrix.free_symbols & set(eqs.q))
     ints = lambda values: _braced(str(int(v)) for v in values)   # noqa: E731
@@ -773,8 +775,8 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
         f"#define MECH_OUTPUT_INDICES {ints(indices)}",
         "/* The outputs of kind state or work (positions in output order): computed together at",
         "   every step whose outputs are read. */",
-        f"#define MECH_N_STATE_GROUP {sum(kind in (OUTPUT_STATE, OUTPUT_WORK) for kind in kinds)}",
-        f"#define MECH_STATE_GROUP {ints(_padded([str(k) for k, kind in enumerate(kinds) if kind in (OUTPUT_STATE, OUTPUT_WORK)], '-1'))}",
+        f"#define MECH_N_STATE_GROUP {len(state_group)}",
+        f"#define MECH_STATE_GROUP {ints(_padded([str(k) for k in state_group], '-1'))}",
         *dep_header,
         *reduced_header,
         "",

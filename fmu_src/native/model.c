@@ -125,7 +125,8 @@ static ModelStatus publish(ModelInstance *m)
     return MODEL_OK;
 }
 
-/* Copy the outputs of kind `kind` from out (output order) into values[]. */
+/* Copy the outputs of kind `kind` from out (output order) into values[]; MECH_OUTPUT_STATE: the
+   state group (MECH_STATE_GROUP: the drivers' work with the state's expressions). */
 static void store_outputs(ModelState *s, const double *out, int kind)
 {
     if (kind == MECH_OUTPUT_STATE) {                 /* read at every step: its own list */
@@ -133,8 +134,7 @@ static void store_outputs(ModelState *s, const double *out, int kind)
         return;
     }
     for (int k = 0; k < MECH_N_OUTPUTS; k++)
-        if (OUTPUT_KINDS[k] == kind || (kind == MECH_OUTPUT_STATE && OUTPUT_KINDS[k] == MECH_OUTPUT_WORK))
-            s->values[OUTPUT_VRS[k]] = out[k];
+        if (OUTPUT_KINDS[k] == kind) s->values[OUTPUT_VRS[k]] = out[k];
 }
 
 /* The continuous states and their derivatives f into values[] (Model Exchange's variables). */
