@@ -5,7 +5,7 @@
  * the same error norms (RMS; DOP853's combination of its 5th- and 3rd-order estimators),
  * the same step-size factor (safety 0.9, between 0.2 and 10, no growth right after a
  * rejection) and the same dense output.  The tableaus are generated from scipy's published
- * coefficients (rk_tableaus.c).  So the native FMU and the pythonfmu FMU take the same steps
+ * coefficients (rk_tableaus.h).  So the native FMU and the pythonfmu FMU take the same steps
  * up to floating-point summation order.
  *
  * The solver state is a plain struct without pointers: copying it copies the integrator
@@ -40,8 +40,6 @@ typedef struct {
     const double *P;             /* RK45: (n_stages + 1) x n_dense; DOP853: D, (n_dense - 3) x n_stages_extended */
 } RKTableau;
 
-extern const RKTableau RK_DOP853;
-extern const RKTableau RK_RK45;
 
 /* Right-hand side: f = dy/dt at (t, y).  Returns RK_FUNCTION_OK; RK_FUNCTION_REJECT when f cannot be
    evaluated at this trial point (the step that needs it is rejected as scipy rejects a step whose

@@ -60,16 +60,17 @@ class PythonRun:
 
 
 def python_run(mechanism: str | Path, stop: float, tolerance: float, change: tuple[float, str, float] | None = None,
-               step: float = 0.01, atol: float | None = None) -> PythonRun:
-    """``mechanism`` (a shipped name or a file) integrated by MechanismDAE at rtol = ``tolerance``
-    and atol = ``atol`` (default: the same) for ``stop`` s; ``change = (time, parameter, value)``
-    is applied as the slave applies a value set at that grid point."""
+               step: float = 0.01, atol: float | None = None, method: str = "DOP853") -> PythonRun:
+    """``mechanism`` (a shipped name or a file) integrated by MechanismDAE with ``method`` at rtol =
+    ``tolerance`` and atol = ``atol`` (default: the same) for ``stop`` s; ``change = (time,
+    parameter, value)`` is applied as the slave applies a value set at that grid point."""
     from fmu_src.mechanism.check import prepare_mechanism, start_state
     from fmu_src.mechanism_model.dae import MechanismDAE, snap_time
 
     eq = prepare_mechanism(str(mechanism)).module
     guess, rates, p = start_state(eq)
-    dae = MechanismDAE(eq, p, rtol=tolerance, atol=tolerance if atol is None else atol, t_bound=stop + 1.0)
+    dae = MechanismDAE(eq, p, method=method, rtol=tolerance, atol=tolerance if atol is None else atol,
+                       t_bound=stop + 1.0)
     dae.assemble(0.0, guess, rates)
     dae.start()
     names = [v.name for v in eq.VARIABLES if v.causality == "output"]
