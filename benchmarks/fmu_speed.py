@@ -142,7 +142,7 @@ class InProcess:
             def outputs(self):
                 return []
 
-            def _check_partition(self):
+            def _better_partition(self, q):
                 return None
 
         self._model, self._replay = MechanismDAE, Replay

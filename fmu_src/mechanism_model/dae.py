@@ -21,8 +21,9 @@ branch is kept by continuity), and their rates from ``Phi_q qd = nu``.  Every re
 satisfies both to round-off.  Newton-Raphson starts from the second-order Taylor predictor of the
 last accepted Runge-Kutta state: it converges in one to three iterations, and on the branch the
 motion is on (a stage of a rejected step never becomes a base).  When the dependent block of ``Phi_q``
-becomes ill-conditioned (reviewed at every communication point) the independent coordinates are
-chosen again, from a column-pivoted QR factorization of ``Phi_q``, and the integrator restarts.  A driven mechanism with no degree of freedom integrates only
+becomes ill-conditioned (reviewed after every accepted Runge-Kutta step, at its end) the
+independent coordinates are chosen again, from a column-pivoted QR factorization of ``Phi_q``, and
+the integrator restarts.  A driven mechanism with no degree of freedom integrates only
 its drivers' work: its positions come from the constraints alone.
 """
 from __future__ import annotations
@@ -434,6 +435,7 @@ class MechanismDAE:
         eps = 1e-12 * max(1.0, abs(t_end))      # a step ending within round-off reaches t_end
         rescues = 0
         t_start = self.t
+        pending = None          # other coordinates the review of a step past t_end chose
         try:
             while solver.t < t_end - eps:
                 with np.errstate(invalid="ignore", over="ignore"):     # inf from a failed evaluation
@@ -446,10 +448,15 @@ class MechanismDAE:
                     # next predictions.  Stages of rejected attempts never become a base: near a
                     # dead point one of them may have landed on the other assembly branch.
                     self._base = self._last_eval
-                    # (a step past t_end is reviewed at t_end, from the reported state)
-                    if self.independent and solver.t < t_end - eps and self._review_at_accepted(solver):
-                        solver = self._solver
-                        continue
+                    if self.independent and solver.t < t_end - eps:
+                        if self._review_at_accepted(solver):
+                            solver = self._solver
+                            continue
+                    elif self.independent:
+                        # a step that reaches t_end or passes it: reviewed at its end too; other
+                        # coordinates take over at t_end, from the reported state (the dense
+                        # output of this step serves t_end first)
+                        pending = self._better_partition(self._base[1])
                 if failed:
                     # The step size collapsed: the dependent block goes singular ahead (a dead
                     # point between two communication points).  Once or twice per step, restart
@@ -470,15 +477,18 @@ class MechanismDAE:
         self.t, self.q, self.qd = float(t_end), q, qd
         k = len(self.independent)
         self.work = y[2 * k:]
-        self._check_partition()
+        if pending is not None:
+            self._restart_with(pending)
 
     def _review_at_accepted(self, solver) -> bool:
-        """After every accepted Runge-Kutta step (_Jp holds Phi_q at its state, the last one
-        evaluated): when the dependent block degrades, restart there with the QR's independent
-        coordinates if they are REPARTITION_GAIN times better conditioned.  Checked at every
-        step, not only at communication points: a crank can go from a pivot ratio of 0.15 to
-        its dead point within one 0.01 s step, and an integrator that reaches a dead point in
-        the old coordinates stops there (its rate goes to zero while the mechanism moves on)."""
+        """After an accepted Runge-Kutta step that ends before the communication point (_Jp
+        holds Phi_q at its state, the last one evaluated): when the dependent block degrades,
+        restart there with the QR's independent coordinates if they are REPARTITION_GAIN times
+        better conditioned.  Checked at every step, not only at communication points: a crank
+        can go from a pivot ratio of 0.15 to its dead point within one 0.01 s step, and an
+        integrator that reaches a dead point in the old coordinates stops there (its rate goes
+        to zero while the mechanism moves on).  Nothing else is reviewed: a step's interior
+        (where communication points are interpolated) lies between two reviewed states."""
         t, q, qd, _, _ = self._base
         independent = self._better_partition(q)
         if independent is None:
@@ -518,14 +528,9 @@ class MechanismDAE:
         self.start(first_step=getattr(self._solver, "h_abs", None) or None)
         return True
 
-    def _check_partition(self) -> None:
-        """Re-choose the independent coordinates when the dependent block is ill-conditioned
-        (_Jp holds Phi_q at the current state)."""
-        if not self.independent:
-            return
-        independent = self._better_partition(self.q)
-        if independent is None:
-            return
+    def _restart_with(self, independent) -> None:
+        """Restart at the current (reported) state with these independent coordinates: the
+        choice of the review of the step that passed it."""
         self._set_partition(independent)
         self._kinematics(self.q, self.t)
         self.repartitions += 1

@@ -17,11 +17,12 @@
  * Phi(q, t) = 0 by Newton-Raphson from a prediction made from accepted states only (so the
  * assembly branch is kept by continuity: a stage of a rejected step may sit on the other
  * branch near a dead point), and their rates from Phi_q qd = nu.  Every reported state
- * satisfies both to round-off.  After every accepted Runge-Kutta step and at every
- * communication point the partition is reviewed: when the dependent block's LU pivots spread by
- * more than 1 / DAE_REPARTITION_REVIEW, the independent coordinates change to those a
- * column-pivoted QR factorisation of Phi_q picks if their dependent block is
- * DAE_REPARTITION_GAIN times better conditioned, and the integrator restarts there.  A trial
+ * satisfies both to round-off.  After every accepted Runge-Kutta step the partition is reviewed
+ * at the step's end: when the dependent block's LU pivots spread by more than
+ * 1 / DAE_REPARTITION_REVIEW, the independent coordinates change to those a column-pivoted QR
+ * factorisation of Phi_q picks if their dependent block is DAE_REPARTITION_GAIN times better
+ * conditioned, and the integrator restarts there (at the communication point, from the reported
+ * state, when the step passed it).  A trial
  * stage that Newton-Raphson from the prediction does not reach, or reaches on the other
  * assembly branch (the sign of the dependent block's determinant, which changes only through a
  * dead point), is reached by continuation from the base (DAE_CONTINUATION_STEPS sub-steps);
@@ -66,7 +67,7 @@
  *   (a dense LU, the partition's review); the outputs are computed when a host reads them,
  *   a group at a time (fmi2Functions.c), the state's from the cos and sin the reported state was
  *   solved with (ModelState.tr) rather than libm's again;
- * - the partition's review (at every communication point) finds the LU pivots through bit masks
+ * - the partition's review (once per accepted step) finds the LU pivots through bit masks
  *   of where the block may be nonzero (linalg.h: lu_pivot_ratio_sparse);
  * - the small dense kernels are unrolled and inlined (linalg.h).
  * Results agree with dae.py's to round-off: tests/test_fmu_native.py.
@@ -1294,31 +1295,28 @@ static int better_partition(const ModelState *s, const double *J, int *independe
     return chosen * DAE_REPARTITION_GAIN < now;
 }
 
-/* The review at a communication point (c: its configuration; dae.py's _check_partition): a better
-   partition restarts the integrator there. */
-static int check_partition(ModelState *s, Configuration *c)
-{
-    int independent[KA], dependent[MA];
-    if (K == 0) return DAE_OK;
-    configuration_init(c);                 /* c->J whole */
-    if (!better_partition(s, c->J, independent, dependent)) return DAE_OK;
-    set_partition(s, independent, dependent);
-    return dae_start(s, s->solver.h_abs);
-}
-
-/* The review after an accepted Runge-Kutta step, at its state (the base; dae.py's
-   _review_at_accepted): a crank can go from a pivot ratio of 0.15 to its dead point within one
-   communication step, and an integrator that reaches a dead point in the old coordinates stops
-   there (their rates go to zero while the mechanism moves on).  A better partition restarts the
-   integrator at that state: 1 when it did (*result: dae_start's), 0 when nothing changed. */
-static int review_at_accepted(ModelState *s, int *result)
+/* The review of an accepted Runge-Kutta step, at its end (the base; dae.py's _better_partition at
+   the state _review_at_accepted reads): 1, with the QR's choice, when other independent
+   coordinates should take over; else 0. */
+static int review_base(const ModelState *s, int *independent, int *dependent)
 {
     double J[MA * N];
-    int independent[KA], dependent[MA];
     const DaePoint *b = &s->base;
     if (K == 0) return 0;
     eq_jacobian(b->q, b->tr, s->p, J);
-    if (!better_partition(s, J, independent, dependent)) return 0;
+    return better_partition(s, J, independent, dependent);
+}
+
+/* After an accepted step that ends before the communication point (dae.py's _review_at_accepted):
+   a crank can go from a pivot ratio of 0.15 to its dead point within one communication step, and
+   an integrator that reaches a dead point in the old coordinates stops there (their rates go to
+   zero while the mechanism moves on).  A better partition restarts the integrator at the step's
+   end: 1 when it did (*result: dae_start's), 0 when nothing changed. */
+static int review_at_accepted(ModelState *s, int *result)
+{
+    int independent[KA], dependent[MA];
+    const DaePoint *b = &s->base;
+    if (!review_base(s, independent, dependent)) return 0;
     s->t = b->t;
     memcpy(s->q, b->q, sizeof s->q);
     memcpy(s->tr, b->tr, sizeof s->tr);
@@ -1346,18 +1344,15 @@ static int repartition(ModelState *s)
     return dae_start(s, s->solver.h_abs) == DAE_OK;
 }
 
-/* The reported state at a communication point (state_at's): on the reduced system where it
-   applies, with c->J's entries that vary and c->nu for the partition's review. */
+/* The reported state at a communication point (state_at's q, tr and qd): on the reduced system
+   where it applies. */
 static int reported_state(ModelState *s, double t, const double *y, Configuration *c)
 {
 #if MECH_RED
     if (reduced_applies(s)) {
         ReducedLU f;
         double B[RA * KA];
-        if (!reduced_positions(s, t, y, c) && !reduced_rates(s, t, c, &f, B)) {
-            jacobian_at(s->p, s->d, t, c);
-            return DAE_OK;
-        }
+        if (!reduced_positions(s, t, y, c) && !reduced_rates(s, t, c, &f, B)) return DAE_OK;
     }
 #endif
     return state_at(s, t, y, c);
@@ -1370,7 +1365,7 @@ int dae_advance(ModelState *s, double t_end)
     const double eps = 1e-12 * fmax(1.0, fabs(t_end));   /* a step ending within round-off reaches t_end */
     const double t_start = s->t;
     double y[RK_N];
-    int rescues = 0, restarted;
+    int rescues = 0, restarted, pending = 0, independent[KA], dependent[MA];
     Configuration c;
     while (solver->t < t_end - eps) {
         const RKResult r = rk_step(solver, rhs, s);
@@ -1383,9 +1378,14 @@ int dae_advance(ModelState *s, double t_end)
                 s->before = s->base;
                 s->base = s->last;
                 eq_trig(s->base.q, s->base.tr);     /* libm's: predictions rotate from them */
-                /* (a step past t_end is reviewed at t_end, from the reported state) */
-                if (solver->t < t_end - eps && review_at_accepted(s, &restarted) && restarted != DAE_OK)
-                    return restarted;
+                if (solver->t < t_end - eps) {
+                    if (review_at_accepted(s, &restarted) && restarted != DAE_OK) return restarted;
+                } else {
+                    /* a step that reaches t_end or passes it: reviewed at its end too; other
+                       coordinates take over at t_end, from the reported state (this step's dense
+                       output serves t_end first) */
+                    pending = review_base(s, independent, dependent);
+                }
             }
             continue;
         }
@@ -1426,7 +1426,9 @@ int dae_advance(ModelState *s, double t_end)
     memcpy(s->tr, c.tr, sizeof s->tr);
     memcpy(s->qd, c.qd, sizeof s->qd);
     for (int k = 0; k < N_DRIVERS; k++) s->work[k] = y[2 * K + k];
-    return check_partition(s, &c);
+    if (!pending) return DAE_OK;
+    set_partition(s, independent, dependent);
+    return dae_start(s, s->solver.h_abs);
 }
 
 /* -- outputs ------------------------------------------------------------------------------- */

@@ -16,7 +16,7 @@ enum { DAE_OK = 0, DAE_ASSEMBLY = 1, DAE_INTEGRATION = 2 };
 #define DAE_NEWTON_STEP 1e-8
 #define DAE_NEWTON_ITERATIONS 25
 /* The partition is reviewed when min|U_ii| / max|U_ii| of the dependent block's LU factorisation
-   falls below this (at every communication point) ... */
+   falls below this (at the end of every accepted Runge-Kutta step) ... */
 #define DAE_REPARTITION_REVIEW 0.1
 /* ... and changes to the column-pivoted QR's choice when that choice's dependent block is at least
    this many times better conditioned (2-norm). */

@@ -99,7 +99,7 @@ static int lowest_bit(unsigned long long m)
    multiplier or a pivot row's entry it subtracts zero.  pattern: per row, a mask of where it may be
    nonzero, known beforehand (the declared block's structure, equations.h: MECH_DEP_PATTERN), or
    NULL to find it in `a`.  row and cols: n ints of scratch.  (For the
-   partition's review, after every accepted step and at every communication point: not unrolled;
+   partition's review, after every accepted step: not unrolled;
    measured on the Watt six-bar's 14 x 14 block, 3,500 -> 900 instructions.) */
 static double lu_pivot_ratio_sparse(int n, double *a, const unsigned long long *pattern, int *row, int *cols)
 {
