@@ -46,6 +46,7 @@ import numpy as np
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
+from .c_loops import closed_stages
 from .c_reduction import Reduction, reduce_constraints
 from .mechanism.derivation import MechanismEquations
 from .mechanism.description import MechanismError
@@ -335,13 +336,14 @@ def declared_reduction(eqs: MechanismEquations) -> Reduction | None:
     return _declared_reduction(eqs, _declared_static_lu(_Symbols(eqs), eqs))
 
 
-def _reduced_functions(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) -> tuple[list, list[str]]:
+def _reduced_functions(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) -> tuple[list, list[str], str, str]:
     """The declared partition's reduced constraints (``c_reduction``), printed: the functions
-    (``_function``'s arguments) and the header lines.  MECH_RED is 0, and no function printed,
+    (``_function``'s arguments), the header lines, and the closed-form stages' source and
+    prototype (``c_loops``; empty without a reduction).  MECH_RED is 0, and no function printed,
     where the reduction does not exist (dae.c keeps the full system)."""
     red = _declared_reduction(eqs, lu)
     if red is None:
-        return [], ["#define MECH_RED 0"]
+        return [], ["#define MECH_RED 0"], "", ""
     # An angle in closed form (a driven crank: theta = s_ref + v (t - t_ref)) that depends on neither
     # z nor a trig function is computed first (eq_red_closed_angles) and its cos and sin taken once
     # with the others' (trig_rotate): every other expression reads them instead of calling libm on
@@ -436,7 +438,45 @@ def _reduced_functions(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) 
         f"#define MECH_RED_N_FIRST {len(angle_first)}",
         f"#define MECH_RED_ANGLES_FIRST {int(len(angle_first) == e_angles)}",
     ]
-    return functions, header
+    stage_source, stage_prototype, stage_header = _closed_stage_code(sym, eqs, red, rename, trig_of)
+    return functions, header + stage_header, stage_source, stage_prototype
+
+
+def _closed_stage_code(sym: "_Symbols", eqs: MechanismEquations, red: Reduction, rename: dict,
+                       trig_of: dict[int, int]) -> tuple[str, str, list[str]]:
+    """The reduced constraints' closed-form stages (``c_loops.closed_stages``): each stage's
+    coefficients printed as a function of its own, eq_red_stage dispatching on the stage; C
+    source, prototype and header lines (MECH_RED_N_STAGES 0 where the closures do not have that
+    shape: Newton-Raphson then solves them all)."""
+    stages = closed_stages([sp.sympify(e).xreplace(rename) for e in red.residual], red.z, eqs.q, sym.angles) or ()
+    args = "const double *q, const double *tr, double t, const double *p, const double *d, double *out"
+    source, cases = [], []
+    for k, stage in enumerate(stages):
+        what = ("R(a) u + R(b) w + c = 0: (u_x, u_y, w_x, w_y, c_x, c_y)" if stage.is_dyad
+                else "alpha cos(a) + beta sin(a) + gamma = 0: (alpha, beta, gamma)")
+        exprs = [sym.c(sp.sympify(e).xreplace(rename)) for e in stage.coefficients]
+        source.append(_function(sym, f"static void red_stage_{k}({args})", f"Stage {k}, {what}.",
+                                [("out", exprs)], ("q", "tr", "p", "d")))
+        cases.append(f"    case {k}: red_stage_{k}(q, tr, t, p, d, out); break;")
+    prototype = f"void eq_red_stage(int k, {args});"
+    body = (["    (void)q; (void)tr; (void)t; (void)p; (void)d; (void)out;"] if not stages
+            else ["    switch (k) {", *cases, "    default: break;", "    }"])
+    source.append("\n".join([f"/* The coefficients of closed-form stage k (MECH_RED_STAGES), from q's independent",
+                             "   coordinates and the angles of the stages before it (their cos and sin in tr). */",
+                             prototype[:-1], "{", *body, "}"]) + "\n")
+    unknowns = []
+    for stage in stages:
+        a = stage.unknowns[0]
+        b = stage.unknowns[1] if stage.is_dyad else -1
+        unknowns += [str(a), str(b)]
+    header = [
+        "/* The reduced constraints in closed form (fmu_src/c_loops.py): MECH_RED_N_STAGES stages solved in",
+        "   turn, each a dyad (two circles' intersection) or a single row (a line's with the unit circle);",
+        "   per stage the positions in MECH_RED_Z of its unknown angles a and b (-1: a single row). */",
+        f"#define MECH_RED_N_STAGES {len(stages)}",
+        f"#define MECH_RED_STAGES {_braced(_padded(unknowns, '-1'))}",
+    ]
+    return "".join(source), prototype, header
 
 
 def _dependent_lu_code(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) -> tuple[str, list[str], list[str]]:
@@ -689,14 +729,14 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
     ]
     functions += _directional_functions(eqs, sym, state_outputs, force_outputs)
     lu = _declared_static_lu(sym, eqs)
-    reduced, reduced_header = _reduced_functions(sym, eqs, lu)
+    reduced, reduced_header, stage_source, stage_prototype = _reduced_functions(sym, eqs, lu)
     functions += reduced
     body = [_function(sym, *f) for f in functions]
     prototypes = [f"{f[0]};" for f in functions]
     dep_source, dep_prototypes, dep_header = _dependent_lu_code(sym, eqs, lu)
     column_source, column_prototype = _jacobian_column_code(sym, eqs)
-    body += [dep_source, column_source]
-    prototypes += dep_prototypes + [column_prototype]
+    body += [dep_source, column_source, stage_source]
+    prototypes += dep_prototypes + [column_prototype] + ([stage_prototype] if stage_prototype else [])
 
     params = [p.name for p in mech.parameters]
     drivers = [(params.index(d.start), params.index(d.speed), row) for d, row in zip(mech.drivers, eqs.driver_rows)]

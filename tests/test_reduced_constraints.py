@@ -121,3 +121,58 @@ def test_closed_forms_rates_and_accelerations_satisfy_the_full_system(case):
         assert np.abs(left[pivot_rows]).max(initial=0.0) <= TOL * acc_scale, (name, left[pivot_rows])
         reduced = S @ qddv[z] + B @ qddv[ind] + np.array(fns["gamma_r"](qv, qdv, tv, p), dtype=float)
         assert np.allclose(left[rows], reduced, rtol=TOL, atol=TOL * acc_scale), name
+
+
+# -- the loop closures in closed form (fmu_src/c_loops.py) ----------------------------------------
+def _stages(eqs, red):
+    from fmu_src.c_loops import closed_stages
+    angles = [i for i, name in enumerate(eqs.coordinates) if name.startswith("theta")]
+    return closed_stages(red.residual, red.z, eqs.q, angles)
+
+
+def test_every_shipped_mechanisms_loops_are_solved_in_closed_form_and_the_forms_are_its_rows(case):
+    """Each stage's form is its rows exactly (symbolically): a dyad's rows (x, sign * y) are
+    R(a) u + R(b) w + c, a single row alpha cos(a) + beta sin(a) + gamma; the stages solve every
+    row and every z once, each in unknowns no earlier stage solves, and their coefficients read
+    only what earlier stages and the independent coordinates give."""
+    name, eqs, red, _ = case
+    stages = _stages(eqs, red)
+    assert stages is not None, f"{name}: the native FMU would run Newton-Raphson at every evaluation"
+    z = [eqs.q[i] for i in red.z]
+    assert sorted(r for st in stages for r in st.rows) == list(range(len(red.residual)))
+    assert sorted(k for st in stages for k in st.unknowns) == list(range(len(z)))
+    solved: set = set()
+    for st in stages:
+        later = {z[k] for k in range(len(z)) if k not in solved and k not in st.unknowns}
+        assert not set().union(*(sp.sympify(c).free_symbols for c in st.coefficients)) & (later | {z[k] for k in st.unknowns})
+        a = z[st.unknowns[0]]
+        if st.is_dyad:
+            b = z[st.unknowns[1]]
+            ux, uy, wx, wy, cx, cy = st.coefficients
+            form_x = ux * sp.cos(a) - uy * sp.sin(a) + wx * sp.cos(b) - wy * sp.sin(b) + cx
+            form_y = uy * sp.cos(a) + ux * sp.sin(a) + wy * sp.cos(b) + wx * sp.sin(b) + cy
+            assert sp.simplify(red.residual[st.rows[0]] - form_x) == 0, name
+            assert sp.simplify(st.sign * red.residual[st.rows[1]] - form_y) == 0, name
+        else:
+            alpha, beta, gamma = st.coefficients
+            assert sp.simplify(red.residual[st.rows[0]] - (alpha * sp.cos(a) + beta * sp.sin(a) + gamma)) == 0, name
+        solved.update(st.unknowns)
+
+
+def test_loops_of_another_shape_are_left_to_newton_raphson():
+    """Three unknown angles in one loop, a loop that is not two rotations (a length times cos of
+    one angle against another length times sin), a slider among the unknowns: no closed form."""
+    from fmu_src.c_loops import closed_stages
+    a, b, c, s = sp.symbols("theta_a theta_b theta_c s_x", real=True)
+    L = sp.Symbol("L", positive=True)
+    q = [a, b, c, s]
+    three = [sp.cos(a) + sp.cos(b) + sp.cos(c) - 1, sp.sin(a) + sp.sin(b) + sp.sin(c)]
+    assert closed_stages(three, [0, 1, 2], q, [0, 1, 2]) is None
+    skewed = [L * sp.cos(a) + sp.cos(b) - 1, 2 * L * sp.sin(a) + sp.sin(b)]
+    assert closed_stages(skewed, [0, 1], q, [0, 1, 2]) is None
+    slider = [L * sp.cos(a) - s, L * sp.sin(a) - 1]
+    assert closed_stages(slider, [0, 3], q, [0, 1, 2]) is None
+    # ... while the same loop as two rotations is one dyad, found with its rows in either order
+    dyad = [L * sp.sin(a) - 2 * sp.sin(b) + 1, L * sp.cos(a) - 2 * sp.cos(b) - 3]
+    (stage,) = closed_stages(dyad, [0, 1], q, [0, 1, 2])
+    assert stage.is_dyad and stage.rows == (0, 1) and stage.sign == -1

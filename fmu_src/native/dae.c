@@ -42,6 +42,10 @@
  *   (reduced_positions, reduced_rates, reduced_accelerations).  Where that does not converge or
  *   lands on another branch, the full system below decides (and continues from the base); after
  *   a re-partition the full system serves;
+ * - where the loop closures are dyads and single rows (fmu_src/c_loops.py, eq_red_stage), they
+ *   are solved in closed form, loop after loop (closed_positions): the intersection of two circles
+ *   or of a line and the unit circle, the solution on the predicted angle's side; Newton-Raphson
+ *   on the reduced constraints serves where a loop's two solutions are not clearly apart;
  * - the prediction is the quintic Hermite interpolant of the last accepted step's start and
  *   end (positions, rates and accelerations; 1.8 Newton-Raphson iterations per evaluation on
  *   the four-bar at 1e-10 against 3.0 with dae.py's second-order Taylor step from the end,
@@ -630,6 +634,123 @@ typedef struct {
     int piv[RA];
 } ReducedLU;
 
+#if MECH_RED_N_STAGES > 0
+/* -- the reduced constraints in closed form (fmu_src/c_loops.py) ----------------------------- */
+
+static const int RED_STAGES[2 * MECH_RED_N_STAGES] = MECH_RED_STAGES;
+/* A stage's two solutions must be apart: (P x d)^2 > CLOSED_APART |u|^2 |d|^2 for a dyad (the angle
+   between the dyad's two links seen from its base at least asin(0.1)), (gamma)^2 < (1 - CLOSED_APART)
+   (alpha^2 + beta^2) for a single row.  There the circles' intersection loses at most ~5 ulp to
+   cancellation (the error grows as 1 / sin of that angle); closer to a dead point Newton-Raphson,
+   with its branch test and continuation, decides. */
+#define CLOSED_APART 1e-2
+
+/* The angle whose cos and sin are (ca, sa), nearest a0 (cos c0, sin c0): a0 plus the difference,
+   asin of its sine to round-off when it is small (|s| <= 1e-3: the series' next term is
+   5 s^7 / 112 < 1e-19 |s|), else atan2's. */
+static double angle_near(double a0, double c0, double s0, double ca, double sa)
+{
+    const double s = sa * c0 - ca * s0, c = ca * c0 + sa * s0;     /* sin and cos of the difference */
+    if (c > 0.0 && fabs(s) <= 1e-3) {
+        const double s2 = s * s;
+        return a0 + s * (1.0 + s2 * (1.0 / 6.0 + s2 * (3.0 / 40.0)));
+    }
+    return a0 + atan2(s, c);
+}
+
+/* A dyad R(a) u + R(b) w + c = 0 (k: u_x, u_y, w_x, w_y, c_x, c_y): P = R(a) u lies on the circle
+   of radius |u| about 0 and on that of radius |w| about d = -c, at P . d = m and P . d_perp =
+   +-h (d_perp = (-d_y, d_x)); the solution on the side of the predicted angle's P (cos pc, sin
+   ps) is taken.  Writes cos and sin of a and of b; 1 when the two solutions are not clearly
+   apart or the prediction is not near one of them. */
+static int closed_dyad(const double *k, double pc, double ps, double *tr_a, double *tr_b)
+{
+    const double ux = k[0], uy = k[1], wx = k[2], wy = k[3], dx = -k[4], dy = -k[5];
+    const double uu = ux * ux + uy * uy, ww = wx * wx + wy * wy, dd = dx * dx + dy * dy;
+    const double m = 0.5 * (uu + dd - ww), h2 = uu * dd - m * m;
+    if (!(h2 > CLOSED_APART * uu * dd)) return 1;
+    const double h = sqrt(h2);
+    const double side = -(pc * ux - ps * uy) * dy + (ps * ux + pc * uy) * dx;    /* R(a_pred) u . d_perp */
+    const double root = side >= 0.0 ? h : -h;
+    if (!(fabs(side - root) <= 0.5 * h)) return 1;
+    const double px = (m * dx - root * dy) / dd, py = (m * dy + root * dx) / dd;
+    const double qx = dx - px, qy = dy - py;                                     /* R(b) w */
+    tr_a[0] = (px * ux + py * uy) / uu;
+    tr_a[1] = (ux * py - uy * px) / uu;
+    tr_b[0] = (qx * wx + qy * wy) / ww;
+    tr_b[1] = (wx * qy - wy * qx) / ww;
+    return 0;
+}
+
+/* A single row alpha cos(a) + beta sin(a) + gamma = 0 (k: alpha, beta, gamma): (cos a, sin a) on
+   the line e . (alpha, beta) = -gamma and the unit circle, on the predicted angle's side of
+   (alpha, beta). */
+static int closed_single(const double *k, double pc, double ps, double *tr_a)
+{
+    const double alpha = k[0], beta = k[1], gamma = k[2];
+    const double rr = alpha * alpha + beta * beta, h2 = rr - gamma * gamma;
+    if (!(h2 > CLOSED_APART * rr)) return 1;
+    const double h = sqrt(h2);
+    const double side = -beta * pc + alpha * ps;
+    const double root = side >= 0.0 ? h : -h;
+    if (!(fabs(side - root) <= 0.5 * h)) return 1;
+    tr_a[0] = (-gamma * alpha - root * beta) / rr;
+    tr_a[1] = (-gamma * beta + root * alpha) / rr;
+    return 0;
+}
+
+/* reduced_positions() in closed form: the same prediction, then the stages in turn, each angle
+   taken nearest its prediction; the MECH_RED_E coordinates from their closed forms.  c->sign is
+   left 0: reduced_rates() reads it off S's factorisation at the solution.  0, or 1 when a stage has
+   no clear solution (reduced_positions() then runs Newton-Raphson). */
+static int closed_positions(ModelState *s, double t, const double *y, Configuration *c)
+{
+    double q_pred[N], coefficients[6];
+    double *q = c->q;
+    const double *p = s->p, *d = s->d;
+    predict_listed(s, t, RED_Z, R, q);
+    if (LATE_ANGLES) {
+        predict_listed(s, t, RED_E, NE, q);
+        for (int e = 0; e < NE; e++) if (RED_E_ANGLE[e] >= 0) q_pred[RED_E[e]] = q[RED_E[e]];
+    }
+    for (int j = 0; j < K; j++) {
+        q[INDEPENDENT[j]] = y[j];
+        c->qd[INDEPENDENT[j]] = y[K + j];
+    }
+    if (MECH_RED_N_FIRST > 0) {
+        double x[MECH_ALLOC(MECH_RED_N_FIRST)];
+        eq_red_closed_angles(q, t, p, d, x);
+        for (int k = 0; k < MECH_RED_N_FIRST; k++) q[RED_FIRST[k]] = x[k];
+    }
+    trig_rotate(s->base.q, s->base.tr, q, c->tr);
+    for (int k = 0; k < MECH_RED_N_STAGES; k++) {
+        const int a = RED_STAGES[2 * k], b = RED_STAGES[2 * k + 1];
+        double *tr_a = c->tr + 2 * RED_Z_ANGLE[a], tr_b[2];
+        const double ca = tr_a[0], sa = tr_a[1];
+        eq_red_stage(k, q, c->tr, t, p, d, coefficients);
+        if (b >= 0) {
+            double *to_b = c->tr + 2 * RED_Z_ANGLE[b];
+            if (closed_dyad(coefficients, ca, sa, tr_a, tr_b)) return 1;
+            q[RED_Z[b]] = angle_near(q[RED_Z[b]], to_b[0], to_b[1], tr_b[0], tr_b[1]);
+            to_b[0] = tr_b[0];
+            to_b[1] = tr_b[1];
+        } else if (closed_single(coefficients, ca, sa, tr_a)) {
+            return 1;
+        }
+        q[RED_Z[a]] = angle_near(q[RED_Z[a]], ca, sa, tr_a[0], tr_a[1]);
+    }
+    c->sign = 0;
+    {
+        double x[NEA];
+        eq_red_closed(q, c->tr, t, p, d, x);
+        LINALG_UNROLL
+        for (int e = 0; e < NE; e++) q[RED_E[e]] = x[e];
+        if (LATE_ANGLES) trig_move_listed(RED_E, RED_E_ANGLE, NE, q_pred, q, c->tr);
+    }
+    return 0;
+}
+#endif
+
 /* positions() on the reduced constraints (fmu_src/c_reduction.py): the prediction (predict()'s
    for the MECH_RED_Z coordinates and the angles in closed form), Newton-Raphson on r(z) = 0 for z
    only, with positions()'s stopping rule and chord iteration, then the MECH_RED_E coordinates
@@ -643,6 +764,9 @@ static int reduced_positions(ModelState *s, double t, const double *y, Configura
     double *q = c->q;
     const double *p = s->p, *d = s->d;
     int sign = 1;
+#if MECH_RED_N_STAGES > 0
+    if (!closed_positions(s, t, y, c)) return 0;
+#endif
     predict_listed(s, t, RED_Z, R, q);
     if (LATE_ANGLES) predict_listed(s, t, RED_E, NE, q);     /* their cos and sin rotate from there */
     for (int a = 0; a < R; a++) q_pred[RED_Z[a]] = q[RED_Z[a]];     /* trig_move_listed's old values */
@@ -711,6 +835,10 @@ static int reduced_rates(const ModelState *s, double t, Configuration *c, Reduce
     eq_red_jacobians(c->q, c->tr, t, s->p, s->d, f->S, B);
     if (R > 0) {
         if (lu_factor(R, f->S, f->piv, f->inv_diag)) return 1;
+        if (c->sign == 0) {          /* closed_positions(): the assembly branch read here */
+            c->sign = MECH_DEP_SIGN * lu_det_sign(R, f->piv, f->inv_diag);
+            if (c->sign != s->base.sign) return 1;
+        }
         eq_red_rate_rhs(c->q, c->tr, c->qd, t, s->p, s->d, b);
         lu_solve(R, f->S, f->piv, f->inv_diag, b, zd);
         LINALG_UNROLL

@@ -7,6 +7,7 @@
  * state reaches, and the integrator must reject it and retry shorter steps.  Prints one line:
  *   <the outputs at stop, %.17g, in value-reference order> | <rhs evaluations> <continuations>
  *   <failed evaluations> <integrator starts> <re-partitions> <evaluations on the full system>
+ *   <Newton-Raphson iterations>
  * Exit status 1 (with the FMU's message on stderr) when a call fails.
  * Arguments: first_step tol stop
  */
@@ -62,8 +63,8 @@ int main(int argc, char **argv)
         if (fmi2GetReal(c, &vr, 1, &v) != fmi2OK) return 1;
         printf("%.17g ", v);
     }
-    printf("| %lu %lu %lu %lu %lu %lu\n", s->rhs_evaluations, s->continuations, s->failed_evaluations, s->starts,
-           s->repartitions, s->full_evaluations);
+    printf("| %lu %lu %lu %lu %lu %lu %lu\n", s->rhs_evaluations, s->continuations, s->failed_evaluations, s->starts,
+           s->repartitions, s->full_evaluations, s->newton_iterations);
     fmi2FreeInstance(c);
     return 0;
 }
