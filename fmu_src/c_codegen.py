@@ -442,6 +442,26 @@ def _reduced_functions(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) 
     return functions, header + stage_header, stage_source, stage_prototype
 
 
+def _one_output_code(sym: "_Symbols", state_outputs) -> tuple[str, str]:
+    """eq_output_state: one of eq_outputs_state's outputs on its own (a host that reads one or two
+    outputs per step need not pay for all of them), each printed as a function of its own and
+    dispatched on its index: C source and prototype."""
+    args = "const double *q, const double *tr, const double *qd, double t, const double *p, const double *d"
+    source, cases = [], []
+    for k, o in enumerate(state_outputs):
+        source.append(_function(sym, f"static void output_state_{k}({args}, double *out)", f"{o.name}.",
+                                [("out", [sym.c(o.expression)])], ("q", "tr", "qd", "p", "d")))
+        cases.append(f"    case {k}: output_state_{k}(q, tr, qd, t, p, d, &value); break;")
+    prototype = f"double eq_output_state(int k, {args});"
+    source.append("\n".join([
+        "/* Output k of eq_outputs_state (its index there) alone; NaN for another k. */", prototype[:-1], "{",
+        "    double value = NAN;",
+        *(["    switch (k) {", *cases, "    default: break;", "    }"] if cases
+          else ["    (void)k; (void)q; (void)tr; (void)qd; (void)t; (void)p; (void)d;"]),
+        "    return value;", "}"]) + "\n")
+    return "".join(source), prototype
+
+
 def _closed_stage_code(sym: "_Symbols", eqs: MechanismEquations, red: Reduction, rename: dict,
                        trig_of: dict[int, int]) -> tuple[str, str, list[str]]:
     """The reduced constraints' closed-form stages (``c_loops.closed_stages``): each stage's
@@ -735,8 +755,9 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
     prototypes = [f"{f[0]};" for f in functions]
     dep_source, dep_prototypes, dep_header = _dependent_lu_code(sym, eqs, lu)
     column_source, column_prototype = _jacobian_column_code(sym, eqs)
-    body += [dep_source, column_source, stage_source]
-    prototypes += dep_prototypes + [column_prototype] + ([stage_prototype] if stage_prototype else [])
+    one_source, one_prototype = _one_output_code(sym, state_outputs)
+    body += [dep_source, column_source, stage_source, one_source]
+    prototypes += dep_prototypes + [column_prototype] + ([stage_prototype] if stage_prototype else []) + [one_prototype]
 
     params = [p.name for p in mech.parameters]
     drivers = [(params.index(d.start), params.index(d.speed), row) for d, row in zip(mech.drivers, eqs.driver_rows)]
@@ -813,6 +834,9 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
         f"#define MECH_OUTPUT_WORK {OUTPUT_WORK}",
         f"#define MECH_OUTPUT_RESIDUAL {OUTPUT_RESIDUAL}",
         f"#define MECH_OUTPUT_VRS {ints(vr[o.name] for o in eqs.outputs)}",
+        "/* Per value reference, its output's position in output order (-1: not an output). */",
+        f"#define MECH_N_VRS {len(vr)}",
+        f"#define MECH_OUTPUT_OF_VR {ints(next((k for k, o in enumerate(eqs.outputs) if vr[o.name] == r), -1) for r in range(len(vr)))}",
         f"#define MECH_OUTPUT_KINDS {ints(kinds)}",
         f"#define MECH_OUTPUT_INDICES {ints(indices)}",
         "/* The outputs of kind state or work (positions in output order): computed together at",

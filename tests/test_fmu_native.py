@@ -319,6 +319,28 @@ def test_rk45_takes_the_steps_mechanism_dae_takes(mechanism_fmus, native_fmu, me
     assert err <= AGREEMENT, f"{mechanism}: max |native RK45 - MechanismDAE RK45| = {err:.3g} over 5 s"
 
 
+@pytest.mark.parametrize("mechanism", ["fourbar", "fourbar_driven", "watt_sixbar"])
+def test_an_output_read_alone_is_the_one_read_with_the_others(mechanism_fmus, native_fmu, mechanism):
+    """A host reading at most MODEL_FEW_OUTPUTS outputs gets each computed on its own
+    (eq_output_state, model.c); with more, the whole group (eq_outputs_state).  The same
+    expression printed twice, CSE'd apart: equal to round-off (measured 0 or a few ulp), on
+    positions, angles, rates, energies and a driver's work."""
+    fmu = native_fmu if mechanism == "fourbar" else mechanism_fmus.get(mechanism)
+    md = read_model_description(str(fmu))
+    outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+    together = simulate(fmu, stop=1.0, output=outputs)
+    from fmu_src.mechanism.check import prepare_mechanism
+    eqs = prepare_mechanism(mechanism).equations
+    state = [o.name for o in eqs.outputs if o.name in outputs and (o.work is not None or (
+        o.expression is not None and not o.expression.free_symbols & set(eqs.multipliers)))]
+    assert len(state) >= 8
+    for name in state:
+        alone = simulate(fmu, stop=1.0, output=[name])[name]
+        scale = max(1.0, float(np.abs(together[name]).max()))
+        err = float(np.abs(alone - together[name]).max())
+        assert err <= 1e-14 * scale, f"{mechanism}: {name} read alone differs by {err:.3g}"
+
+
 def test_a_drivers_speed_change_continues_from_where_it_is(mechanism_fmus):
     """The driven four-bar's motor speeds up at 1 s: its angle continues from where it is (the
     reference's s_ref, t_ref re-anchored), its work keeps adding up; both as MechanismDAE."""

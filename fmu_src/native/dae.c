@@ -1574,6 +1574,13 @@ void dae_outputs_state(const double *p, const double *d, double t, const double 
     }
 }
 
+double dae_output_state_one(const double *p, const double *d, double t, const double *q, const double *tr,
+                            const double *qd, const double *work, int k)
+{
+    return OUTPUT_KINDS[k] == MECH_OUTPUT_STATE ? eq_output_state(OUTPUT_INDICES[k], q, tr, qd, t, p, d)
+                                                : work[OUTPUT_INDICES[k]];
+}
+
 void dae_outputs_residual(const double *p, const double *d, double t, const double *q, const double *qd,
                           double *out)
 {

@@ -61,6 +61,10 @@ int dae_change_parameters(ModelState *s, const double *p);
    solved there).  tr: cos and sin of q's angles (ModelState's), or NULL to compute them. */
 void dae_outputs_state(const double *p, const double *d, double t, const double *q, const double *tr,
                        const double *qd, const double *work, double *out);
+/* Output k (its position in output order, of kind STATE or WORK) alone: dae_outputs_state's out[k]
+   (tr: ModelState's). */
+double dae_output_state_one(const double *p, const double *d, double t, const double *q, const double *tr,
+                            const double *qd, const double *work, int k);
 /* Model Exchange: the host integrates y = (q[independent], qd[independent], work) of the file's
    partition, which never changes (DAE_N_STATES values, the Runge-Kutta's y without its filler).
    dae_states: y of the current consistent state.  dae_me_start: after assembly or a parameter

@@ -350,7 +350,9 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
                     "a Real"))
         return fmi2Error;
     const int groups = nvr > 0 ? groups_read(vr, nvr) & m->state.outputs_pending : 0;
-    if (nvr > 0 && (m->state.mode == MODE_INITIALIZATION || groups)) {
+    if (model_few_outputs(m, groups, nvr)) {
+        for (size_t i = 0; i < nvr; i++) model_output_one(m, vr[i]);
+    } else if (nvr > 0 && (m->state.mode == MODE_INITIALIZATION || groups)) {
         model_preview_outputs(m, groups);
         if (m->state.mode != MODE_INITIALIZATION && (m->state.outputs_pending & groups)) return fmi2Error;  /* logged */
     }

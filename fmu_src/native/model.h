@@ -140,5 +140,11 @@ ModelStatus model_me_sensitivity(ModelInstance *m, const char *function, const D
    not yet the current state's (each fmi2DoStep only marks them all pending: a host that reads one
    output pays for its group only).  A failure (forces) is logged and leaves its group pending. */
 void model_preview_outputs(ModelInstance *m, int groups);
+/* In co-simulation, after the start: a read of at most MODEL_FEW_OUTPUTS value references whose
+   pending groups (`groups`: FB_GROUP_* bits read and pending) are the state's alone computes just
+   those outputs (model_output_one, for each), the group left pending; 1 when that applies. */
+#define MODEL_FEW_OUTPUTS 4
+int model_few_outputs(const ModelInstance *m, int groups, size_t nvr);
+void model_output_one(ModelInstance *m, unsigned long vr);
 
 #endif

@@ -444,7 +444,10 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueR
     const int groups = nValueReferences > 0 ? groups_read(valueReferences, nValueReferences) &
                                               m->state.outputs_pending : 0;
     const int before_start = m->state.mode == MODE_INSTANTIATED || m->state.mode == MODE_INITIALIZATION;
-    if (nValueReferences > 0 && (before_start || groups)) {
+    if (model_few_outputs(m, groups, nValueReferences)) {
+        for (size_t i = 0; i < nValueReferences; i++)
+            if (valueReferences[i] != VR_TIME) model_output_one(m, valueReferences[i]);
+    } else if (nValueReferences > 0 && (before_start || groups)) {
         model_preview_outputs(m, groups);      /* before the start: what the start values give */
         if (!before_start && (m->state.outputs_pending & groups)) return fmi3Error;  /* logged */
     }
