@@ -37,6 +37,20 @@ void model_preview_outputs(ModelInstance *m, int groups)
     (void)groups;
 }
 
+int model_few_outputs(const ModelInstance *m, int groups, size_t nvr)
+{
+    (void)m;
+    (void)groups;
+    (void)nvr;
+    return 0;
+}
+
+void model_output_one(ModelInstance *m, unsigned long vr)
+{
+    (void)m;
+    (void)vr;
+}
+
 /* Model Exchange: the states are copies, the derivatives zero. */
 void model_me_get_states(ModelInstance *m, double *x)
 {
