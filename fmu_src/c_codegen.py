@@ -438,52 +438,59 @@ def _reduced_functions(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) 
         f"#define MECH_RED_N_FIRST {len(angle_first)}",
         f"#define MECH_RED_ANGLES_FIRST {int(len(angle_first) == e_angles)}",
     ]
-    stage_source, stage_prototype, stage_header = _closed_stage_code(sym, eqs, red, rename, trig_of)
+    stage_source, stage_prototype, stage_header = _closed_stage_code(sym, eqs, red, rename)
     return functions, header + stage_header, stage_source, stage_prototype
+
+
+def _dispatched(sym: "_Symbols", name: str, doc: str, args: str, arrays: tuple[str, ...],
+                pieces: list[tuple[str, list[sp.Expr]]], returns_value: bool) -> tuple[str, str]:
+    """Pieces printed each as a function of its own (``static void <stem>_<k>(args, double *out)``)
+    and ``name(int k, args...)`` calling piece k: C source and prototype.  ``returns_value``: name
+    returns the piece's one value (NaN for another k), else it writes them into ``out``."""
+    names = [a.split()[-1].lstrip("*") for a in args.split(",")]
+    stem = name.removeprefix("eq_")
+    target = "&value" if returns_value else "out"
+    source, cases = [], []
+    for k, (piece_doc, exprs) in enumerate(pieces):
+        source.append(_function(sym, f"static void {stem}_{k}({args}, double *out)", piece_doc, [("out", exprs)],
+                                arrays))
+        cases.append(f"    case {k}: {stem}_{k}({', '.join(names)}, {target}); break;")
+    prototype = f"double {name}(int k, {args});" if returns_value else f"void {name}(int k, {args}, double *out);"
+    unused = ["k", *names] + ([] if returns_value else ["out"])
+    body = (["    switch (k) {", *cases, "    default: break;", "    }"] if pieces
+            else ["    " + " ".join(f"(void){n};" for n in unused)])
+    if returns_value:
+        body = ["    double value = NAN;", *body, "    return value;"]
+    source.append("\n".join([f"/* {doc} */", prototype[:-1], "{", *body, "}"]) + "\n")
+    return "".join(source), prototype
 
 
 def _one_output_code(sym: "_Symbols", state_outputs) -> tuple[str, str]:
     """eq_output_state: one of eq_outputs_state's outputs on its own (a host that reads one or two
-    outputs per step need not pay for all of them), each printed as a function of its own and
-    dispatched on its index: C source and prototype."""
-    args = "const double *q, const double *tr, const double *qd, double t, const double *p, const double *d"
-    source, cases = [], []
-    for k, o in enumerate(state_outputs):
-        source.append(_function(sym, f"static void output_state_{k}({args}, double *out)", f"{o.name}.",
-                                [("out", [sym.c(o.expression)])], ("q", "tr", "qd", "p", "d")))
-        cases.append(f"    case {k}: output_state_{k}(q, tr, qd, t, p, d, &value); break;")
-    prototype = f"double eq_output_state(int k, {args});"
-    source.append("\n".join([
-        "/* Output k of eq_outputs_state (its index there) alone; NaN for another k. */", prototype[:-1], "{",
-        "    double value = NAN;",
-        *(["    switch (k) {", *cases, "    default: break;", "    }"] if cases
-          else ["    (void)k; (void)q; (void)tr; (void)qd; (void)t; (void)p; (void)d;"]),
-        "    return value;", "}"]) + "\n")
-    return "".join(source), prototype
+    outputs per step need not pay for all of them), dispatched on its index: C source and prototype."""
+    return _dispatched(sym, "eq_output_state", "Output k of eq_outputs_state (its index there) alone; NaN for "
+                       "another k.", "const double *q, const double *tr, const double *qd, double t, const double *p, "
+                       "const double *d", ("q", "tr", "qd", "p", "d"),
+                       [(f"{o.name}.", [sym.c(o.expression)]) for o in state_outputs], returns_value=True)
 
 
-def _closed_stage_code(sym: "_Symbols", eqs: MechanismEquations, red: Reduction, rename: dict,
-                       trig_of: dict[int, int]) -> tuple[str, str, list[str]]:
+def _closed_stage_code(sym: "_Symbols", eqs: MechanismEquations, red: Reduction,
+                       rename: dict) -> tuple[str, str, list[str]]:
     """The reduced constraints' closed-form stages (``c_loops.closed_stages``): each stage's
-    coefficients printed as a function of its own, eq_red_stage dispatching on the stage; C
-    source, prototype and header lines (MECH_RED_N_STAGES 0 where the closures do not have that
-    shape: Newton-Raphson then solves them all)."""
+    coefficients, eq_red_stage dispatching on the stage; C source, prototype and header lines
+    (MECH_RED_N_STAGES 0 where the closures do not have that shape: Newton-Raphson then solves
+    them all)."""
     stages = closed_stages([sp.sympify(e).xreplace(rename) for e in red.residual], red.z, eqs.q, sym.angles) or ()
-    args = "const double *q, const double *tr, double t, const double *p, const double *d, double *out"
-    source, cases = [], []
+    pieces = []
     for k, stage in enumerate(stages):
         what = ("R(a) u + R(b) w + c = 0: (u_x, u_y, w_x, w_y, c_x, c_y)" if stage.is_dyad
                 else "alpha cos(a) + beta sin(a) + gamma = 0: (alpha, beta, gamma)")
-        exprs = [sym.c(sp.sympify(e).xreplace(rename)) for e in stage.coefficients]
-        source.append(_function(sym, f"static void red_stage_{k}({args})", f"Stage {k}, {what}.",
-                                [("out", exprs)], ("q", "tr", "p", "d")))
-        cases.append(f"    case {k}: red_stage_{k}(q, tr, t, p, d, out); break;")
-    prototype = f"void eq_red_stage(int k, {args});"
-    body = (["    (void)q; (void)tr; (void)t; (void)p; (void)d; (void)out;"] if not stages
-            else ["    switch (k) {", *cases, "    default: break;", "    }"])
-    source.append("\n".join([f"/* The coefficients of closed-form stage k (MECH_RED_STAGES), from q's independent",
-                             "   coordinates and the angles of the stages before it (their cos and sin in tr). */",
-                             prototype[:-1], "{", *body, "}"]) + "\n")
+        pieces.append((f"Stage {k}, {what}.", [sym.c(sp.sympify(e).xreplace(rename)) for e in stage.coefficients]))
+    source, prototype = _dispatched(
+        sym, "eq_red_stage", "The coefficients of closed-form stage k (MECH_RED_STAGES), from q's independent "
+        "coordinates and the angles of the stages before it (their cos and sin in tr).",
+        "const double *q, const double *tr, double t, const double *p, const double *d", ("q", "tr", "p", "d"),
+        pieces, returns_value=False)
     unknowns = []
     for stage in stages:
         a = stage.unknowns[0]
@@ -496,7 +503,7 @@ def _closed_stage_code(sym: "_Symbols", eqs: MechanismEquations, red: Reduction,
         f"#define MECH_RED_N_STAGES {len(stages)}",
         f"#define MECH_RED_STAGES {_braced(_padded(unknowns, '-1'))}",
     ]
-    return "".join(source), prototype, header
+    return source, prototype, header
 
 
 def _dependent_lu_code(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) -> tuple[str, list[str], list[str]]:

@@ -634,6 +634,42 @@ typedef struct {
     int piv[RA];
 } ReducedLU;
 
+/* The reduced path's start (reduced_positions and closed_positions): the MECH_RED_Z coordinates
+   (and the angles in closed form that depend on them) predicted, their values kept in q_pred
+   (trig_move_listed's old values), the independent coordinates and rates from y, a driven angle
+   exact before the rest reads its cos and sin, and cos and sin of every angle rotated from the
+   base's. */
+static void reduced_predict(const ModelState *s, double t, const double *y, Configuration *c, double *q_pred)
+{
+    double *q = c->q;
+    predict_listed(s, t, RED_Z, R, q);
+    if (LATE_ANGLES) predict_listed(s, t, RED_E, NE, q);     /* their cos and sin rotate from there */
+    for (int a = 0; a < R; a++) q_pred[RED_Z[a]] = q[RED_Z[a]];
+    if (LATE_ANGLES)
+        for (int e = 0; e < NE; e++) if (RED_E_ANGLE[e] >= 0) q_pred[RED_E[e]] = q[RED_E[e]];
+    for (int j = 0; j < K; j++) {
+        q[INDEPENDENT[j]] = y[j];
+        c->qd[INDEPENDENT[j]] = y[K + j];
+    }
+    if (MECH_RED_N_FIRST > 0) {
+        double x[MECH_ALLOC(MECH_RED_N_FIRST)];
+        eq_red_closed_angles(q, t, s->p, s->d, x);
+        for (int k = 0; k < MECH_RED_N_FIRST; k++) q[RED_FIRST[k]] = x[k];
+    }
+    trig_rotate(s->base.q, s->base.tr, q, c->tr);
+}
+
+/* The reduced path's end: the MECH_RED_E coordinates from their closed forms at the solved z (the
+   cos and sin of those that are angles moved from q_pred's values). */
+static void reduced_eliminated(const ModelState *s, double t, Configuration *c, const double *q_pred)
+{
+    double x[NEA];
+    eq_red_closed(c->q, c->tr, t, s->p, s->d, x);
+    LINALG_UNROLL
+    for (int e = 0; e < NE; e++) c->q[RED_E[e]] = x[e];
+    if (LATE_ANGLES) trig_move_listed(RED_E, RED_E_ANGLE, NE, q_pred, c->q, c->tr);
+}
+
 #if MECH_RED_N_STAGES > 0
 /* -- the reduced constraints in closed form (fmu_src/c_loops.py) ----------------------------- */
 
@@ -712,21 +748,7 @@ static int closed_positions(ModelState *s, double t, const double *y, Configurat
     double q_pred[N], coefficients[6];
     double *q = c->q;
     const double *p = s->p, *d = s->d;
-    predict_listed(s, t, RED_Z, R, q);
-    if (LATE_ANGLES) {
-        predict_listed(s, t, RED_E, NE, q);
-        for (int e = 0; e < NE; e++) if (RED_E_ANGLE[e] >= 0) q_pred[RED_E[e]] = q[RED_E[e]];
-    }
-    for (int j = 0; j < K; j++) {
-        q[INDEPENDENT[j]] = y[j];
-        c->qd[INDEPENDENT[j]] = y[K + j];
-    }
-    if (MECH_RED_N_FIRST > 0) {
-        double x[MECH_ALLOC(MECH_RED_N_FIRST)];
-        eq_red_closed_angles(q, t, p, d, x);
-        for (int k = 0; k < MECH_RED_N_FIRST; k++) q[RED_FIRST[k]] = x[k];
-    }
-    trig_rotate(s->base.q, s->base.tr, q, c->tr);
+    reduced_predict(s, t, y, c, q_pred);
     for (int k = 0; k < MECH_RED_N_STAGES; k++) {
         const int a = RED_STAGES[2 * k], b = RED_STAGES[2 * k + 1];
         double *tr_a = c->tr + 2 * RED_Z_ANGLE[a], tr_b[2];
@@ -744,13 +766,7 @@ static int closed_positions(ModelState *s, double t, const double *y, Configurat
         q[RED_Z[a]] = angle_near(q[RED_Z[a]], ca, sa, tr_a[0], tr_a[1]);
     }
     c->sign = 0;
-    {
-        double x[NEA];
-        eq_red_closed(q, c->tr, t, p, d, x);
-        LINALG_UNROLL
-        for (int e = 0; e < NE; e++) q[RED_E[e]] = x[e];
-        if (LATE_ANGLES) trig_move_listed(RED_E, RED_E_ANGLE, NE, q_pred, q, c->tr);
-    }
+    reduced_eliminated(s, t, c, q_pred);
     return 0;
 }
 #endif
@@ -771,21 +787,7 @@ static int reduced_positions(ModelState *s, double t, const double *y, Configura
 #if MECH_RED_N_STAGES > 0
     if (!closed_positions(s, t, y, c)) return 0;
 #endif
-    predict_listed(s, t, RED_Z, R, q);
-    if (LATE_ANGLES) predict_listed(s, t, RED_E, NE, q);     /* their cos and sin rotate from there */
-    for (int a = 0; a < R; a++) q_pred[RED_Z[a]] = q[RED_Z[a]];     /* trig_move_listed's old values */
-    if (LATE_ANGLES)
-        for (int e = 0; e < NE; e++) if (RED_E_ANGLE[e] >= 0) q_pred[RED_E[e]] = q[RED_E[e]];
-    for (int j = 0; j < K; j++) {
-        q[INDEPENDENT[j]] = y[j];
-        c->qd[INDEPENDENT[j]] = y[K + j];
-    }
-    if (MECH_RED_N_FIRST > 0) {             /* a driven angle: exact before the rest reads its cos and sin */
-        double x[MECH_ALLOC(MECH_RED_N_FIRST)];
-        eq_red_closed_angles(q, t, p, d, x);
-        for (int k = 0; k < MECH_RED_N_FIRST; k++) q[RED_FIRST[k]] = x[k];
-    }
-    trig_rotate(s->base.q, s->base.tr, q, c->tr);
+    reduced_predict(s, t, y, c, q_pred);
     if (R > 0) {
         int fresh = 1, converged = 0;
         double previous = INFINITY;
@@ -821,13 +823,7 @@ static int reduced_positions(ModelState *s, double t, const double *y, Configura
     }
     c->sign = MECH_DEP_SIGN * sign;
     if (c->sign != s->base.sign) return 1;
-    {
-        double x[NEA];
-        eq_red_closed(q, c->tr, t, p, d, x);
-        LINALG_UNROLL
-        for (int e = 0; e < NE; e++) q[RED_E[e]] = x[e];
-        if (LATE_ANGLES) trig_move_listed(RED_E, RED_E_ANGLE, NE, q_pred, q, c->tr);
-    }
+    reduced_eliminated(s, t, c, q_pred);
     return 0;
 }
 
