@@ -26,6 +26,7 @@ from fourbar_common import Drawing
 
 from .case import (DEFAULT_OUTPUTS, Case, Event, ExchangeSettings, Experiment, FmuDescription, Noise,
                    RampEvent, StepEvent, Value, describe_fmu)
+from .limits import MAX_STEP, UNIT_LIMITS
 from .validation import ConfigError, ProblemReporter, kind_of, read_toml
 
 __all__ = ["apply_overrides", "load_case"]
@@ -260,13 +261,18 @@ class _Validator(ProblemReporter):
         tolerance = None
         if "tolerance" in table:
             tolerance = self.number("experiment.tolerance", table["tolerance"], "", positive=True)
+        if step is not None and step > MAX_STEP:
+            self.problem("experiment.step", step, f"expected a communication step <= {MAX_STEP:g} s: one step is one "
+                                                  f"doStep the FMU computes without returning (docs/orchestrator.md, "
+                                                  f"\"Refusals\")")
+        too_long = step is not None and step > MAX_STEP
         if start is None or stop is None or step is None:
             return None
         if stop <= start:
             self.problem("experiment.stop", stop, f"expected a time after experiment.start = {start!r} s")
             return None
         if self.whole_steps("experiment.stop", stop, stop - start, step, "(stop - start)/step",
-                            step_name="experiment.step") is None:
+                            step_name="experiment.step") is None or too_long:
             return None
         return Experiment(start=start, stop=stop, step=step, tolerance=tolerance)
 
@@ -331,6 +337,12 @@ class _Validator(ProblemReporter):
             return None
         if result is None:
             return None
+        unit = getattr(var, "unit", None)
+        limit = UNIT_LIMITS.get(unit) if isinstance(unit, str) else None
+        if limit is not None and abs(result) > limit:
+            self.problem(where, value, f"expected |{var.name}| <= {limit:g} {unit}: no linkage reaches it "
+                                       f"(docs/orchestrator.md, \"Refusals\")")
+            return None
         for bound, op, text in ((var.min, float.__lt__, ">="), (var.max, float.__gt__, "<=")):
             if bound is not None:
                 try:
@@ -390,6 +402,9 @@ class _Validator(ProblemReporter):
         result = []
         for i, name in enumerate(names):
             item = f"{where}[{i}]"
+            if not isinstance(name, str):
+                self.problem(item, name, f"expected a variable name (string), got {kind_of(name)}")
+                continue
             if name == "time":
                 self.problem(item, name, "'time' is the first column already; expected a variable of the FMU")
                 continue
@@ -491,6 +506,8 @@ class _Validator(ProblemReporter):
             return None
         t, k = self.event_time(f"{where}.time", item["time"], experiment, last_allowed=False)
         var = self.variable(f"{where}.variable", item["variable"], settable="event")
+        if not isinstance(item["variable"], str):     # reported by variable()
+            return None
         value = item["value"]
         if var is not None:
             value = self.value_for(f"{where}.value", var, value)
@@ -514,6 +531,8 @@ class _Validator(ProblemReporter):
         if any(key not in item for key in required):
             return None
         var = self.variable(f"{where}.variable", item["variable"], settable="event")
+        if not isinstance(item["variable"], str):     # reported by variable()
+            return None
         if var is not None and var.type != "Real":
             self.problem(f"{where}.variable", item["variable"], f"{var.name} is {var.type}; a ramp needs a Real variable")
             var = None

@@ -83,6 +83,8 @@ def grid_steps(span: float, step: float) -> int | None:
     """``span/step`` as a whole number of steps, or None when it is not one (within
     :data:`GRID_TOLERANCE` of a step)."""
     count = span / step
+    if not math.isfinite(count):      # a step of 5e-324 s: no whole number of them
+        return None
     k = round(count)
     return k if abs(count - k) <= GRID_TOLERANCE else None
 
