@@ -8,6 +8,7 @@ at once.
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 
@@ -119,12 +120,16 @@ def _run(case: str, *, out, stop, realtime, overrides, quiet: bool, fmu=None, ma
     from fourbar_common.signals import exit_code
 
     from .validation import ConfigError
-    from .run import RunInterrupted, run_case
+    from .run import OutputRefused, RunInterrupted, run_case
 
     try:
         result = run_case(case, out, stop=stop, realtime=realtime, overrides=overrides or None,
                           progress=not quiet and sys.stderr.isatty(), fmu=fmu, max_rows=max_rows)
     except ConfigError as exc:
+        print(f"fourbar-run: error: {exc}", file=sys.stderr)
+        print("fourbar-run: nothing was run or written", file=sys.stderr)
+        return 2
+    except OutputRefused as exc:
         print(f"fourbar-run: error: {exc}", file=sys.stderr)
         print("fourbar-run: nothing was run or written", file=sys.stderr)
         return 2
@@ -136,6 +141,13 @@ def _run(case: str, *, out, stop, realtime, overrides, quiet: bool, fmu=None, ma
                   f"kept in {r.exchange_path}; status in {r.run_json_path}", file=sys.stderr)
         else:
             print(f"fourbar-run: {r.case.name}: {r.error}; nothing was written", file=sys.stderr)
+        if r.abandoned:
+            # A thread is still inside the FMU's C code: run.json and the rows are final, and
+            # neither the FMU nor the interpreter can be torn down under that thread.
+            print(f"fourbar-run: the FMU did not return from its step; exiting without it", file=sys.stderr)
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(exit_code(exc.signum))
         return exit_code(exc.signum)
     if not result.ok:
         where = (f"after {result.rows_written} rows (last t = {format_time(result.last_time)} s)" if result.rows_written

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import collections
 import itertools
-import shutil
 import threading
 from typing import Any, Callable, Iterable, Sequence
 
@@ -102,10 +101,12 @@ class FmuInstance:
         self._fmu = None
         self._callbacks = None
         self._unzipdir = None
+        self._unpacked = None                # the UnpackedFmu that holds _unzipdir
         self._env = 0
         self._instantiated = False
         self._failed_status: int | None = None
         self._call_error: type = Exception   # fmpy's FMICallException once FMPy is imported
+        self._abandoned = False              # a thread is still inside the FMU: never free it
 
     # -- life cycle -------------------------------------------------------------------
     def __enter__(self) -> "FmuInstance":
@@ -122,12 +123,14 @@ class FmuInstance:
     def _open(self) -> None:
         from ctypes import byref
 
-        from fmpy import extract
         from fmpy.fmi1 import FMICallException
+
+        from .unpacked import UnpackedFmu
 
         self._call_error = FMICallException
         install_exit_guard()    # also guards FMUs that FMPy loads elsewhere in this process
-        self._unzipdir = extract(str(self.path))
+        self._unpacked = UnpackedFmu(self.path)
+        self._unzipdir = self._unpacked.unpack()
         interface = self.md.modelExchange if self.model_exchange else self.md.coSimulation
         if self.fmi3:
             from fmpy.fmi3 import FMU3Model, FMU3Slave
@@ -165,7 +168,17 @@ class FmuInstance:
             raise FmuError(self._describe(f"fmi2Instantiate failed ({exc})", 0)) from None
         self._instantiated = True
 
+    def abandon(self) -> None:
+        """Another thread is inside one of this FMU's calls and will not return soon (a stop
+        signal came during a doStep that does not end): closing frees nothing it uses (no
+        terminate, free or unload; its log route stays), only the extracted files go (a
+        loaded library stays mapped).  The process is about to exit."""
+        self._abandoned = True
+
     def _close(self, clean: bool) -> None:
+        if self._abandoned:
+            self._remove_unpacked()
+            return
         fmu, self._fmu = self._fmu, None
         try:
             if fmu is not None:
@@ -185,9 +198,12 @@ class FmuInstance:
                     fmu.freeLibrary()
         finally:
             _ROUTES.pop(self._env, None)
-            if self._unzipdir is not None:
-                shutil.rmtree(self._unzipdir, ignore_errors=True)
-                self._unzipdir = None
+            self._remove_unpacked()
+
+    def _remove_unpacked(self) -> None:
+        unpacked, self._unpacked, self._unzipdir = self._unpacked, None, None
+        if unpacked is not None:
+            unpacked.remove()
 
     # -- logging ----------------------------------------------------------------------
     def _logger3(self, environment, status, category, message) -> None:

@@ -55,7 +55,7 @@ from fourbar_common.signals import signal_of, stop_reason
 from .pacing import InterruptFlag, RealtimePacer
 from .validation import ConfigError
 
-__all__ = ["DERIVED_OUTPUTS", "HEARTBEAT_INTERVAL", "RunInterrupted", "RunResult", "StartValuesRefused",
+__all__ = ["DERIVED_OUTPUTS", "HEARTBEAT_INTERVAL", "RESERVE_BYTES", "OutputRefused", "RunInterrupted", "RunResult", "StartValuesRefused",
            "remove_derived_outputs", "run_case", "SCHEMA_VERSION"]
 
 _RUN_JSON_MIN_INTERVAL = 0.2   # s of wall time between two "running" updates of run.json
@@ -64,6 +64,12 @@ HEARTBEAT_INTERVAL = 2.0
 #: Folders of a run folder that tools derive from its exchange.csv, each with the file that
 #: marks it as theirs: a new run removes them when it starts (they describe the old rows).
 DERIVED_OUTPUTS = (("monitor", "summary.json"), ("diagnosis", "diagnosis.json"))
+#: Bytes set aside in the run folder when the run starts (``.run.json.reserve``) and given
+#: back to write the final run.json when the disk filled up: run.json then says ``failed``
+#: with the error instead of staying ``running``.  A run.json of the shipped cases is 4-8 kB;
+#: the final write needs a temporary copy beside the old one.
+RESERVE_BYTES = 64 * 1024
+_RESERVE_NAME = ".run.json.reserve"
 
 
 @dataclass(frozen=True)
@@ -85,6 +91,9 @@ class RunResult:
     started: bool = True
     #: The previous run's derived folders removed when this run started (e.g. ("monitor",)).
     replaced: tuple[str, ...] = ()
+    #: A stop signal came while the FMU did not return from a call: its thread was left
+    #: inside the FMU, which was not freed.  The process should exit at once (the CLI does).
+    abandoned: bool = False
 
     @property
     def ok(self) -> bool:
@@ -99,6 +108,16 @@ class RunInterrupted(KeyboardInterrupt):
         super().__init__(result.error)
         self.result = result
         self.signum = int(signum)
+
+
+class OutputRefused(Exception):
+    """The output folder cannot take this run, found before anything was changed in it:
+    another writer holds its lock (``holder`` names it), or exchange.csv is a symbolic link
+    or not a regular file.  The CLI exits 2."""
+
+    def __init__(self, message: str, holder=None):
+        super().__init__(message)
+        self.holder = holder
 
 
 class StartValuesRefused(ConfigError):
@@ -225,6 +244,12 @@ class _Run:
         self._record_lock = threading.Lock()
         self._heartbeat_stop = threading.Event()
         self._heartbeat: threading.Thread | None = None
+        self._io_lock = threading.Lock()        # the worker's rows and appends vs. a take-over
+        self._worker_gone = False               # taken over: the worker must not touch rows or file
+        self._io_safe = True                    # the take-over found no append in progress
+        self.abandoned = False                  # the worker was left inside the FMU
+        self.lock = None                        # the folder's FolderLock while the run holds it
+        self.reserve: Path | None = None        # the space set aside for the final run.json
         self.record = self._record()
 
     # -- run.json ---------------------------------------------------------------------
@@ -257,10 +282,11 @@ class _Run:
         with self._record_lock:
             now = time.monotonic()
             updated = _now()
-            self.record = replace(self.record, status=self.status, rows_written=self.rows_written,
-                                  last_time=self.last_time, updated_at=updated, wall_time_s=round(now - self.wall0, 6),
-                                  error=self.error, finished_at=updated if final else self.record.finished_at)
-            write_run_record(self.run_json_path, self.record)
+            record = replace(self.record, status=self.status, rows_written=self.rows_written,
+                             last_time=self.last_time, updated_at=updated, wall_time_s=round(now - self.wall0, 6),
+                             error=self.error, finished_at=updated if final else self.record.finished_at)
+            write_run_record(self.run_json_path, record)
+            self.record = record          # the last run.json written
             self.last_json_write = now
 
     def _start_heartbeat(self) -> None:
@@ -331,7 +357,7 @@ class _Run:
                     self.status, self.error = "failed", f"{type(exc).__name__}: {exc}"
                 if stopped_by is not None:
                     self.status, self.error = "interrupted", self._stop_message(stopped_by) + note
-        except ConfigError:            # the FMU refused the start values: nothing was written
+        except (ConfigError, OutputRefused):   # start values or folder refused: nothing was written
             self._finish()
             raise
         except KeyboardInterrupt as exc:   # a second signal while keeping the rows
@@ -354,6 +380,11 @@ class _Run:
         if not self.started:
             return f"{stop_reason(signum)} before the run started"
         where = f" at t = {format_time(self.last_time)} s" if self.last_time is not None else ""
+        if self.abandoned:
+            from .stepping import GRACE
+
+            where += (f"; the FMU had not returned from its call {GRACE:g} s after the signal, so the run "
+                      f"ended without it")
         return f"{stop_reason(signum)}{where}"
 
     def _initialize(self, fmu) -> None:
@@ -394,13 +425,27 @@ class _Run:
         return StartValuesRefused(label, [f"parameters: the FMU refused the case's start values: {exc}; {culprits}"])
 
     def _start_outputs(self) -> None:
-        """The run starts: create exchange.csv (header only), remove the previous run's
-        derived folders, write run.json, start the heartbeat and the progress bar.  If
+        """The run starts: take the folder's lock, create exchange.csv (header only), remove the
+        previous run's derived folders, set space aside for the last run.json, write run.json,
+        start the heartbeat and the progress bar.  If the lock is held or exchange.csv is not
+        a regular file, :class:`OutputRefused` is raised and nothing in the folder changed; if
         exchange.csv cannot be created, nothing of this run was written (``started`` False)."""
+        from fourbar_common.folder_lock import FolderLock, FolderLocked
+
+        from .exchange import ExchangeRefused
+
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        self.writer = ExchangeWriter(self.exchange_path, ("time", *self.case.recorded))
+        try:
+            self.lock = FolderLock(self.out_dir, "fourbar-run").acquire()
+        except FolderLocked as exc:
+            raise OutputRefused(str(exc), exc.holder) from None
+        try:
+            self.writer = ExchangeWriter(self.exchange_path, ("time", *self.case.recorded))
+        except ExchangeRefused as exc:
+            raise OutputRefused(f"{exc.filename}: {exc.strerror}") from None
         self.started = True         # from here on, run.json reports what happens
         self.replaced = remove_derived_outputs(self.out_dir)
+        self._reserve()
         self._write_record()
         self._start_heartbeat()
         if self.progress:
@@ -409,13 +454,42 @@ class _Run:
             self.bar = tqdm(total=self.case.experiment.n_steps + 1, unit="row", desc=self.case.name,
                             file=sys.stderr, dynamic_ncols=True, leave=False)
 
+    def _reserve(self) -> None:
+        """Set :data:`RESERVE_BYTES` aside in the folder (see there); best effort."""
+        path = self.out_dir / _RESERVE_NAME
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+        except OSError:
+            return
+        try:
+            try:
+                os.posix_fallocate(fd, 0, RESERVE_BYTES)
+            except (AttributeError, OSError):
+                os.write(fd, bytes(RESERVE_BYTES))
+            self.reserve = path
+        except OSError:
+            path.unlink(missing_ok=True)
+        finally:
+            os.close(fd)
+
+    def _release_reserve(self) -> bool:
+        """Give the reserved space back; True if there was some."""
+        path, self.reserve = self.reserve, None
+        if path is None:
+            return False
+        try:
+            path.unlink()
+        except OSError:
+            return False
+        return True
+
     def _after_failure(self) -> str:
         """Keep the rows read before a failure (they are valid), without real-time waiting.
 
         Returns "" or a note for the error message when even that write failed.
         """
         try:
-            if self.writer is not None:
+            if self.writer is not None and self._io_safe:
                 self._flush(wait=False)
         except OSError as exc:
             return f"; the last rows could not be written: {type(exc).__name__}: {exc}"
@@ -426,16 +500,36 @@ class _Run:
         if self.bar is not None:
             self.bar.close()
         if self.writer is not None:
+            if self._io_safe:
+                problem = self.writer.verify()
+                if problem is not None:
+                    self.error = f"{self.error}; {problem}" if self.error else problem
+                    self.status = "failed"
             self.writer.close()
-        if not self.started:          # nothing of this run was written; keep it so
-            return
         try:
-            self._write_record(final=True)
-        except OSError as exc:
-            note = f"run.json could not be written: {exc}"
-            self.error = f"{self.error}; {note}" if self.error else note
-            if self.status == "finished":
-                self.status = "failed"
+            if self.started:
+                self._write_final_record()
+        finally:
+            self._release_reserve()
+            if self.lock is not None:
+                self.lock.release()
+                self.lock = None
+
+    def _write_final_record(self) -> None:
+        """The last run.json; when the disk is full, again with the reserved space given back."""
+        for attempt in range(2):
+            try:
+                self._write_record(final=True)
+                return
+            except OSError as exc:
+                if attempt == 0 and self._release_reserve():
+                    continue
+                note = (f"run.json could not be written ({exc.strerror or exc}); it still holds the last "
+                        f"update ({self.record.status}, {self.record.rows_written} rows)")
+                self.error = f"{self.error}; {note}" if self.error else note
+                if self.status == "finished":
+                    self.status = "failed"
+                return
 
     def _result(self) -> RunResult:
         sim_wall = None
@@ -445,37 +539,67 @@ class _Run:
                          exchange_path=self.exchange_path, run_json_path=self.run_json_path,
                          rows_written=self.rows_written, last_time=self.last_time,
                          wall_time_s=time.monotonic() - self.wall0, sim_wall_time_s=sim_wall, error=self.error,
-                         started=self.started, replaced=self.replaced)
+                         started=self.started, replaced=self.replaced, abandoned=self.abandoned)
 
     def _loop(self, fmu, flag: InterruptFlag) -> None:
-        case = self.case
-        exp = case.experiment
-        n = exp.n_steps
-        start, step = exp.start, exp.step
+        """Run :meth:`_steps` in a worker thread (:mod:`orchestrator.stepping`): this thread
+        only waits and handles signals, so a doStep that never returns cannot hold a stop back."""
+        from .stepping import run_in_worker
 
+        case = self.case
         if case.noise is not None:
             from .noise import NoiseSource
 
             self.noise = NoiseSource(case.noise, case.recorded)
         if case.exchange.realtime_factor > 0.0:
-            self.pacer = RealtimePacer(case.exchange.realtime_factor, start, flag)
+            self.pacer = RealtimePacer(case.exchange.realtime_factor, case.experiment.start, flag)
+        flag.check()
+        run_in_worker(lambda: self._steps(fmu, flag), flag, lambda: self._take_over(fmu))
+
+    def _take_over(self, fmu) -> None:
+        """The worker is stuck in the FMU after a stop signal: from now on it touches neither
+        the rows nor the file (it checks ``_worker_gone`` under ``_io_lock``), and the FMU
+        instance is left to it (never freed under it)."""
+        from .stepping import GRACE
+
+        got = self._io_lock.acquire(timeout=GRACE)      # not while it appends a block
+        self._worker_gone = True
+        self._io_safe = got
+        if got:
+            self._io_lock.release()
+        self.abandoned = True
+        fmu.abandon()
+
+    def _steps(self, fmu, flag: InterruptFlag) -> None:
+        """The loop proper (in the worker thread)."""
+        case = self.case
+        exp = case.experiment
+        n = exp.n_steps
+        start, step = exp.start, exp.step
         flush_every = max(1, round(case.exchange.flush_interval / step))
         schedule = _schedule(case)
         read = fmu.reader(case.recorded)
         do_step, set_values = fmu.do_step, fmu.set_values
-        pending_t, pending_v = self.pending_t, self.pending_v
+        lock = self._io_lock
 
-        flag.check()
         self.loop_wall0 = time.monotonic()
         if self.pacer is not None:
             self.pacer.start()
         t = start
         for k in range(n + 1):
-            pending_t.append(t)
-            pending_v.append(read())
+            row = read()
+            with lock:
+                if self._worker_gone:
+                    return
+                self.pending_t.append(t)
+                self.pending_v.append(row)
             if k % flush_every == 0 or k == n:
-                self._flush()
-                pending_t, pending_v = self.pending_t, self.pending_v
+                if self.pacer is not None and self.pending_t:
+                    self.pacer.wait_until(self.pending_t[-1])
+                with lock:
+                    if self._worker_gone:
+                        return
+                    self._flush(wait=False)
             if k == n:
                 break
             actions = schedule.get(k)
