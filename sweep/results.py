@@ -19,7 +19,6 @@ from __future__ import annotations
 import csv
 import io
 import math
-import os
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
@@ -185,40 +184,29 @@ class ResultsStore:
             raise ResultsError(f"--out {self.out_dir}: {problem}")
 
     def lock(self) -> None:
-        """Claim the directory (``.lock`` with this process id); ResultsError if another live
-        process on this host holds it, or if the directory cannot be used (:meth:`check_dir`).
-        A lock left by a dead process is taken over."""
+        """Claim the directory (:class:`fourbar_common.folder_lock.FolderLock` on ``.lock``,
+        held until :meth:`unlock` or the process's end); ResultsError naming the holder if
+        another process holds it, or if the directory cannot be used (:meth:`check_dir`).
+        A lock left by a dead process is no lock (the kernel released it)."""
+        from fourbar_common.folder_lock import FolderLock, FolderLocked
+
         self.check_dir()
         try:
             self.out_dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise ResultsError(f"--out {self.out_dir}: cannot create the folder: {exc.strerror or exc}") from None
-        path = self.out_dir / ".lock"
-        for _ in range(2):
-            try:
-                fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
-            except FileExistsError:
-                try:
-                    pid = int(path.read_text().strip() or 0)
-                except (OSError, ValueError):
-                    pid = 0
-                if pid and pid != os.getpid() and _alive(pid):
-                    raise ResultsError(f"{self.out_dir}: another fourbar-sweep (pid {pid}) is writing here; "
-                                       f"wait for it, or choose another --out") from None
-                path.unlink(missing_ok=True)      # stale: its process is gone
-                continue
-            except OSError as exc:                # read-only, permission
-                raise ResultsError(f"--out {self.out_dir}: cannot write there: {exc.strerror or exc}") from None
-            with os.fdopen(fd, "w") as fh:
-                fh.write(str(os.getpid()))
-            self._locked = True
-            return
-        raise ResultsError(f"{path}: cannot create the lock file")
+        try:
+            self._lock = FolderLock(self.out_dir, "fourbar-sweep").acquire()
+        except FolderLocked as exc:
+            if exc.holder is not None:
+                raise ResultsError(f"{self.out_dir}: another {exc.holder.describe()} is writing here; "
+                                   f"wait for it, or choose another --out") from None
+            raise ResultsError(f"--out {self.out_dir}: cannot write there: {exc}") from None
 
     def unlock(self) -> None:
-        if getattr(self, "_locked", False):
-            (self.out_dir / ".lock").unlink(missing_ok=True)
-            self._locked = False
+        lock, self._lock = getattr(self, "_lock", None), None
+        if lock is not None:
+            lock.release()
 
     def __enter__(self) -> "ResultsStore":
         return self
@@ -226,16 +214,6 @@ class ResultsStore:
     def __exit__(self, *exc) -> None:
         self.close()
         self.unlock()
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 def _plain(record: dict[str, Any]) -> dict[str, Any]:

@@ -290,14 +290,17 @@ def test_dry_run_counts_without_running(tmp_path, fourbar_fmu, capsys):
 def test_a_directory_in_use_by_a_live_sweep_is_refused(tmp_path, fourbar_fmu):
     from sweep import ResultsError, run_sweep
 
+    from fourbar_common.folder_lock import FolderLock
+
     out = tmp_path / "out"
     out.mkdir()
-    (out / ".lock").write_text(str(os.getppid()))          # a live process that is not us
+    held = FolderLock(out, "fourbar-sweep").acquire()      # a flock on its own open file: a second writer
     with pytest.raises(ResultsError, match=r"another fourbar-sweep \(pid"):
         run_sweep(smoke(tmp_path, fourbar_fmu), out)
-    (out / ".lock").write_text("999999999")                 # no such process: a stale lock is taken over
+    held.release()
+    (out / ".lock").write_text("999999999")                 # a pid, no flock (a dead process's lock): taken over
     result = run_sweep(smoke(tmp_path, fourbar_fmu), out, limit=0)
-    assert result.ran == 0 and not (out / ".lock").exists()
+    assert result.ran == 0 and (out / ".lock").read_text() == ""   # released
 
 
 def test_a_sweep_file_can_name_the_native_fmu(tmp_path, fourbar_fmu, native_fmu):
