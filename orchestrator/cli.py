@@ -1,7 +1,7 @@
 """``fourbar-run``: run a case file through its FMU and write the exchange file.
 
-Exit codes: 0 finished, 1 the run failed (FMU error, I/O error), 2 usage or case-file
-error (nothing written), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).  Heavy
+Exit codes: 0 finished, 1 the run failed (FMU error, I/O error, exchange.csv changed under
+the run), 2 usage or case-file error, folder held by another writer (nothing written), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).  Heavy
 imports (FMPy, numpy) happen inside the handler, so ``--help`` and ``--version`` answer
 at once.
 """
@@ -35,9 +35,12 @@ next step on).  A run writes at most exchange.max_rows rows (default 10,000,000)
 --max-rows allows more.  The FMU is initialised before anything is written; once the run
 starts, the folder's previous monitor/ and diagnosis/ outputs are removed.
 Case-file keys: docs/orchestrator.md.
-exit status: 0 finished, 1 run failed, 2 usage or case-file error (nothing written),
-130 interrupted (Ctrl-C), 143 terminated (SIGTERM); rows computed before a failure or a
-signal are kept.
+One run writes into a folder at a time (a lock, DIR/.lock); a case file's fmu is native
+code this command loads, so run only case files you would run as programs.
+exit status: 0 finished, 1 run failed (or exchange.csv changed under the run), 2 usage or
+case-file error, another writer holding DIR, or a link at DIR/exchange.csv (nothing
+written), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM), also during a step that does
+not end; rows computed before a failure or a signal are kept.
 """
 
 
