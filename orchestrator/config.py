@@ -26,7 +26,7 @@ from fourbar_common import Drawing
 
 from .case import (DEFAULT_OUTPUTS, Case, Event, ExchangeSettings, Experiment, FmuDescription, Noise,
                    RampEvent, StepEvent, Value, describe_fmu)
-from .limits import MAX_STEP, UNIT_LIMITS
+from .limits import MAX_STEP, MIN_REALTIME_FACTOR, UNIT_LIMITS
 from .validation import ConfigError, ProblemReporter, kind_of, read_toml
 
 __all__ = ["apply_overrides", "load_case"]
@@ -623,6 +623,11 @@ class _Validator(ProblemReporter):
                             positive=True)
         factor = self.number("exchange.realtime_factor", table.get("realtime_factor", defaults.realtime_factor), "",
                              minimum=0.0)
+        if factor is not None and 0.0 < factor < MIN_REALTIME_FACTOR:
+            self.problem("exchange.realtime_factor", factor,
+                         f"expected 0 (as fast as possible) or a factor >= {MIN_REALTIME_FACTOR:g}: at "
+                         f"{factor:g} the run would take {1 / factor:.3g} s of wall time per simulated second")
+            factor = None
         max_rows = self.integer("exchange.max_rows", table.get("max_rows", defaults.max_rows), minimum=1)
         if experiment is not None and max_rows is not None:
             self.row_bound(experiment, outputs, max_rows)

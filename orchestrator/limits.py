@@ -13,6 +13,9 @@ periods of the shipped mechanisms' free motion (0.1-3 s) and ten times the coars
 monitor can use for a 1 s period; combined with ``exchange.max_rows`` (10,000,000 rows by
 default) it also bounds a run's span (1e8 s).
 
+Real-time pace.  ``exchange.realtime_factor`` (``--realtime``) is 0 or at least
+:data:`MIN_REALTIME_FACTOR`.
+
 Rates and angles.  A start value of a Real parameter is bounded by its declared unit
 (:data:`UNIT_LIMITS`): no linkage turns at 1e15 rad/s (its integrator would then take
 billions of steps per communication step).  The limits are far above anything physical, so
@@ -28,10 +31,14 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["MAX_STEP", "UNIT_LIMITS"]
+__all__ = ["MAX_STEP", "MIN_REALTIME_FACTOR", "UNIT_LIMITS"]
 
 #: s: the longest communication step (one doStep) a case may ask for.
 MAX_STEP = 10.0
+
+#: The slowest real-time pace: 0 (as fast as possible) or at least this factor.  At 1e-3 a
+#: 100 s case already lasts 28 hours of wall time; 1e-300 (accepted before) meant forever.
+MIN_REALTIME_FACTOR = 1e-3
 
 _DEG = 180.0 / math.pi
 #: Declared unit of a Real parameter -> largest magnitude of a start value or event value.

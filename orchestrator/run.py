@@ -192,18 +192,34 @@ def _now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
 
 
-def _schedule(case: Case) -> dict[int, list[tuple[str, Value]]]:
-    """Grid index -> the (variable, value) pairs to set after reading that row."""
+def _schedule(case: Case) -> tuple[dict[int, list[tuple[str, Value]]], list[tuple[int, int, StepEvent | RampEvent]]]:
+    """The step events by grid index (the (variable, value) pairs to set after reading that
+    row), and every event in the case's order as (first index, last index, event).  With a
+    ramp the loop computes its values at each point as it reaches it (:func:`_actions`): a
+    ramp over ten million points would otherwise hold ten million entries."""
     exp = case.experiment
-    schedule: dict[int, list[tuple[str, Value]]] = {}
+    steps: dict[int, list[tuple[str, Value]]] = {}
+    timed: list[tuple[int, int, StepEvent | RampEvent]] = []
     for event in case.events:
         if isinstance(event, StepEvent):
-            schedule.setdefault(exp.index(event.time), []).append((event.variable, event.value))
+            k = exp.index(event.time)
+            steps.setdefault(k, []).append((event.variable, event.value))
+            timed.append((k, k, event))
         elif isinstance(event, RampEvent):
-            k0, k1 = exp.index(event.start), exp.index(event.end)
-            for k in range(k0, min(k1, exp.n_steps) + 1):
-                schedule.setdefault(k, []).append((event.variable, event.value_at((k - k0) / (k1 - k0))))
-    return schedule
+            timed.append((exp.index(event.start), exp.index(event.end), event))
+    return steps, timed
+
+
+def _actions(k: int, timed: list[tuple[int, int, StepEvent | RampEvent]], n: int) -> list[tuple[str, Value]]:
+    """The (variable, value) pairs to set after reading row ``k``, in the case's event order."""
+    actions = []
+    for k0, k1, event in timed:
+        if k0 <= k <= min(k1, n):
+            if isinstance(event, StepEvent):
+                actions.append((event.variable, event.value))
+            else:
+                actions.append((event.variable, event.value_at((k - k0) / (k1 - k0))))
+    return actions
 
 
 def _parameter_starts(case: Case) -> tuple[ParameterStart, ...]:
@@ -577,7 +593,8 @@ class _Run:
         n = exp.n_steps
         start, step = exp.start, exp.step
         flush_every = max(1, round(case.exchange.flush_interval / step))
-        schedule = _schedule(case)
+        steps, timed = _schedule(case)
+        ramps = any(isinstance(event, RampEvent) for _, _, event in timed)
         read = fmu.reader(case.recorded)
         do_step, set_values = fmu.do_step, fmu.set_values
         lock = self._io_lock
@@ -602,7 +619,7 @@ class _Run:
                     self._flush(wait=False)
             if k == n:
                 break
-            actions = schedule.get(k)
+            actions = _actions(k, timed, n) if ramps else steps.get(k)
             if actions:
                 set_values(actions)
             flag.check()

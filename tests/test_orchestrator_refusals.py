@@ -6,6 +6,7 @@ ConfigError, never another exception.
 from __future__ import annotations
 
 import json
+import os
 import math
 import tomllib
 
@@ -106,7 +107,7 @@ def mutations(draw):
     return out
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=int(os.environ.get("FUZZ_EXAMPLES", "150")), deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(changes=mutations())
 def test_fuzzed_case_files_give_a_config_error_or_a_case(native_fmu, tmp_path, changes):
     """Any exception but ConfigError is a bug (the issue: 12 of 300 fuzzed files gave a traceback)."""
@@ -132,3 +133,30 @@ def test_fuzzed_case_files_give_a_config_error_or_a_case(native_fmu, tmp_path, c
     assert 0 < exp.step <= MAX_STEP and math.isfinite(exp.stop)
     assert all(not isinstance(v, float) or math.isfinite(v) for v in case.parameters.values()), \
         json.dumps(case.parameters, default=str)
+
+
+def test_a_pace_slower_than_the_bound_is_refused(native_fmu, tmp_path):
+    from orchestrator.limits import MIN_REALTIME_FACTOR
+
+    path = case_file("case1_normal", native_fmu, tmp_path)
+    assert "exchange.realtime_factor (from --realtime) = 1e-300: expected 0 (as fast as possible) or a factor >= " \
+           "0.001" in refused(path, realtime=1e-300)
+    assert load_case(path, realtime=MIN_REALTIME_FACTOR).exchange.realtime_factor == MIN_REALTIME_FACTOR
+
+
+def test_a_ramp_over_every_point_sets_each_value_once(native_fmu, tmp_path):
+    """Ramps are computed as the loop reaches each point (no table with a value per point, which
+    for a ramp over ten million points held ten million entries).  Real runs with ramps:
+    tests/test_orchestrator_ramp_noise.py; here the values the loop sets, in the case's order."""
+    from orchestrator.run import _actions, _schedule
+
+    extra = ('[[events]]\ntype = "ramp"\nvariable = "L2"\nfrom = 1.0\nto = 1.1\nstart = 0.0\nend = 2.0\n'
+             '[[events]]\ntype = "step"\ntime = 1.0\nvariable = "L3"\nvalue = 4.05\n')
+    path = case_file("case1_normal", native_fmu, tmp_path, stop=2.0, extra=extra)
+    case = load_case(path)
+    steps, timed = _schedule(case)
+    n = case.experiment.n_steps
+    values = [_actions(k, timed, n) for k in range(n + 1)]
+    assert values[0] == [("L2", 1.0)] and values[n] == [("L2", 1.1)]
+    assert values[100] == [("L2", 1.05), ("L3", 4.05)]          # the case's order: ramp, then step
+    assert steps == {100: [("L3", 4.05)]}
