@@ -355,7 +355,7 @@ class _Run:
             with InterruptFlag() as flag:
                 try:
                     with FmuInstance(self.case.fmu_description, self.case.name, fmi_type=self.case.fmi_type) as fmu:
-                        self._initialize(fmu)      # refused: StartValuesRefused, nothing written
+                        self._initialize_in_worker(fmu, flag)   # refused: StartValuesRefused, nothing written
                         flag.check()               # a signal while the FMU loaded: nothing written
                         self._start_outputs()
                         self._loop(fmu, flag)
@@ -402,6 +402,17 @@ class _Run:
             where += (f"; the FMU had not returned from its call {GRACE:g} s after the signal, so the run "
                       f"ended without it")
         return f"{stop_reason(signum)}{where}"
+
+    def _initialize_in_worker(self, fmu, flag: InterruptFlag) -> None:
+        """:meth:`_initialize` in a worker thread, as the loop (an FMU may also hang in its
+        initialisation); abandoned after a signal like a stuck step, before anything was written."""
+        from .stepping import run_in_worker
+
+        def take_over() -> None:
+            self.abandoned = True
+            fmu.abandon()
+
+        run_in_worker(lambda: self._initialize(fmu), flag, take_over, name="fmu initialisation")
 
     def _initialize(self, fmu) -> None:
         """Set up the experiment, set the start values, enter and leave initialisation mode.
