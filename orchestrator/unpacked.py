@@ -11,8 +11,10 @@ A folder changed in the last :data:`SETTLE` s is left too: another run may have 
 and not yet locked it.
 
 Chosen over a cache keyed by the FMU's hash: a cache shared by concurrent runs needs its own
-locking and a policy for its size, and the shipped FMUs unpack in milliseconds (the native
-FMU, 0.1 MB) to 0.1 s (the pythonfmu FMU with its Python sources).
+locking and a policy for its size, and unpacking is cheap: unpack and removal of
+build/FourBarNative.fmu (0.24 MB) take 0.027 s, of build/FourBar.fmu (0.73 MB, with its
+Python sources) 0.052 s, the scan for stale copies 0.3 ms (medians of 5, 2 shared cores
+under load; measured with ``UnpackedFmu(path)`` in a loop, see the commit that added this).
 """
 from __future__ import annotations
 
