@@ -25,8 +25,17 @@ empty, so a reader that sees the new ``run_id`` reads the new file), after flush
 most every 0.2 s of wall time), by a heartbeat every ``HEARTBEAT_INTERVAL`` s of wall time
 whatever the loop does (``updated_at``; ``writer`` names the process and host), and at the
 end (``finished``, ``failed`` or ``interrupted``, with the reason).  Rows already appended
-stay whatever happens; the FMU instance is always freed.  Ctrl-C and SIGTERM stop the loop
-at the next step (:mod:`orchestrator.pacing`).
+stay whatever happens; the FMU instance is freed unless a thread is still inside it.  Ctrl-C
+and SIGTERM stop the loop at the next step (:mod:`orchestrator.pacing`); the initialisation
+and the loop run in a worker thread (:mod:`orchestrator.stepping`), so a step that never
+returns is abandoned 0.5 s after the signal (``RunResult.abandoned``).
+
+One writer per folder.  Before anything in the folder changes, the run takes the folder's
+lock (:class:`fourbar_common.folder_lock.FolderLock`) and opens exchange.csv without
+following a symbolic link; either refused raises :class:`OutputRefused` with the folder as
+it was.  The run sets :data:`RESERVE_BYTES` aside for its last run.json (a full disk still
+ends ``failed``), and at the end checks that exchange.csv at the path is the file it wrote
+with every row (:meth:`~orchestrator.exchange.ExchangeWriter.verify`); if not, ``failed``.
 """
 from __future__ import annotations
 
