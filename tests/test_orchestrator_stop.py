@@ -102,3 +102,26 @@ def test_a_run_through_the_worker_is_complete_and_repeatable(native_fmu, tmp_pat
         assert proc.returncode == 0, proc.stderr
     assert (first / "exchange.csv").read_bytes() == (second / "exchange.csv").read_bytes()
     assert len((first / "exchange.csv").read_text().splitlines()) == 1 + 201
+
+
+def test_the_longest_step_validation_allows_is_stoppable_with_the_real_command(native_fmu, tmp_path):
+    """Within the bounds (step = 10 s, omega2_start = 1e4 rad/s: seconds per doStep on this
+    machine) the installed fourbar-run ends on SIGTERM with 143 and run.json ``interrupted``,
+    whether the step returns within the grace or is abandoned (that depends on the machine)."""
+    from support import FOURBAR_RUN
+
+    path = case_file("case1_normal", native_fmu, tmp_path, step=10.0, flush_interval=10.0)
+    out = tmp_path / "out"
+    proc = subprocess.Popen([FOURBAR_RUN, str(path), "--out", str(out), "--quiet", "--set", "omega2_start=1e4"],
+                            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    wait_for_rows(out, proc)
+    proc.send_signal(signal.SIGTERM)
+    try:
+        _, stderr = proc.communicate(timeout=HANG_GUARD)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        pytest.fail(f"no exit within {HANG_GUARD} s of SIGTERM")
+    assert proc.returncode == 143, stderr
+    record = json.loads((out / "run.json").read_text())
+    assert record["status"] == "interrupted" and record["error"].startswith("terminated by SIGTERM at t = ")
+    assert len((out / "exchange.csv").read_text().splitlines()) == 1 + record["rows_written"]
