@@ -23,6 +23,8 @@ from pathlib import Path
 
 import sympy as sp
 
+from .expressions import MAX_MAGNITUDE, ExpressionError, parse_expression
+
 __all__ = ["Mechanism", "Parameter", "Body", "PointRef", "Joint", "Driver", "StartValue",
            "MechanismError", "load_mechanism", "parse_mechanism", "MECHANISM_DIR", "resolve_mechanism",
            "shipped_mechanisms", "RATE_PREFIX", "POSITIVE"]
@@ -185,8 +187,12 @@ def load_mechanism(name_or_path: str | Path) -> Mechanism:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise MechanismError(f"{path}: not valid TOML: {exc}") from None
+    except (RecursionError, MemoryError) as exc:    # arrays or tables nested thousands deep
+        raise MechanismError(f"{path}: not usable TOML: nested too deeply ({type(exc).__name__})") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise MechanismError(f"{path}: cannot be read: {exc}") from None
+    except ValueError as exc:          # tomllib: an integer of more than 4300 digits
+        raise MechanismError(f"{path}: not usable TOML: {exc}") from None
     return parse_mechanism(data, str(path))
 
 
@@ -221,6 +227,9 @@ class _Reader:
         value = data.get(key, default)
         if value is None:
             raise self.fail(where, f"missing '{key}'")
+        if isinstance(value, int) and not isinstance(value, bool) and abs(value) > MAX_MAGNITUDE:
+            raise self.fail(where, f"'{key}' must be at most {MAX_MAGNITUDE:g} in magnitude, got a number of "
+                                   f"{len(str(abs(value)))} digits")
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise self.fail(where, f"'{key}' must be a finite number, got {value!r}")
         return float(value)
@@ -232,27 +241,37 @@ class _Reader:
                                    f"(allowed: {', '.join(sorted(allowed))})")
 
 
-def _expression(reader: _Reader, value, where: str, symbols: dict[str, sp.Symbol]) -> sp.Expr:
-    """A number, or a string expression over the parameters (e.g. "L1", "-L2/2")."""
+@dataclass(frozen=True)
+class _Scope:
+    """What an expression may name: the parameters' symbols and their values (SI) in the file."""
+
+    symbols: dict[str, sp.Symbol]
+    values: dict[str, float]
+
+
+def _shown(text: str) -> str:
+    """``text`` as a message quotes it: repr, cut after 80 characters (its length then said)."""
+    return repr(text) if len(text) <= 80 else f"{text[:80]!r}... ({len(text)} characters)"
+
+
+def _expression(reader: _Reader, value, where: str, scope: _Scope) -> sp.Expr:
+    """A number, or a string expression over the parameters (e.g. "L1", "-L2/2"), read by
+    ``expressions.parse_expression`` (a whitelist parser: the text is data, never run)."""
     if isinstance(value, bool):
         raise reader.fail(where, f"expected a number or an expression of parameters, got {value!r}")
     if isinstance(value, (int, float)):
-        if not math.isfinite(value):
-            raise reader.fail(where, f"must be finite, got {value!r}")
+        if isinstance(value, int) and abs(value) > MAX_MAGNITUDE:
+            raise reader.fail(where, f"must be at most {MAX_MAGNITUDE:g} in magnitude, got a number of "
+                                     f"{len(str(abs(value)))} digits")
+        if not math.isfinite(value) or abs(value) > MAX_MAGNITUDE:
+            raise reader.fail(where, f"must be finite and at most {MAX_MAGNITUDE:g} in magnitude, got {value!r}")
         return sp.Float(value) if isinstance(value, float) else sp.Integer(value)
-    if not isinstance(value, str) or not value.strip():
-        raise reader.fail(where, f"expected a number or an expression of parameters, got {value!r}")
+    if not isinstance(value, str):
+        raise reader.fail(where, f"expected a number or an expression of parameters, got {_shown(repr(value))}")
     try:
-        expr = sp.sympify(value, locals=dict(symbols), rational=True)
-    except (sp.SympifyError, SyntaxError, TypeError, ValueError, AttributeError) as exc:
-        raise reader.fail(where, f"cannot read {value!r} as an expression: {exc}") from None
-    if not isinstance(expr, sp.Expr):
-        raise reader.fail(where, f"{value!r} is not an arithmetic expression")
-    unknown = sorted(str(s) for s in expr.free_symbols if str(s) not in symbols)
-    if unknown:
-        raise reader.fail(where, f"{value!r} uses {', '.join(unknown)}, which {'is' if len(unknown) == 1 else 'are'} "
-                                 f"not a parameter (parameters: {', '.join(symbols) or 'none'})")
-    return expr
+        return parse_expression(value, scope.symbols, scope.values)
+    except ExpressionError as exc:
+        raise reader.fail(where, f"{_shown(value)} {exc}") from None
 
 
 def _parameters(reader: _Reader, table: dict) -> tuple[Parameter, ...]:
@@ -297,14 +316,14 @@ def _parameters(reader: _Reader, table: dict) -> tuple[Parameter, ...]:
     return tuple(out)
 
 
-def _point_pair(reader: _Reader, value, where: str, symbols) -> tuple[sp.Expr, sp.Expr]:
+def _point_pair(reader: _Reader, value, where: str, scope: _Scope) -> tuple[sp.Expr, sp.Expr]:
     if not isinstance(value, list) or len(value) != 2:
         raise reader.fail(where, f"a point is [x, y] (numbers or parameter expressions), got {value!r}")
-    return (_expression(reader, value[0], f"{where}[0]", symbols),
-            _expression(reader, value[1], f"{where}[1]", symbols))
+    return (_expression(reader, value[0], f"{where}[0]", scope),
+            _expression(reader, value[1], f"{where}[1]", scope))
 
 
-def _bodies(reader: _Reader, items, symbols) -> tuple[Body, ...]:
+def _bodies(reader: _Reader, items, scope: _Scope) -> tuple[Body, ...]:
     if not isinstance(items, list) or not items:
         raise reader.fail("bodies", "a mechanism needs at least one [[bodies]] entry")
     bodies, labels = [], {}
@@ -327,7 +346,7 @@ def _bodies(reader: _Reader, items, symbols) -> tuple[Body, ...]:
             raise reader.fail(where, f"label {label!r} is already the label of body '{labels[label]}'")
         labels[label] = name
         kind = reader.string(spec, "kind", where)
-        mass = _expression(reader, spec.get("mass"), f"{where}.mass", symbols) if "mass" in spec else None
+        mass = _expression(reader, spec.get("mass"), f"{where}.mass", scope) if "mass" in spec else None
         if mass is None:
             raise reader.fail(where, "missing 'mass'")
         rotates = spec.get("rotates", True)
@@ -340,7 +359,7 @@ def _bodies(reader: _Reader, items, symbols) -> tuple[Body, ...]:
                 raise reader.fail(where, "a rod's inertia is m L^2/12; give 'inertia' only for kind = \"block\"")
             if not rotates:
                 raise reader.fail(where, "a rod rotates; use kind = \"block\" for a body that only translates")
-            length = _expression(reader, spec.get("length"), f"{where}.length", symbols) if "length" in spec else None
+            length = _expression(reader, spec.get("length"), f"{where}.length", scope) if "length" in spec else None
             if length is None:
                 raise reader.fail(where, "a rod needs 'length'")
             inertia = mass * length**2 / 12
@@ -352,7 +371,7 @@ def _bodies(reader: _Reader, items, symbols) -> tuple[Body, ...]:
             if rotates:
                 if "inertia" not in spec:
                     raise reader.fail(where, "a block that rotates needs 'inertia' (kg.m2 about its centre of mass)")
-                inertia = _expression(reader, spec["inertia"], f"{where}.inertia", symbols)
+                inertia = _expression(reader, spec["inertia"], f"{where}.inertia", scope)
             else:
                 if "inertia" in spec:
                     raise reader.fail(where, "a block with rotates = false has no inertia to give")
@@ -367,7 +386,7 @@ def _bodies(reader: _Reader, items, symbols) -> tuple[Body, ...]:
                 raise reader.fail(where, f"point {pname!r} is predefined for a {kind}")
             if not _NAME.match(pname):
                 raise reader.fail(where, f"point name {pname!r}: letters, digits and _, starting with a letter")
-            points[pname] = _point_pair(reader, value, f"{where}.points.{pname}", symbols)
+            points[pname] = _point_pair(reader, value, f"{where}.points.{pname}", scope)
         guess = (reader.number(spec, "x", where, 0.0), reader.number(spec, "y", where, 0.0),
                  math.radians(reader.number(spec, "angle", where, 0.0)))
         bodies.append(Body(name, label, kind, mass, inertia, rotates, points, guess,
@@ -528,6 +547,7 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
                                          f"in 'Native' (the native FMU is <name>Native)")
     parameters = _parameters(reader, reader.table(data, "parameters", "top level"))
     symbols = {p.name: sp.Symbol(p.name, real=True) for p in parameters}
+    scope = _Scope(symbols, {p.name: p.value for p in parameters})
     gravity = head.get("gravity")
     if gravity is not None and (not isinstance(gravity, str) or gravity not in symbols):
         raise reader.fail("[mechanism]", f"gravity {gravity!r} must name a parameter (acceleration along -y)")
@@ -536,8 +556,8 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
     ground_points = ground_table.get("points", {})
     if not isinstance(ground_points, dict):
         raise reader.fail("[ground]", "'points' must be a table of name = [x, y]")
-    ground = {k: _point_pair(reader, v, f"ground.points.{k}", symbols) for k, v in ground_points.items()}
-    bodies = _bodies(reader, data.get("bodies"), symbols)
+    ground = {k: _point_pair(reader, v, f"ground.points.{k}", scope) for k, v in ground_points.items()}
+    bodies = _bodies(reader, data.get("bodies"), scope)
     joints = _joints(reader, data.get("joints"), bodies, ground)
     drivers = _drivers(reader, data.get("drivers"), joints, parameters)
     start = _start(reader, reader.table(data, "start", "top level", required=False), bodies)
