@@ -45,8 +45,9 @@ __all__ = ["ExpressionError", "parse_expression", "FUNCTIONS", "CONSTANTS", "MAX
 
 #: Longest expression text, characters.
 MAX_LENGTH = 500
-#: Deepest nesting of the syntax tree (each parenthesis pair, call, sign or operator is a level).
-MAX_DEPTH = 40
+#: Deepest nesting: parentheses, calls, signs and the right operand of an operator each add a
+#: level (a left-to-right chain ``a + b - c * d`` does not).
+MAX_DEPTH = 50
 #: Largest magnitude of an exponent (which must be a constant: no names in it).
 MAX_EXPONENT = 16
 #: Largest magnitude of a number written in an expression.
@@ -178,7 +179,10 @@ class _Walker:
                               f"{', '.join(self.symbols) or 'none'}; constants: {', '.join(CONSTANTS)})")
 
     def binary(self, node: ast.BinOp, depth: int) -> tuple[sp.Expr, float]:
-        left, a = self.node(node.left, depth + 1)
+        # a chain a + b + c ... nests to the left as it is written: its length is bounded by
+        # MAX_LENGTH, not counted as nesting
+        chained = isinstance(node.op, (ast.Add, ast.Sub, ast.Mult, ast.Div))
+        left, a = self.node(node.left, depth if chained else depth + 1)
         right, b = self.node(node.right, depth + 1)
         op = node.op
         if isinstance(op, ast.Pow):
