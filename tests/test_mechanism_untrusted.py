@@ -15,13 +15,11 @@ benchmarks/untrusted_expressions.py, not asserted here.
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 import subprocess
 import sys
 import tempfile
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,58 +31,10 @@ from support import REPO
 
 from fmu_src.mechanism.description import Mechanism, MechanismError, load_mechanism
 from fmu_src.mechanism.expressions import MAX_MAGNITUDE
+from corpus.mechanism_corpus import BASE, FIELDS, corpus, mechanism_file, shown, toml_string
 
-CORPUS = REPO / "tests" / "corpus" / "mechanism_expressions.toml"
-BASE = REPO / "fmu_src" / "mechanisms" / "fourbar.toml"
 #: The fourbar's parameters (SI), as its file gives them.
 VALUES = {"L1": 3.0, "L2": 1.0, "L3": 4.0, "L4": 2.5, "m2": 1.0, "m3": 1.0, "m4": 1.0, "g": 9.81}
-#: Where an expression goes: (field as a message names it, the line of fourbar.toml it replaces,
-#: the replacement with {} for the TOML string).
-FIELDS = {
-    "length": ("bodies[0] 'crank'.length", 'length = "L2"', "length = {}"),
-    "point": ("ground.points.O4[0]", 'O4 = ["L1", 0]', "O4 = [{}, 0]"),
-}
-
-
-@dataclass(frozen=True)
-class Case:
-    text: str
-    expect: str        # "load" or "refuse"
-    label: str         # for test ids and tables
-
-
-def corpus() -> tuple[Case, ...]:
-    """The corpus entries, expanded (``repeat``, ``prefix``, ``suffix``: see the file's header)."""
-    out = []
-    for k, entry in enumerate(tomllib.loads(CORPUS.read_text(encoding="utf-8"))["case"]):
-        n = entry.get("repeat", 1)
-        if "prefix" in entry or "suffix" in entry:
-            text = entry.get("prefix", "") * n + entry["text"] + entry.get("suffix", "") * n
-        else:
-            text = entry["text"] * n
-        shown = repr(entry["text"])[:40] + (f" x{n}" if n > 1 else "")
-        out.append(Case(text, entry["expect"], f"{k:03d} {shown}"))
-    return tuple(out)
-
-
-def toml_string(text: str) -> str:
-    """``text`` as a TOML basic string (JSON's escapes are TOML's; DEL must be escaped too)."""
-    return json.dumps(text, ensure_ascii=False).replace("\x7f", "\\u007f")
-
-
-def mechanism_file(folder: Path, text: str, field: str = "length") -> Path:
-    """fourbar.toml with ``text`` as the crank's length or as the x of ground point O4."""
-    _, line, replacement = FIELDS[field]
-    base = BASE.read_text(encoding="utf-8")
-    assert base.count(line) == 1 or field == "length"       # the crank's is the first length
-    path = folder / "untrusted.toml"
-    path.write_text(base.replace(line, replacement.format(toml_string(text)), 1), encoding="utf-8")
-    return path
-
-
-def shown(text: str) -> str:
-    """How a message quotes the text (docs/mechanisms.md: cut after 80 characters)."""
-    return repr(text) if len(text) <= 80 else repr(text[:80])
 
 
 def value_of(expr) -> float:
