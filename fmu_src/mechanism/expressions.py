@@ -195,8 +195,8 @@ class _Walker:
             if left.is_Rational and right.is_Rational:
                 bits = max(abs(left.p).bit_length(), left.q.bit_length()) * abs(float(right))
                 if bits > MAX_EXACT_BITS:
-                    raise ExpressionError(f"{ast.get_source_segment(self.text, node)[:60]!r} is an exact number "
-                                          f"of about {bits:.0f} bits; at most {MAX_EXACT_BITS}")
+                    raise ExpressionError(f"{self.part(node)}is an exact number of about {bits:.0f} bits; "
+                                          f"at most {MAX_EXACT_BITS}")
         value = self.checked(node, lambda: _OPERATIONS[type(op)](a, b))
         symbolic = {ast.Add: sp.Add, ast.Sub: lambda x, y: x - y, ast.Mult: sp.Mul, ast.Div: lambda x, y: x / y,
                     ast.Pow: sp.Pow}[type(op)]
@@ -219,19 +219,25 @@ class _Walker:
         value = self.checked(node, lambda: function.value(*(v for _, v in args)))
         return function.build(*(e for e, _ in args)), value
 
+    def part(self, node: ast.AST) -> str:
+        """How a message names a node: "" for the whole text (the loader quotes it), else
+        "its part '...' " (cut after 60 characters)."""
+        segment = ast.get_source_segment(self.text, node) or ""
+        return "" if segment == self.text else f"its part {segment[:60]!r} "
+
     def checked(self, node: ast.AST, compute: Callable[[], float]) -> float:
         """The float value of a node, refused unless finite, real and at most MAX_MAGNITUDE."""
-        segment = (ast.get_source_segment(self.text, node) or "")[:60]
+        part = self.part(node)
         try:
             value = compute()
         except ZeroDivisionError:
-            raise ExpressionError(f"{segment!r} divides by zero at the parameters' values") from None
+            raise ExpressionError(f"{part}divides by zero at the parameters' values") from None
         except (OverflowError, ValueError) as exc:
-            raise ExpressionError(f"{segment!r} has no finite real value at the parameters' values ({exc})") from None
+            raise ExpressionError(f"{part}has no finite real value at the parameters' values ({exc})") from None
         if isinstance(value, complex):
-            raise ExpressionError(f"{segment!r} is complex at the parameters' values")
+            raise ExpressionError(f"{part}is complex at the parameters' values")
         if not math.isfinite(value) or abs(value) > MAX_MAGNITUDE:
-            raise ExpressionError(f"{segment!r} is {value:.6g} at the parameters' values; at most "
+            raise ExpressionError(f"{part}is {value:.6g} at the parameters' values; at most "
                                   f"{MAX_MAGNITUDE:g} in magnitude")
         return value
 
