@@ -37,6 +37,8 @@ POSITIVE = 2.2250738585072014e-308
 RATE_PREFIX = {"theta": "omega", "x": "vx", "y": "vy"}
 _UNITS = {"m", "kg", "kg.m2", "m/s2", "rad", "deg", "rad/s", "m/s", "1", "N", "N.m", "J", "s"}
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
+#: Longest description, characters.
+MAX_TEXT = 2000
 _RESERVED = {"t", "rtol", "atol", "integrator", "energy", "constraint_residual", "ground", "pi", "E", "I"}
 
 
@@ -223,6 +225,21 @@ class _Reader:
             raise self.fail(where, f"'{key}' must be a non-empty string, got {value!r}")
         return value
 
+    def text(self, data, key: str, where: str, default: str) -> str:
+        """A free text (a description): a string of printable characters, at most MAX_TEXT long
+        (it goes into the model description's XML, where control characters are not allowed,
+        and into comments of the generated code)."""
+        value = data.get(key, default)
+        if not isinstance(value, str):
+            raise self.fail(where, f"'{key}' must be a string, got {type(value).__name__}")
+        if len(value) > MAX_TEXT:
+            raise self.fail(where, f"'{key}' is {len(value)} characters long; at most {MAX_TEXT}")
+        bad = next((c for c in value if not c.isprintable()), None)
+        if bad is not None:
+            raise self.fail(where, f"'{key}' contains the control or separator character U+{ord(bad):04X} "
+                                   f"(printable characters only: no line breaks or tabs)")
+        return value
+
     def number(self, data, key: str, where: str, default: float | None = None) -> float:
         value = data.get(key, default)
         if value is None:
@@ -309,7 +326,7 @@ def _parameters(reader: _Reader, table: dict) -> tuple[Parameter, ...]:
             raise reader.fail(where, f"value {value!r} is outside its own range "
                                      f"[{minimum if minimum is not None else '-inf'}, "
                                      f"{maximum if maximum is not None else 'inf'}]")
-        out.append(Parameter(name, value, unit, reader.string(spec, "description", where, name),
+        out.append(Parameter(name, value, unit, reader.text(spec, "description", where, name),
                              minimum, maximum, fixed, display))
     if not out:
         raise reader.fail("parameters", "a mechanism needs at least one parameter (its lengths and masses)")
@@ -390,7 +407,7 @@ def _bodies(reader: _Reader, items, scope: _Scope) -> tuple[Body, ...]:
         guess = (reader.number(spec, "x", where, 0.0), reader.number(spec, "y", where, 0.0),
                  math.radians(reader.number(spec, "angle", where, 0.0)))
         bodies.append(Body(name, label, kind, mass, inertia, rotates, points, guess,
-                           str(spec.get("description", name)), length))
+                           reader.text(spec, "description", where, name), length))
     return tuple(bodies)
 
 
@@ -526,7 +543,8 @@ def _start(reader: _Reader, table: dict, bodies: tuple[Body, ...]) -> tuple[Star
             if unit == "deg":
                 value, unit, display = math.radians(value), "rad", "deg"
             what = "angle" if name == key and is_angle else ("position" if name == key else "rate")
-            description = s.get("description", f"Initial {what} {name} of body '{coordinates[key].name}'")
+            description = reader.text(s, "description", where,
+                                      f"Initial {what} {name} of body '{coordinates[key].name}'")
             out.append(StartValue(name, value, unit, str(description), display))
     for key in given:
         if key in rates and rates[key] not in given:
@@ -575,5 +593,6 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
         if len(set(variables)) != len(variables):
             raise reader.fail("[outputs]", "a variable is listed twice")
         outputs = tuple(variables)
-    return Mechanism(name, str(head.get("description", name)), source, gravity, parameters, ground, bodies,
+    return Mechanism(name, reader.text(head, "description", "[mechanism]", name), source, gravity, parameters,
+                     ground, bodies,
                      joints, drivers, start, outputs)
