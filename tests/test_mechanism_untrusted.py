@@ -277,3 +277,15 @@ def test_a_description_cannot_end_a_comment_of_the_generated_code(description, t
     assert "injected" not in spliced.split("*/", 2)[1].split("/*")[0]
     assert spliced.count("/*") == spliced.count("*/")
     assert os.listdir(work) == []
+
+
+@pytest.mark.timeout(120)
+def test_a_refused_expression_is_refused_before_sympy_is_imported(tmp_path):
+    """The checks need no sympy (its import is most of a refusal's time through build_fmu.py)."""
+    path = mechanism_file(tmp_path, "10**10**10")
+    code = ("import sys\nfrom fmu_src.mechanism.description import MechanismError, load_mechanism\n"
+            f"try:\n    load_mechanism({str(path)!r})\nexcept MechanismError as exc:\n    print(exc)\n"
+            "print('sympy' in sys.modules)\n")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert proc.stdout.splitlines() == [f"{path}: bodies[0] 'crank'.length: '10**10**10' has the exponent '10**10' "
+                                        f"(= 1e+10); an exponent is at most 16 in magnitude", "False"], proc.stderr

@@ -6,7 +6,9 @@ and nowhere else, without ``eval``, ``exec`` or ``sympify`` of the text (sympify
 character by character, parsed by :func:`ast.parse` (which only parses), and the syntax tree is
 walked against a whitelist that builds the sympy expression node by node.  Each node is also
 evaluated in floating point at the parameters' values *before* its sympy object is built, so
-sympy never sees a number it would take long to compute.
+sympy never sees a number it would take long to compute.  :func:`check_expression` does all of
+this without importing sympy (the loader checks every expression of a file first, so a refusal
+does not wait for sympy's import); :func:`parse_expression` checks and then builds.
 
 The grammar (docs/mechanisms.md, "Expressions")::
 
@@ -37,10 +39,13 @@ import math
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from fractions import Fraction
+from typing import TYPE_CHECKING
 
-import sympy as sp
+if TYPE_CHECKING:
+    import sympy as sp
 
-__all__ = ["ExpressionError", "parse_expression", "FUNCTIONS", "CONSTANTS", "MAX_LENGTH", "MAX_DEPTH",
+__all__ = ["ExpressionError", "parse_expression", "check_expression", "FUNCTIONS", "CONSTANTS", "MAX_LENGTH", "MAX_DEPTH",
            "MAX_EXPONENT", "MAX_LITERAL", "MAX_MAGNITUDE", "MAX_EXACT_BITS"]
 
 #: Longest expression text, characters.
@@ -68,34 +73,50 @@ class ExpressionError(ValueError):
 
 @dataclass(frozen=True)
 class _Function:
-    """An allowed function: its sympy builder, its float evaluation (real domain), its arity."""
+    """An allowed function: its sympy name, its float evaluation (real domain), its arity."""
 
-    build: Callable[..., sp.Expr]
+    sympy_name: str
     value: Callable[..., float]
     arity: int
 
 
 #: The functions an expression may call (all real-valued on their real domain).
 FUNCTIONS: Mapping[str, _Function] = {
-    "sqrt": _Function(sp.sqrt, math.sqrt, 1),
-    "sin": _Function(sp.sin, math.sin, 1),
-    "cos": _Function(sp.cos, math.cos, 1),
-    "tan": _Function(sp.tan, math.tan, 1),
-    "asin": _Function(sp.asin, math.asin, 1),
-    "acos": _Function(sp.acos, math.acos, 1),
-    "atan": _Function(sp.atan, math.atan, 1),
-    "atan2": _Function(sp.atan2, math.atan2, 2),   # atan2(y, x), as in C and Python
-    "exp": _Function(sp.exp, math.exp, 1),
-    "log": _Function(sp.log, math.log, 1),          # natural logarithm
+    "sqrt": _Function("sqrt", math.sqrt, 1),
+    "sin": _Function("sin", math.sin, 1),
+    "cos": _Function("cos", math.cos, 1),
+    "tan": _Function("tan", math.tan, 1),
+    "asin": _Function("asin", math.asin, 1),
+    "acos": _Function("acos", math.acos, 1),
+    "atan": _Function("atan", math.atan, 1),
+    "atan2": _Function("atan2", math.atan2, 2),   # atan2(y, x), as in C and Python
+    "exp": _Function("exp", math.exp, 1),
+    "log": _Function("log", math.log, 1),          # natural logarithm
 }
-#: The named constants an expression may use.
-CONSTANTS: Mapping[str, tuple[sp.Expr, float]] = {"pi": (sp.pi, math.pi)}
+#: The named constants an expression may use: name -> (sympy name, value).
+CONSTANTS: Mapping[str, tuple[str, float]] = {"pi": ("pi", math.pi)}
+
+
+def check_expression(text: str, values: Mapping[str, float]) -> float:
+    """The value of ``text`` at the parameters' ``values`` (name -> float, SI), after every check
+    of the module doc, without sympy.  Raises :class:`ExpressionError` (and nothing else)."""
+    return _walk(text, values, None).value
 
 
 def parse_expression(text: str, symbols: Mapping[str, sp.Symbol], values: Mapping[str, float]) -> sp.Expr:
     """The sympy expression of ``text`` over the parameters ``symbols`` (name -> Symbol), checked
     at the parameters' ``values`` (name -> float, SI).  Raises :class:`ExpressionError` (and
     nothing else) for a text outside the grammar of the module doc or out of its bounds."""
+    _walk(text, values, None)                 # every check first: sympy builds only what passed
+    import sympy as sp
+
+    expr = _walk(text, values, symbols).expr
+    if expr.has(sp.zoo, sp.oo, sp.nan, sp.I) or expr.has(-sp.oo):
+        raise ExpressionError("is not finite and real (division by an exact zero, or a complex value)")
+    return expr
+
+
+def _walk(text: str, values: Mapping[str, float], symbols: Mapping[str, sp.Symbol] | None) -> _Node:
     if not isinstance(text, str):
         raise ExpressionError(f"expected text, got {type(text).__name__}")
     if len(text) > MAX_LENGTH:
@@ -117,23 +138,35 @@ def parse_expression(text: str, symbols: Mapping[str, sp.Symbol], values: Mappin
         raise ExpressionError(f"is not an expression ({exc.msg})") from None
     except (RecursionError, MemoryError, ValueError) as exc:
         raise ExpressionError(f"cannot be parsed ({type(exc).__name__})") from None
-    walker = _Walker(text.strip(), symbols, values)
     try:
-        expr, _ = walker.node(tree.body, 1)
+        return _Walker(text.strip(), values, symbols).node(tree.body, 1)
     except (RecursionError, MemoryError) as exc:
         raise ExpressionError(f"is too complex to read ({type(exc).__name__})") from None
-    if expr.has(sp.zoo, sp.oo, sp.nan, sp.I) or expr.has(-sp.oo):
-        raise ExpressionError("is not finite and real (division by an exact zero, or a complex value)")
-    return expr
+
+
+@dataclass(frozen=True)
+class _Node:
+    """A checked node: its sympy expression (None when only checking), its float value at the
+    parameters' values, whether it is constant (no parameters), and for a constant an upper
+    bound on the bits of the exact number sympy may make of it (numerator or denominator)."""
+
+    expr: sp.Expr | None
+    value: float
+    constant: bool
+    bits: float = 0.0
 
 
 class _Walker:
-    """Builds (sympy expression, float value at the parameters' values) per whitelisted node."""
+    """Checks each whitelisted node (float value, bounds) and, given ``symbols``, builds its sympy
+    expression from its checked children."""
 
-    def __init__(self, text: str, symbols: Mapping[str, sp.Symbol], values: Mapping[str, float]):
-        self.text, self.symbols, self.values = text, symbols, values
+    def __init__(self, text: str, values: Mapping[str, float], symbols: Mapping[str, sp.Symbol] | None):
+        self.text, self.values, self.symbols = text, values, symbols
+        if symbols is not None:
+            import sympy
+            self.sp = sympy
 
-    def node(self, node: ast.AST, depth: int) -> tuple[sp.Expr, float]:
+    def node(self, node: ast.AST, depth: int) -> _Node:
         if depth > MAX_DEPTH:
             raise ExpressionError(f"nests deeper than {MAX_DEPTH} levels")
         if isinstance(node, ast.Constant):
@@ -141,8 +174,10 @@ class _Walker:
         if isinstance(node, ast.Name):
             return self.name(node.id)
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.UAdd, ast.USub)):
-            expr, value = self.node(node.operand, depth + 1)
-            return (expr, value) if isinstance(node.op, ast.UAdd) else (-expr, -value)
+            a = self.node(node.operand, depth + 1)
+            if isinstance(node.op, ast.UAdd):
+                return a
+            return _Node(None if a.expr is None else -a.expr, -a.value, a.constant, a.bits)
         if isinstance(node, ast.BinOp) and isinstance(node.op, (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow)):
             return self.binary(node, depth)
         if isinstance(node, ast.Call):
@@ -152,11 +187,9 @@ class _Walker:
 
     def describe(self, node: ast.AST) -> str:
         segment = ast.get_source_segment(self.text, node)
-        what = type(node).__name__ if not isinstance(node, (ast.operator, ast.unaryop)) else \
-            f"the operator {type(node).__name__}"
-        return f"{what} {segment[:40]!r}" if segment else what
+        return f"{type(node).__name__} {segment[:40]!r}" if segment else type(node).__name__
 
-    def number(self, node: ast.Constant) -> tuple[sp.Expr, float]:
+    def number(self, node: ast.Constant) -> _Node:
         segment = ast.get_source_segment(self.text, node) or ""
         if isinstance(node.value, bool) or not isinstance(node.value, (int, float)) or not _DECIMAL.match(segment):
             raise ExpressionError(f"{segment[:40]!r} is not a decimal number (strings, complex, hexadecimal "
@@ -164,45 +197,54 @@ class _Walker:
         value = float(node.value) if isinstance(node.value, float) or abs(node.value) <= 10**300 else math.inf
         if not math.isfinite(value) or abs(value) > MAX_LITERAL:
             raise ExpressionError(f"the number {segment[:40]} is beyond {MAX_LITERAL:g} in magnitude")
-        # Exact, as sympify(..., rational=True) read it: "0.1" is 1/10, "2" is 2.
-        expr = sp.Integer(node.value) if isinstance(node.value, int) else sp.Rational(segment)
-        return expr, value
+        # the exact number as sympify(..., rational=True) read it: "0.1" is 1/10, "2" is 2
+        exact = Fraction(segment)
+        bits = max(abs(exact.numerator).bit_length(), exact.denominator.bit_length())
+        expr = None
+        if self.symbols is not None:
+            expr = self.sp.Integer(node.value) if isinstance(node.value, int) else self.sp.Rational(segment)
+        return _Node(expr, value, True, bits)
 
-    def name(self, name: str) -> tuple[sp.Expr, float]:
-        if name in self.symbols:
-            return self.symbols[name], float(self.values[name])
+    def name(self, name: str) -> _Node:
+        if self.symbols is not None and name in self.symbols:
+            return _Node(self.symbols[name], float(self.values[name]), False)
+        if name in self.values:
+            return _Node(None, float(self.values[name]), False)
         if name in CONSTANTS:
-            return CONSTANTS[name]
+            sympy_name, value = CONSTANTS[name]
+            return _Node(None if self.symbols is None else getattr(self.sp, sympy_name), value, True, 64)
         if name in FUNCTIONS:
             raise ExpressionError(f"uses the function {name} without calling it")
         raise ExpressionError(f"uses {name}, which is not a parameter (parameters: "
-                              f"{', '.join(self.symbols) or 'none'}; constants: {', '.join(CONSTANTS)})")
+                              f"{', '.join(self.values) or 'none'}; constants: {', '.join(CONSTANTS)})")
 
-    def binary(self, node: ast.BinOp, depth: int) -> tuple[sp.Expr, float]:
+    def binary(self, node: ast.BinOp, depth: int) -> _Node:
         # a chain a + b + c ... nests to the left as it is written: its length is bounded by
         # MAX_LENGTH, not counted as nesting
         chained = isinstance(node.op, (ast.Add, ast.Sub, ast.Mult, ast.Div))
-        left, a = self.node(node.left, depth if chained else depth + 1)
-        right, b = self.node(node.right, depth + 1)
-        op = node.op
-        if isinstance(op, ast.Pow):
-            if right.free_symbols:
+        a = self.node(node.left, depth if chained else depth + 1)
+        b = self.node(node.right, depth + 1)
+        op = type(node.op)
+        bits = a.bits + b.bits + 1
+        if op is ast.Pow:
+            if not b.constant:
                 raise ExpressionError(f"raises to {ast.get_source_segment(self.text, node.right)!r}, which uses "
                                       f"parameters; an exponent is a constant")
-            if not abs(b) <= MAX_EXPONENT:
+            if not abs(b.value) <= MAX_EXPONENT:
                 raise ExpressionError(f"has the exponent {ast.get_source_segment(self.text, node.right)!r} "
-                                      f"(= {b:.6g}); an exponent is at most {MAX_EXPONENT} in magnitude")
-            if left.is_Rational and right.is_Rational:
-                bits = max(abs(left.p).bit_length(), left.q.bit_length()) * abs(float(right))
-                if bits > MAX_EXACT_BITS:
-                    raise ExpressionError(f"{self.part(node)}is an exact number of about {bits:.0f} bits; "
-                                          f"at most {MAX_EXACT_BITS}")
-        value = self.checked(node, lambda: _OPERATIONS[type(op)](a, b))
-        symbolic = {ast.Add: sp.Add, ast.Sub: lambda x, y: x - y, ast.Mult: sp.Mul, ast.Div: lambda x, y: x / y,
-                    ast.Pow: sp.Pow}[type(op)]
-        return symbolic(left, right), value
+                                      f"(= {b.value:.6g}); an exponent is at most {MAX_EXPONENT} in magnitude")
+            bits = a.bits * max(1.0, abs(b.value))
+            if a.constant and bits > MAX_EXACT_BITS:
+                raise ExpressionError(f"{self.part(node)}is an exact number of about {bits:.0f} bits; "
+                                      f"at most {MAX_EXACT_BITS}")
+        value = self.checked(node, lambda: _OPERATIONS[op](a.value, b.value))
+        expr = None
+        if self.symbols is not None:
+            expr = {ast.Add: self.sp.Add, ast.Sub: lambda x, y: x - y, ast.Mult: self.sp.Mul,
+                    ast.Div: lambda x, y: x / y, ast.Pow: self.sp.Pow}[op](a.expr, b.expr)
+        return _Node(expr, value, a.constant and b.constant, bits)
 
-    def call(self, node: ast.Call, depth: int) -> tuple[sp.Expr, float]:
+    def call(self, node: ast.Call, depth: int) -> _Node:
         name = node.func.id if isinstance(node.func, ast.Name) else None
         if name not in FUNCTIONS:
             what = name if name is not None else ast.get_source_segment(self.text, node.func)
@@ -216,8 +258,11 @@ class _Walker:
             raise ExpressionError(f"calls {name} with {len(node.args)} argument{'s' if len(node.args) != 1 else ''}; "
                                   f"it takes {function.arity}")
         args = [self.node(a, depth + 1) for a in node.args]
-        value = self.checked(node, lambda: function.value(*(v for _, v in args)))
-        return function.build(*(e for e, _ in args)), value
+        value = self.checked(node, lambda: function.value(*(a.value for a in args)))
+        expr = None
+        if self.symbols is not None:
+            expr = getattr(self.sp, function.sympy_name)(*(a.expr for a in args))
+        return _Node(expr, value, all(a.constant for a in args), sum(a.bits for a in args) + 1)
 
     def part(self, node: ast.AST) -> str:
         """How a message names a node: "" for the whole text (the loader quotes it), else
