@@ -82,8 +82,9 @@ def test_corpus_entry_loads_or_is_refused_without_side_effect(case, field, tmp_p
 
 @pytest.mark.slow
 @pytest.mark.parametrize("text", ["__import__('os').system('id > canary_system') * 0 + L3", "10**10**10",
-                                  "exec('import os; os.system(\"touch canary_exec\")')", "(" * 100000 + "L2" + ")" * 100000,
-                                  "exp(1000)", "L2\n__import__('os').system('touch canary_newline')"])
+                                  "exec('import os; os.system(\"touch canary_exec\")')",
+                                  "(" * 100000 + "L2" + ")" * 100000, "exp(1000)",
+                                  "L2\n__import__('os').system('touch canary_newline')"])
 def test_build_fmu_refuses_with_exit_2_naming_file_field_and_text(text, tmp_path):
     path = mechanism_file(tmp_path, text)
     work = tmp_path / "work"

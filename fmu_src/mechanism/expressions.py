@@ -22,13 +22,14 @@ The grammar (docs/mechanisms.md, "Expressions")::
     function   := one of FUNCTIONS (sqrt, sin, cos, tan, asin, acos, atan, atan2, exp, log)
 
 Bounds, and why: MAX_LENGTH characters (the shipped files use at most 20; a parse is linear in
-the text); MAX_DEPTH levels of nesting (parentheses, calls, signs: the walk recurses once per
-level); exponents constant and at most MAX_EXPONENT in magnitude (``2**1000000`` or
-``10**10**10`` are big-number bombs, and a mechanism's geometry needs squares and square
-roots); powers of numbers at most MAX_EXACT_BITS long as exact fractions (sympy computes them
-exactly: ``(1e-300**16)**16`` is tiny as a float but has 4,800 digits); every intermediate value at the parameters' values finite, real and at most
-MAX_MAGNITUDE in magnitude (SI lengths and masses of a linkage are far inside; a bound keeps
-sympy's exact arithmetic on numbers small).  A text that breaks one is refused with
+the text); MAX_DEPTH levels of nesting (parentheses, calls, signs and right operands: the walk
+recurses once per level; a chain ``a + b - c`` is not nesting); exponents constant and at most
+MAX_EXPONENT in magnitude (``2**1000000`` or ``10**10**10`` are big-number bombs, and a
+mechanism's geometry needs squares and square roots); a power of numbers at most MAX_EXACT_BITS
+long as an exact fraction (sympy computes it exactly: ``(1e-300**16)**16`` is 0.0 as a float
+but has 76,800 digits); every intermediate value at the parameters' values finite, real and at
+most MAX_MAGNITUDE in magnitude (SI lengths and masses of a linkage are far inside; the bound
+keeps sympy's exact arithmetic on small numbers).  A text that breaks one is refused with
 :class:`ExpressionError`, whose message says what was refused and why; the loader adds the file
 and the field.
 """
@@ -45,8 +46,8 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     import sympy as sp
 
-__all__ = ["ExpressionError", "parse_expression", "check_expression", "FUNCTIONS", "CONSTANTS", "MAX_LENGTH", "MAX_DEPTH",
-           "MAX_EXPONENT", "MAX_LITERAL", "MAX_MAGNITUDE", "MAX_EXACT_BITS"]
+__all__ = ["ExpressionError", "parse_expression", "check_expression", "FUNCTIONS", "CONSTANTS", "MAX_LENGTH",
+           "MAX_DEPTH", "MAX_EXPONENT", "MAX_LITERAL", "MAX_MAGNITUDE", "MAX_EXACT_BITS"]
 
 #: Longest expression text, characters.
 MAX_LENGTH = 500
@@ -60,7 +61,8 @@ MAX_LITERAL = 1e15
 #: Largest magnitude of any intermediate value at the parameters' values.
 MAX_MAGNITUDE = 1e30
 #: Largest exact number (numerator or denominator, bits) a power of numbers may make: sympy
-#: computes ``(1e-300**16)**16`` exactly, and the float check sees only 0.0.
+#: computes ``(1e-300**16)**16`` exactly, and the float check sees only 0.0.  An upper
+#: estimate carried by the walk (bits of a literal; sums and products add; a power multiplies).
 MAX_EXACT_BITS = 4096
 
 _ALLOWED_CHARACTERS = re.compile(r"[A-Za-z0-9_+\-*/()., \t]*\Z")
