@@ -50,6 +50,7 @@ from .c_loops import closed_stages
 from .c_reduction import Reduction, reduce_constraints
 from .mechanism.derivation import MechanismEquations
 from .mechanism.description import MechanismError
+from .mechanism.quoting import comment_text
 from .mechanism.python_code import _guess   # the pythonfmu FMU's GUESS: one home
 from .mechanism.table import model_exchange_states, native_variable_table
 from .mechanism_model.variables import INTEGRATOR_NAMES, POSITIVE
@@ -657,9 +658,9 @@ def _source_label(eqs: MechanismEquations) -> str:
     it, else its file name (absolute paths would make the GUID depend on the checkout)."""
     path = Path(eqs.mechanism.source)
     try:
-        return path.resolve().relative_to(_REPO).as_posix()
+        return comment_text(path.resolve().relative_to(_REPO).as_posix())
     except (ValueError, OSError):
-        return path.name
+        return comment_text(path.name)
 
 
 def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
@@ -794,7 +795,7 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
     header = [
         _HEADER.format(what=_source_label(eqs)),
         "#ifndef MECHANISM_EQUATIONS_H\n#define MECHANISM_EQUATIONS_H\n",
-        f"/* {mech.name}: {mech.description}",
+        f"/* {mech.name}: {comment_text(mech.description)}",
         f"   q = [{', '.join(eqs.coordinates)}], qd = dq/dt;",
         f"   p = ({', '.join(params)});",
         f"   d = the drivers' (s_ref, t_ref, v){': (' + ', '.join(map(str, eqs.drive)) + ')' if eqs.drive else ' (none)'};",

@@ -333,5 +333,5 @@ def _joint_position_outputs(mech: Mechanism, frames: _Frames, offered: dict[str,
             else:
                 text = f"{suffix[1]} of joint {joint.name}'s guide point ({_point_words(joint.first)}) [m]"
             unit, display = ("rad", "deg") if suffix == "gangle" else ("m", None)
-            out[name] = OutputSpec(name, unit, text, sp.sympify(expr), display_unit=display)
+            out[name] = OutputSpec(name, unit, text, sp.sympify(expr, strict=True), display_unit=display)
     return out

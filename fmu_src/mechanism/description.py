@@ -21,7 +21,12 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-import sympy as sp
+from typing import TYPE_CHECKING
+
+from .expressions import MAX_MAGNITUDE, ExpressionError, check_expression, parse_expression
+
+if TYPE_CHECKING:      # sympy is imported once every expression of the file has passed its checks
+    import sympy as sp
 
 __all__ = ["Mechanism", "Parameter", "Body", "PointRef", "Joint", "Driver", "StartValue",
            "MechanismError", "load_mechanism", "parse_mechanism", "MECHANISM_DIR", "resolve_mechanism",
@@ -35,6 +40,8 @@ POSITIVE = 2.2250738585072014e-308
 RATE_PREFIX = {"theta": "omega", "x": "vx", "y": "vy"}
 _UNITS = {"m", "kg", "kg.m2", "m/s2", "rad", "deg", "rad/s", "m/s", "1", "N", "N.m", "J", "s"}
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
+#: Longest description, characters.
+MAX_TEXT = 2000
 _RESERVED = {"t", "rtol", "atol", "integrator", "energy", "constraint_residual", "ground", "pi", "E", "I"}
 
 
@@ -185,8 +192,12 @@ def load_mechanism(name_or_path: str | Path) -> Mechanism:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise MechanismError(f"{path}: not valid TOML: {exc}") from None
+    except (RecursionError, MemoryError) as exc:    # arrays or tables nested thousands deep
+        raise MechanismError(f"{path}: not usable TOML: nested too deeply ({type(exc).__name__})") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise MechanismError(f"{path}: cannot be read: {exc}") from None
+    except ValueError as exc:          # tomllib: an integer of more than 4300 digits
+        raise MechanismError(f"{path}: not usable TOML: {exc}") from None
     return parse_mechanism(data, str(path))
 
 
@@ -217,10 +228,28 @@ class _Reader:
             raise self.fail(where, f"'{key}' must be a non-empty string, got {value!r}")
         return value
 
+    def text(self, data, key: str, where: str, default: str) -> str:
+        """A free text (a description): a string of printable characters, at most MAX_TEXT long
+        (it goes into the model description's XML, where control characters are not allowed,
+        and into comments of the generated code)."""
+        value = data.get(key, default)
+        if not isinstance(value, str):
+            raise self.fail(where, f"'{key}' must be a string, got {type(value).__name__}")
+        if len(value) > MAX_TEXT:
+            raise self.fail(where, f"'{key}' is {len(value)} characters long; at most {MAX_TEXT}")
+        bad = next((c for c in value if not c.isprintable()), None)
+        if bad is not None:
+            raise self.fail(where, f"'{key}' contains the control or separator character U+{ord(bad):04X} "
+                                   f"(printable characters only: no line breaks or tabs)")
+        return value
+
     def number(self, data, key: str, where: str, default: float | None = None) -> float:
         value = data.get(key, default)
         if value is None:
             raise self.fail(where, f"missing '{key}'")
+        if isinstance(value, int) and not isinstance(value, bool) and abs(value) > MAX_MAGNITUDE:
+            raise self.fail(where, f"'{key}' must be at most {MAX_MAGNITUDE:g} in magnitude, got a number of "
+                                   f"{len(str(abs(value)))} digits")
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise self.fail(where, f"'{key}' must be a finite number, got {value!r}")
         return float(value)
@@ -232,27 +261,39 @@ class _Reader:
                                    f"(allowed: {', '.join(sorted(allowed))})")
 
 
-def _expression(reader: _Reader, value, where: str, symbols: dict[str, sp.Symbol]) -> sp.Expr:
-    """A number, or a string expression over the parameters (e.g. "L1", "-L2/2")."""
+@dataclass(frozen=True)
+class _Scope:
+    """What an expression may name: the parameters' symbols and their values (SI) in the file."""
+
+    symbols: dict[str, sp.Symbol]
+    values: dict[str, float]
+
+
+def _shown(text: str) -> str:
+    """``text`` as a message quotes it: repr, cut after 80 characters (its length then said)."""
+    return repr(text) if len(text) <= 80 else f"{text[:80]!r}... ({len(text)} characters)"
+
+
+def _expression(reader: _Reader, value, where: str, scope: _Scope) -> sp.Expr:
+    """A number, or a string expression over the parameters (e.g. "L1", "-L2/2"), read by
+    ``expressions.parse_expression`` (a whitelist parser: the text is data, never run)."""
+    import sympy as sp
+
     if isinstance(value, bool):
         raise reader.fail(where, f"expected a number or an expression of parameters, got {value!r}")
     if isinstance(value, (int, float)):
-        if not math.isfinite(value):
-            raise reader.fail(where, f"must be finite, got {value!r}")
+        if isinstance(value, int) and abs(value) > MAX_MAGNITUDE:
+            raise reader.fail(where, f"must be at most {MAX_MAGNITUDE:g} in magnitude, got a number of "
+                                     f"{len(str(abs(value)))} digits")
+        if not math.isfinite(value) or abs(value) > MAX_MAGNITUDE:
+            raise reader.fail(where, f"must be finite and at most {MAX_MAGNITUDE:g} in magnitude, got {value!r}")
         return sp.Float(value) if isinstance(value, float) else sp.Integer(value)
-    if not isinstance(value, str) or not value.strip():
-        raise reader.fail(where, f"expected a number or an expression of parameters, got {value!r}")
+    if not isinstance(value, str):
+        raise reader.fail(where, f"expected a number or an expression of parameters, got {_shown(repr(value))}")
     try:
-        expr = sp.sympify(value, locals=dict(symbols), rational=True)
-    except (sp.SympifyError, SyntaxError, TypeError, ValueError, AttributeError) as exc:
-        raise reader.fail(where, f"cannot read {value!r} as an expression: {exc}") from None
-    if not isinstance(expr, sp.Expr):
-        raise reader.fail(where, f"{value!r} is not an arithmetic expression")
-    unknown = sorted(str(s) for s in expr.free_symbols if str(s) not in symbols)
-    if unknown:
-        raise reader.fail(where, f"{value!r} uses {', '.join(unknown)}, which {'is' if len(unknown) == 1 else 'are'} "
-                                 f"not a parameter (parameters: {', '.join(symbols) or 'none'})")
-    return expr
+        return parse_expression(value, scope.symbols, scope.values)
+    except ExpressionError as exc:
+        raise reader.fail(where, f"{_shown(value)} {exc}") from None
 
 
 def _parameters(reader: _Reader, table: dict) -> tuple[Parameter, ...]:
@@ -290,21 +331,56 @@ def _parameters(reader: _Reader, table: dict) -> tuple[Parameter, ...]:
             raise reader.fail(where, f"value {value!r} is outside its own range "
                                      f"[{minimum if minimum is not None else '-inf'}, "
                                      f"{maximum if maximum is not None else 'inf'}]")
-        out.append(Parameter(name, value, unit, reader.string(spec, "description", where, name),
+        out.append(Parameter(name, value, unit, reader.text(spec, "description", where, name),
                              minimum, maximum, fixed, display))
     if not out:
         raise reader.fail("parameters", "a mechanism needs at least one parameter (its lengths and masses)")
     return tuple(out)
 
 
-def _point_pair(reader: _Reader, value, where: str, symbols) -> tuple[sp.Expr, sp.Expr]:
+def _point_pair(reader: _Reader, value, where: str, scope: _Scope) -> tuple[sp.Expr, sp.Expr]:
     if not isinstance(value, list) or len(value) != 2:
         raise reader.fail(where, f"a point is [x, y] (numbers or parameter expressions), got {value!r}")
-    return (_expression(reader, value[0], f"{where}[0]", symbols),
-            _expression(reader, value[1], f"{where}[1]", symbols))
+    return (_expression(reader, value[0], f"{where}[0]", scope),
+            _expression(reader, value[1], f"{where}[1]", scope))
 
 
-def _bodies(reader: _Reader, items, symbols) -> tuple[Body, ...]:
+def _check_expressions(reader: _Reader, data: dict, values: dict[str, float]) -> None:
+    """Every expression of the file checked (``expressions.check_expression``, no sympy) before
+    anything is built: a refusal does not wait for sympy's import (about 0.7 s of CPU).  Only
+    what has the expected shape is checked; the main pass reports the rest, with the same
+    field names."""
+    def check(value, where: str) -> None:
+        if isinstance(value, str):
+            try:
+                check_expression(value, values)
+            except ExpressionError as exc:
+                raise reader.fail(where, f"{_shown(value)} {exc}") from None
+
+    def pair(value, where: str) -> None:
+        if isinstance(value, list) and len(value) == 2:
+            check(value[0], f"{where}[0]")
+            check(value[1], f"{where}[1]")
+
+    ground = data.get("ground")
+    if isinstance(ground, dict) and isinstance(ground.get("points"), dict):
+        for name, value in ground["points"].items():
+            pair(value, f"ground.points.{name}")
+    bodies = data.get("bodies")
+    for k, spec in enumerate(bodies if isinstance(bodies, list) else ()):
+        if not isinstance(spec, dict) or not isinstance(spec.get("name"), str) or not spec["name"]:
+            continue
+        where = f"bodies[{k}] '{spec['name']}'"
+        for key in ("mass", "length", "inertia"):
+            check(spec.get(key), f"{where}.{key}")
+        if isinstance(spec.get("points"), dict):
+            for name, value in spec["points"].items():
+                pair(value, f"{where}.points.{name}")
+
+
+def _bodies(reader: _Reader, items, scope: _Scope) -> tuple[Body, ...]:
+    import sympy as sp
+
     if not isinstance(items, list) or not items:
         raise reader.fail("bodies", "a mechanism needs at least one [[bodies]] entry")
     bodies, labels = [], {}
@@ -327,7 +403,7 @@ def _bodies(reader: _Reader, items, symbols) -> tuple[Body, ...]:
             raise reader.fail(where, f"label {label!r} is already the label of body '{labels[label]}'")
         labels[label] = name
         kind = reader.string(spec, "kind", where)
-        mass = _expression(reader, spec.get("mass"), f"{where}.mass", symbols) if "mass" in spec else None
+        mass = _expression(reader, spec.get("mass"), f"{where}.mass", scope) if "mass" in spec else None
         if mass is None:
             raise reader.fail(where, "missing 'mass'")
         rotates = spec.get("rotates", True)
@@ -340,7 +416,7 @@ def _bodies(reader: _Reader, items, symbols) -> tuple[Body, ...]:
                 raise reader.fail(where, "a rod's inertia is m L^2/12; give 'inertia' only for kind = \"block\"")
             if not rotates:
                 raise reader.fail(where, "a rod rotates; use kind = \"block\" for a body that only translates")
-            length = _expression(reader, spec.get("length"), f"{where}.length", symbols) if "length" in spec else None
+            length = _expression(reader, spec.get("length"), f"{where}.length", scope) if "length" in spec else None
             if length is None:
                 raise reader.fail(where, "a rod needs 'length'")
             inertia = mass * length**2 / 12
@@ -352,7 +428,7 @@ def _bodies(reader: _Reader, items, symbols) -> tuple[Body, ...]:
             if rotates:
                 if "inertia" not in spec:
                     raise reader.fail(where, "a block that rotates needs 'inertia' (kg.m2 about its centre of mass)")
-                inertia = _expression(reader, spec["inertia"], f"{where}.inertia", symbols)
+                inertia = _expression(reader, spec["inertia"], f"{where}.inertia", scope)
             else:
                 if "inertia" in spec:
                     raise reader.fail(where, "a block with rotates = false has no inertia to give")
@@ -367,11 +443,11 @@ def _bodies(reader: _Reader, items, symbols) -> tuple[Body, ...]:
                 raise reader.fail(where, f"point {pname!r} is predefined for a {kind}")
             if not _NAME.match(pname):
                 raise reader.fail(where, f"point name {pname!r}: letters, digits and _, starting with a letter")
-            points[pname] = _point_pair(reader, value, f"{where}.points.{pname}", symbols)
+            points[pname] = _point_pair(reader, value, f"{where}.points.{pname}", scope)
         guess = (reader.number(spec, "x", where, 0.0), reader.number(spec, "y", where, 0.0),
                  math.radians(reader.number(spec, "angle", where, 0.0)))
         bodies.append(Body(name, label, kind, mass, inertia, rotates, points, guess,
-                           str(spec.get("description", name)), length))
+                           reader.text(spec, "description", where, name), length))
     return tuple(bodies)
 
 
@@ -507,7 +583,8 @@ def _start(reader: _Reader, table: dict, bodies: tuple[Body, ...]) -> tuple[Star
             if unit == "deg":
                 value, unit, display = math.radians(value), "rad", "deg"
             what = "angle" if name == key and is_angle else ("position" if name == key else "rate")
-            description = s.get("description", f"Initial {what} {name} of body '{coordinates[key].name}'")
+            description = reader.text(s, "description", where,
+                                      f"Initial {what} {name} of body '{coordinates[key].name}'")
             out.append(StartValue(name, value, unit, str(description), display))
     for key in given:
         if key in rates and rates[key] not in given:
@@ -527,7 +604,11 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
         raise reader.fail("[mechanism]", f"name {name!r} must be a C identifier (it names the FMU) and not end "
                                          f"in 'Native' (the native FMU is <name>Native)")
     parameters = _parameters(reader, reader.table(data, "parameters", "top level"))
+    _check_expressions(reader, data, {p.name: p.value for p in parameters})
+    import sympy as sp
+
     symbols = {p.name: sp.Symbol(p.name, real=True) for p in parameters}
+    scope = _Scope(symbols, {p.name: p.value for p in parameters})
     gravity = head.get("gravity")
     if gravity is not None and (not isinstance(gravity, str) or gravity not in symbols):
         raise reader.fail("[mechanism]", f"gravity {gravity!r} must name a parameter (acceleration along -y)")
@@ -536,8 +617,8 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
     ground_points = ground_table.get("points", {})
     if not isinstance(ground_points, dict):
         raise reader.fail("[ground]", "'points' must be a table of name = [x, y]")
-    ground = {k: _point_pair(reader, v, f"ground.points.{k}", symbols) for k, v in ground_points.items()}
-    bodies = _bodies(reader, data.get("bodies"), symbols)
+    ground = {k: _point_pair(reader, v, f"ground.points.{k}", scope) for k, v in ground_points.items()}
+    bodies = _bodies(reader, data.get("bodies"), scope)
     joints = _joints(reader, data.get("joints"), bodies, ground)
     drivers = _drivers(reader, data.get("drivers"), joints, parameters)
     start = _start(reader, reader.table(data, "start", "top level", required=False), bodies)
@@ -555,5 +636,6 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
         if len(set(variables)) != len(variables):
             raise reader.fail("[outputs]", "a variable is listed twice")
         outputs = tuple(variables)
-    return Mechanism(name, str(head.get("description", name)), source, gravity, parameters, ground, bodies,
+    return Mechanism(name, reader.text(head, "description", "[mechanism]", name), source, gravity, parameters,
+                     ground, bodies,
                      joints, drivers, start, outputs)

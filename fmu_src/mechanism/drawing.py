@@ -54,7 +54,7 @@ def _body_joint_order(mech: Mechanism, body_name: str, joints: list[Joint]) -> t
     points = []
     for joint in joints:
         ref = joint.first if joint.first.body == body_name else joint.second
-        x, y = (float(sp.sympify(e).xreplace(values)) for e in body.points[ref.point])
+        x, y = (float(sp.sympify(e, strict=True).xreplace(values)) for e in body.points[ref.point])
         points.append((x, y))
     names = [j.name for j in joints]
     scale = max([1.0] + [abs(c) for p in points for c in p])
@@ -77,7 +77,7 @@ def drawing_of(mech: Mechanism) -> Drawing:
         touching = [j for j in mech.joints if body.name in (j.first.body, j.second.body)]
         exprs = [body.mass, body.inertia] + ([body.length] if body.length is not None else []) \
             + [c for point in body.points.values() for c in point]
-        used = {str(s) for e in exprs for s in sp.sympify(e).free_symbols}
+        used = {str(s) for e in exprs for s in sp.sympify(e, strict=True).free_symbols}
         bodies.append(DrawnBody(body.name, body.label, body.kind, _body_joint_order(mech, body.name, touching),
                                 tuple(sorted(used & set(order), key=order.__getitem__))))
     joints = tuple(DrawnJoint(j.name, j.type, "ground" in (j.first.body, j.second.body)) for j in mech.joints)
