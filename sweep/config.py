@@ -335,17 +335,22 @@ class _Validator(ProblemReporter):
                 f"than the {MAX_SCENARIOS:,} a sweep may run; expected fewer values in its arrays or a smaller "
                 f"sample.n")
 
-    def regular_file(self, key: str, path: Path, what: str) -> bool:
-        """False (after a problem on ``key``) when ``path`` exists but is no regular file: a FIFO,
-        a device, a socket would be read forever or fail oddly (a missing file or a folder is
-        left to the reader, which names it)."""
+    def regular_file(self, key: str, value: str, path: Path, what: str) -> bool:
+        """False (after a problem on ``key``) when ``path`` cannot be a readable file: it exists but
+        is a FIFO, a device or a socket (read forever, or oddly), or its name cannot be looked up
+        (too long, a NUL character).  A missing file or a folder is left to the reader, which
+        names it."""
         try:
             mode = os.stat(path).st_mode
-        except OSError:
+        except FileNotFoundError:
             return True
+        except (OSError, ValueError) as exc:
+            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+            self.problem(key, value, f"cannot be looked up ({reason}); expected the path of a {what}")
+            return False
         if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
             return True
-        self.problem(key, str(path), f"not a regular file (a FIFO, device or socket); expected a {what}")
+        self.problem(key, value, f"not a regular file (a FIFO, device or socket); expected a {what}")
         return False
 
     def base_case(self):
@@ -359,13 +364,15 @@ class _Validator(ProblemReporter):
             return None
         from orchestrator import ConfigError, load_case
 
-        path = (self.path.parent / value).resolve()
         fmu = self.raw.get("fmu")
         if fmu is not None and (not isinstance(fmu, str) or not fmu):
             self.problem("fmu", fmu, f"expected a path string (relative to the sweep file), got {kind_of(fmu)}")
             fmu = None
-        if not self.regular_file("case", path, "case file (TOML)"):
+        if fmu is not None and not self.regular_file("fmu", fmu, self.path.parent / fmu, "FMU file"):
             return None
+        if not self.regular_file("case", value, self.path.parent / value, "case file (TOML)"):
+            return None
+        path = (self.path.parent / value).resolve()
         try:
             case = load_case(path, fmu=None if fmu is None else self.path.parent / fmu)
         except ConfigError as exc:
@@ -683,7 +690,7 @@ def load_sweep(path: str | Path) -> Sweep:
     """Read and validate a sweep file; raise :class:`SweepError` listing every problem."""
     path = Path(path)
     checker = _Validator({}, path)
-    if not checker.regular_file("sweep", path, "sweep file (TOML)"):
+    if not checker.regular_file("sweep", str(path), path, "sweep file (TOML)"):
         raise SweepError(str(path), checker.problems)
     raw = read_toml(path, "sweep file", SweepError)
     return _Validator(raw, path.resolve()).sweep()

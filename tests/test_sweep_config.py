@@ -389,3 +389,20 @@ def test_a_fifo_or_a_device_is_refused_not_read(tmp_path, fourbar_fmu):
     proc = _dry_run([str(fifo)], tmp_path)
     assert proc.returncode == 2 and f'{fifo}: sweep = "{fifo}": not a regular file' in proc.stderr, proc.stderr
     assert "Traceback" not in proc.stderr and not (tmp_path / "out").exists()
+
+
+def test_a_path_that_cannot_be_looked_up_is_refused(tmp_path, fourbar_fmu):
+    """A base case or FMU path with a NUL character or a 4000-character name (fuzzed sweep files)
+    raised ValueError / OSError tracebacks; now each is one problem naming the key."""
+    text = smoke(tmp_path, fourbar_fmu).read_text()
+    case_line = f'case = "{tmp_path / "case1_normal.toml"}"'
+    for name, line, fragment in (
+            ("nul_case", 'case = "cases/\\u0000.toml"', 'case = "cases/\\u0000.toml": cannot be looked up (embedded null'),
+            ("long_case", f'case = "{"A" * 4000}"', "cannot be looked up (File name too long)"),
+            ("long_fmu", f'{case_line}\nfmu = "{"A" * 4000}"', "fmu = \"AAAA"),
+            ("nul_fmu", f'{case_line}\nfmu = "x\\u0000.fmu"', 'fmu = "x\\u0000.fmu": cannot be looked up')):
+        path = tmp_path / f"{name}.toml"
+        path.write_text(text.replace(case_line, line))
+        with pytest.raises(SweepError) as info:
+            load_sweep(path)
+        assert fragment in str(info.value), str(info.value)
