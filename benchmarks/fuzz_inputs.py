@@ -437,6 +437,7 @@ def _corpus_sweep(bases: dict[str, str]) -> list[FuzzInput]:
     add("case_dir", re.sub(r'(?m)^case\s*=.*$', 'case = "/"', base), "case = a directory")
     add("case_dev_zero", re.sub(r'(?m)^case\s*=.*$', 'case = "/dev/zero"', base), "case = /dev/zero")
     add("case_self", re.sub(r'(?m)^case\s*=.*$', 'case = "sweep.toml"', base), "case = the sweep file itself")
+    add("deep_array", base + "\n[report]\nx = " + "[" * 5000 + "]" * 5000 + "\n", "an array nested 5000 deep")
     add("empty", "", "an empty file")
     add("nul", "\x00" * 100, "NUL bytes")
     return out
