@@ -13,6 +13,13 @@ key -- against the schema, against the base case (loaded with
 frozen :class:`Sweep` or raises one :class:`SweepError` listing every problem, each naming
 the file, the key, the value and what was expected.
 
+Bounded work: the sweep file and its base case must be regular files (a FIFO or a device
+such as /dev/zero would be read forever); the sweep's ``stop`` is checked by the orchestrator
+as a case's (``exchange.max_rows``); seeds are integers below 2**63 (the results table stores
+them as 64-bit integers); and a sweep plans at most :data:`MAX_SCENARIOS` scenarios (counted
+before duplicates are removed: every grid point times every draw, plus the fault-free runs),
+so a mistyped grid or ``sample.n`` is refused at once instead of being planned for hours.
+
 Heavy imports (FMPy through the orchestrator, numpy through the monitor) happen inside
 :func:`load_sweep`, not at import time.
 """
@@ -20,6 +27,8 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
+import stat
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping, Union
@@ -35,6 +44,8 @@ __all__ = [
     "Range",
     "SampleSpec",
     "Sweep",
+    "MAX_SCENARIOS",
+    "MAX_SEED",
     "SweepError",
     "load_sweep",
 ]
@@ -49,6 +60,11 @@ _OUTPUT_KEYS = ("keep_exchange", "monitor_plots")
 _DIAGNOSE_KEYS = ("enabled",)
 _RANGE_KEYS = ("min", "max", "scale")
 _KINDS = ("step", "ramp")
+#: Most scenarios a sweep may plan.  sweeps/parameters.toml plans 676; a million scenarios of
+#: 30 s runs are weeks of a 2-core machine, and planning them alone takes minutes.
+MAX_SCENARIOS = 1_000_000
+#: Largest seed (noise.seed, sample.seed): the results table stores seeds as 64-bit integers.
+MAX_SEED = 2 ** 63 - 1
 
 
 class SweepError(ConfigError):
@@ -247,6 +263,8 @@ class _Validator(ProblemReporter):
         if scale == "log" and not (lo > 0):
             self.problem(f"{key}.min", lo, 'expected a number > 0 with scale = "log"')
             return None
+        if integer:      # seeds: kept exact (a float of 2**63 - 1 rounds up to 2**63)
+            return Range(int(lo), int(hi), scale, integer)
         return Range(float(lo), float(hi), scale, integer)
 
     # -- the sweep ----------------------------------------------------------------------
@@ -286,6 +304,8 @@ class _Validator(ProblemReporter):
         if sample is not None and not self.ranges:
             self.problem("sample", raw.get("sample"), "nothing to sample: give some axis as a range table "
                                                       "{min = .., max = .., scale = ..}, or remove [sample]")
+        if fault is not None and noise is not None and monitor is not None and (sample is not None or not self.ranges):
+            self.scenario_bound(fault, noise, monitor, sample)
         if self.problems:
             raise SweepError(str(self.path), self.problems)
         if case.events or case.noise is not None:
@@ -296,6 +316,42 @@ class _Validator(ProblemReporter):
                      noise=noise, monitor=monitor, sample=sample, latency_limit=latency_limit,
                      keep_exchange=keep_exchange, monitor_plots=monitor_plots, diagnose=bool(diagnose),
                      description=description, notes=tuple(self.notes))
+
+    def scenario_bound(self, fault: FaultSpec, noise: NoiseSpec, monitor: MonitorSpec,
+                       sample: SampleSpec | None) -> None:
+        """At most :data:`MAX_SCENARIOS` planned scenarios (see the module docstring)."""
+        def size(axis: Axis) -> int:
+            return 1 if isinstance(axis, Range) else len(axis)
+
+        draws = sample.n if sample is not None else 1
+        clean = size(noise.std) * size(noise.seed) * size(monitor.model) * size(monitor.threshold)
+        faulty = (len(fault.variables) * size(fault.kind) * size(fault.size) * size(fault.time)
+                  * size(fault.ramp_duration or (None,)) * clean)
+        count = (faulty + (clean if fault.no_fault else 0)) * draws
+        if count > MAX_SCENARIOS:
+            self.problems.append(
+                f"the sweep plans {count:,} scenarios ({faulty:,} grid points with a fault"
+                f"{f' and {clean:,} without' if fault.no_fault else ''}, times {draws:,} draw(s) of [sample]), more "
+                f"than the {MAX_SCENARIOS:,} a sweep may run; expected fewer values in its arrays or a smaller "
+                f"sample.n")
+
+    def regular_file(self, key: str, value: str, path: Path, what: str) -> bool:
+        """False (after a problem on ``key``) when ``path`` cannot be a readable file: it exists but
+        is a FIFO, a device or a socket (read forever, or oddly), or its name cannot be looked up
+        (too long, a NUL character).  A missing file or a folder is left to the reader, which
+        names it."""
+        try:
+            mode = os.stat(path).st_mode
+        except FileNotFoundError:
+            return True
+        except (OSError, ValueError) as exc:
+            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+            self.problem(key, value, f"cannot be looked up ({reason}); expected the path of a {what}")
+            return False
+        if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+            return True
+        self.problem(key, value, f"not a regular file (a FIFO, device or socket); expected a {what}")
+        return False
 
     def base_case(self):
         """The base case (validated by the orchestrator, with its FMU description), or None."""
@@ -308,11 +364,15 @@ class _Validator(ProblemReporter):
             return None
         from orchestrator import ConfigError, load_case
 
-        path = (self.path.parent / value).resolve()
         fmu = self.raw.get("fmu")
         if fmu is not None and (not isinstance(fmu, str) or not fmu):
             self.problem("fmu", fmu, f"expected a path string (relative to the sweep file), got {kind_of(fmu)}")
             fmu = None
+        if fmu is not None and not self.regular_file("fmu", fmu, self.path.parent / fmu, "FMU file"):
+            return None
+        if not self.regular_file("case", value, self.path.parent / value, "case file (TOML)"):
+            return None
+        path = (self.path.parent / value).resolve()
         try:
             case = load_case(path, fmu=None if fmu is None else self.path.parent / fmu)
         except ConfigError as exc:
@@ -334,6 +394,14 @@ class _Validator(ProblemReporter):
             return None
         if self.whole_steps("stop", stop, stop - exp.start, exp.step,
                             "not on the case's communication grid: (stop - start)/step") is None:
+            return None
+        from orchestrator import ConfigError, apply_overrides
+
+        try:        # the case's own checks of a run's length (exchange.max_rows), with this stop
+            apply_overrides(replace(case, events=(), noise=None), stop=stop)
+        except ConfigError as exc:
+            for p in exc.problems:
+                self.problems.append(f"stop = {show_value(stop)}: {p}")
             return None
         return stop
 
@@ -579,12 +647,20 @@ class _Validator(ProblemReporter):
             return None
         return change
 
+    def seed(self, key: str, value: Any) -> int | None:
+        """A seed: an integer in [0, :data:`MAX_SEED`]."""
+        seed = self.integer(key, value, minimum=0)
+        if seed is not None and seed > MAX_SEED:
+            self.problem(key, seed, f"expected an integer <= 2**63 - 1 = {MAX_SEED} (the results table stores "
+                                    f"seeds as 64-bit integers)")
+            return None
+        return seed
+
     def noise(self) -> NoiseSpec | None:
         table = self.table("noise") or {}
         self.unknown_keys(table, _NOISE_KEYS, "noise")
         std = self.axis("noise.std", table.get("std", 0.0), lambda k, v: self.number(k, v, minimum=0.0))
-        seed = self.axis("noise.seed", table.get("seed", 1), lambda k, v: self.integer(k, v, minimum=0),
-                         integer=True)
+        seed = self.axis("noise.seed", table.get("seed", 1), self.seed, integer=True)
         if std is None or seed is None:
             return None
         return NoiseSpec(std=std, seed=seed)
@@ -604,7 +680,7 @@ class _Validator(ProblemReporter):
         if "seed" not in table:
             self.missing("sample.seed", "an integer seed (the draws are reproducible)")
         else:
-            seed = self.integer("sample.seed", table["seed"], minimum=0)
+            seed = self.seed("sample.seed", table["seed"])
         if n is None or seed is None:
             return None
         return SampleSpec(n=n, seed=seed)
@@ -613,5 +689,11 @@ class _Validator(ProblemReporter):
 def load_sweep(path: str | Path) -> Sweep:
     """Read and validate a sweep file; raise :class:`SweepError` listing every problem."""
     path = Path(path)
-    raw = read_toml(path, "sweep file", SweepError)
+    checker = _Validator({}, path)
+    if not checker.regular_file("sweep", str(path), path, "sweep file (TOML)"):
+        raise SweepError(str(path), checker.problems)
+    try:
+        raw = read_toml(path, "sweep file", SweepError)
+    except RecursionError:    # tomllib recurses once per nesting level of an array or inline table
+        raise SweepError(str(path), ["not valid TOML: arrays or tables nested too deeply"]) from None
     return _Validator(raw, path.resolve()).sweep()

@@ -314,3 +314,105 @@ def test_a_sweep_file_can_name_the_native_fmu(tmp_path, fourbar_fmu, native_fmu)
     bad.write_text('fmu = "missing.fmu"\n' + bad.read_text())
     with pytest.raises(SweepError, match="missing.fmu.*file not found"):
         load_sweep(bad)
+
+
+# -- bounded work (issue 36): what benchmarks/fuzz_inputs.py found in `fourbar-sweep --dry-run` ------------
+
+#: A guard against a hang of the CLI on a FIFO or a device, not a speed target (a refusal takes ~2 s).
+HANG_GUARD = 60.0
+FAULT = '[fault]\nvariable = "L2"\nrelative = 0.01\ntime = 10.0\n'
+
+
+def test_a_sweep_of_too_many_scenarios_is_refused_before_planning(tmp_path, fourbar_fmu):
+    """A grid of 1000 x 1000 x 1000 or 10**9 draws is refused at load, naming the count, instead of
+    being planned for hours (the old dry run was still planning the grid after 30 s)."""
+    from sweep.config import MAX_SCENARIOS
+
+    arrays = ('[fault]\nvariable = "L2"\ntime = 10.0\nno_fault = true\nrelative = [' +
+              ", ".join(f"{0.001 * (i + 1):.3f}" for i in range(999)) + "]\n[noise]\nstd = [" +
+              ", ".join(f"{1e-5 * i:.5f}" for i in range(1000)) + "]\nseed = [" +
+              ", ".join(str(i) for i in range(1000)) + "]\n")
+    with pytest.raises(SweepError, match=r"plans 1,000,000,000 scenarios \(999,000,000 grid points with a fault "
+                                         r"and 1,000,000 without"):
+        load_sweep(write_sweep(tmp_path, fourbar_fmu, arrays, "grid.toml"))
+    draws = FAULT + "[noise]\nstd = { min = 0.0, max = 0.01 }\n[sample]\nn = 1000000000\nseed = 1\n"
+    with pytest.raises(SweepError, match=r"plans 1,000,000,000 scenarios .* 1,000,000,000 draw\(s\) of \[sample\]"):
+        load_sweep(write_sweep(tmp_path, fourbar_fmu, draws, "draws.toml"))
+    # the bound itself is allowed: 1000 sizes x 1000 draws
+    at_bound = ('[fault]\nvariable = "L2"\ntime = 10.0\nrelative = [' +
+                ", ".join(f"{0.001 * (i + 1):.3f}" for i in range(1000)) + "]\n[noise]\nstd = { min = 0.0, max = 0.01 }"
+                f"\n[sample]\nn = {MAX_SCENARIOS // 1000}\nseed = 1\n")
+    assert load_sweep(write_sweep(tmp_path, fourbar_fmu, at_bound, "bound.toml")).sample.n == 1000
+
+
+def test_seeds_beyond_64_bits_are_refused_and_the_largest_is_drawn_exactly(tmp_path, fourbar_fmu):
+    for body, key in ((FAULT + "[noise]\nstd = 0.001\nseed = 18446744073709551616\n", "noise.seed"),
+                      (FAULT + "[noise]\nstd = { min = 0.0, max = 0.01 }\n[sample]\nn = 2\n"
+                               "seed = 99999999999999999999999\n", "sample.seed")):
+        with pytest.raises(SweepError, match=rf"{key} = \d+: expected an integer <= 2\*\*63 - 1"):
+            load_sweep(write_sweep(tmp_path, fourbar_fmu, body))
+    # a seed axis sampled up to 2**63 - 1: the bound is kept as an integer (its float is 2**63, which
+    # numpy refuses as the top of an int64 draw)
+    top = FAULT + "[noise]\nstd = 0.001\nseed = { min = 9223372036854775800, max = 9223372036854775807 }\n" \
+                  "[sample]\nn = 50\nseed = 3\n"
+    seeds = {s.noise_seed for s in plan_scenarios(load_sweep(write_sweep(tmp_path, fourbar_fmu, top)))}
+    assert seeds and all(9223372036854775800 <= s <= 2 ** 63 - 1 for s in seeds)
+
+
+def test_a_stop_longer_than_the_case_may_run_is_refused(tmp_path, fourbar_fmu):
+    """The sweep's stop gets the case's own check (exchange.max_rows: 10,000,000 rows by default)."""
+    with pytest.raises(SweepError, match=r"stop = 10000000.0: experiment: .* would write 1,000,000,001 rows"):
+        load_sweep(write_sweep(tmp_path, fourbar_fmu, "stop = 1e7\n" + FAULT))
+    # the base case's events are dropped, so a stop before them is still fine (case 2's fault is at 10 s)
+    case = case_file("case2_fault_L2", fourbar_fmu, tmp_path)
+    path = tmp_path / "short.toml"
+    path.write_text(f'case = "{case}"\nstop = 9.5\n[fault]\nvariable = "L2"\nrelative = 0.01\ntime = 9.2\n')
+    assert load_sweep(path).stop == 9.5
+
+
+def _dry_run(argv: list[str], cwd: Path):
+    import subprocess
+    import sys
+
+    return subprocess.run([str(Path(sys.executable).parent / "fourbar-sweep"), *argv, "--dry-run", "--out",
+                           str(cwd / "out")], cwd=cwd, capture_output=True, text=True, timeout=HANG_GUARD)
+
+
+def test_a_fifo_or_a_device_is_refused_not_read(tmp_path, fourbar_fmu):
+    """A sweep file or base case that is a FIFO (no writer) or /dev/zero was read forever; now exit 2
+    naming it, nothing written."""
+    text = smoke(tmp_path, fourbar_fmu).read_text()
+    device = tmp_path / "device.toml"
+    device.write_text(text.replace(f'case = "{tmp_path / "case1_normal.toml"}"', 'case = "/dev/zero"'))
+    assert 'case = "/dev/zero"' in device.read_text()
+    proc = _dry_run([str(device)], tmp_path)
+    assert proc.returncode == 2 and 'case = "/dev/zero": not a regular file' in proc.stderr, proc.stderr
+    fifo = tmp_path / "fifo.toml"
+    os.mkfifo(fifo)
+    proc = _dry_run([str(fifo)], tmp_path)
+    assert proc.returncode == 2 and f'{fifo}: sweep = "{fifo}": not a regular file' in proc.stderr, proc.stderr
+    assert "Traceback" not in proc.stderr and not (tmp_path / "out").exists()
+
+
+def test_a_path_that_cannot_be_looked_up_is_refused(tmp_path, fourbar_fmu):
+    """A base case or FMU path with a NUL character or a 4000-character name (fuzzed sweep files)
+    raised ValueError / OSError tracebacks; now each is one problem naming the key."""
+    text = smoke(tmp_path, fourbar_fmu).read_text()
+    case_line = f'case = "{tmp_path / "case1_normal.toml"}"'
+    for name, line, fragment in (
+            ("nul_case", 'case = "cases/\\u0000.toml"', 'case = "cases/\\u0000.toml": cannot be looked up (embedded null'),
+            ("long_case", f'case = "{"A" * 4000}"', "cannot be looked up (File name too long)"),
+            ("long_fmu", f'{case_line}\nfmu = "{"A" * 4000}"', "fmu = \"AAAA"),
+            ("nul_fmu", f'{case_line}\nfmu = "x\\u0000.fmu"', 'fmu = "x\\u0000.fmu": cannot be looked up')):
+        path = tmp_path / f"{name}.toml"
+        path.write_text(text.replace(case_line, line))
+        with pytest.raises(SweepError) as info:
+            load_sweep(path)
+        assert fragment in str(info.value), str(info.value)
+
+
+def test_a_deeply_nested_sweep_file_is_refused(tmp_path, fourbar_fmu):
+    """tomllib recurses per nesting level: 5000 nested arrays raised RecursionError (a traceback)."""
+    path = write_sweep(tmp_path, fourbar_fmu, FAULT + "[report]\nx = " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(SweepError, match="not valid TOML: arrays or tables nested too deeply"):
+        load_sweep(path)
