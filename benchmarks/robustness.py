@@ -391,6 +391,22 @@ def _interrupt(signum, frame):
     raise KeyboardInterrupt
 
 
+
+#: Where this page's part ends: what follows belongs to benchmarks/fuzz_inputs.py (its own
+#: marked section), which ``--write`` keeps as it is.
+KEPT_FROM = "# Fuzzed input files\n"
+
+
+def _kept_part(page: Path) -> str:
+    """What of ``page`` follows this benchmark's part (from KEPT_FROM on; "" when absent)."""
+    try:
+        text = page.read_text(encoding="utf-8")
+    except OSError:
+        return ""
+    at = text.find("\n" + KEPT_FROM)
+    return "" if at < 0 else "\n" + text[at + 1:]
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=str(REPO / "out" / "benchmarks" / "robustness"), help="cache and run folders")
@@ -429,7 +445,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"robustness: {len(planned) - len(keys)} scenarios still to run (--limit); the page covers "
               f"{len(keys)}", file=sys.stderr)
     if args.write:
-        Path(args.write).write_text(text, encoding="utf-8")
+        Path(args.write).write_text(text + _kept_part(Path(args.write)), encoding="utf-8")
         print(f"wrote {args.write}", file=sys.stderr)
     else:
         print(text)
