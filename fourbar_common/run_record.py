@@ -362,12 +362,15 @@ def open_regular(path: str | os.PathLike[str]) -> BinaryIO:
         raise
 
 
-def read_text_file(path: str | os.PathLike[str], *, max_bytes: int = MAX_JSON_BYTES) -> str:
-    """The UTF-8 text of the regular file ``path``, at most ``max_bytes`` long.
+def read_text_file(path: str | os.PathLike[str], *, max_bytes: int | None = None) -> str:
+    """The UTF-8 text of the regular file ``path``, at most ``max_bytes`` long (default
+    :data:`MAX_JSON_BYTES`).
 
     Raises ``FileNotFoundError``, :class:`NotRegularFileError`, :class:`JsonFileError` (too
     large, not UTF-8) naming the file, or ``OSError``.
     """
+    if max_bytes is None:
+        max_bytes = MAX_JSON_BYTES
     with open_regular(path) as handle:
         data = handle.read(max_bytes + 1)
     if len(data) > max_bytes:
@@ -390,7 +393,7 @@ def parse_json(text: str, source: str) -> Any:
         raise JsonFileError(f"{source}: not valid JSON: {exc}") from None
 
 
-def read_json_file(path: str | os.PathLike[str], *, max_bytes: int = MAX_JSON_BYTES) -> Any:
+def read_json_file(path: str | os.PathLike[str], *, max_bytes: int | None = None) -> Any:
     """The parsed JSON file ``path`` (regular, at most ``max_bytes``); errors as
     :func:`read_text_file` and :func:`parse_json`."""
     return parse_json(read_text_file(path, max_bytes=max_bytes), str(path))
