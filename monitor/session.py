@@ -37,6 +37,9 @@ from .summary import MonitorResult, Summary, Timing, before_fault, score_alarms
 
 __all__ = ["follow", "replay", "warm_up"]
 
+#: Grid problems said one by one (the rest are counted in summary.json's ``grid``).
+GRID_WARNINGS = 20
+
 EventCallback = Callable[[Event], None]
 EvaluationCallback = Callable[[float, float, float, State], None]
 MessageCallback = Callable[[str], None]
@@ -58,6 +61,7 @@ class _Session:
         self.reads_with_rows = 0
         self._writers: OutputWriters | None = None
         self._dropped = 0
+        self._grid_warnings = 0
         #: why the outputs could not be written (None: they were)
         self.output_error: str | None = None
 
@@ -111,7 +115,7 @@ class _Session:
         elif self.out_dir is not None:
             OutputWriters.discard_in(self.out_dir)
         self.output_error = f"{exc}; the partial outputs in {self.out_dir} were removed"
-        self.warn(self.output_error)
+        self.warnings.append(self.output_error)     # said once, as the error of the result (exit 4)
 
     def warn(self, message: str) -> None:
         self.warnings.append(message)
@@ -145,7 +149,11 @@ class _Session:
     def _feed(self, pieces: list[GridPiece]) -> None:
         """Feed on-grid rows to the monitor, skipping long gaps (:mod:`monitor.grid`)."""
         for issue in self.grid.new_issues:
-            self.warn(issue.message)
+            self._grid_warnings += 1
+            if self._grid_warnings <= GRID_WARNINGS:
+                self.warn(issue.message)
+            elif self._grid_warnings == GRID_WARNINGS + 1:
+                self.warn(f"{self.path}: further time-grid problems are only counted (summary.json 'grid')")
         o = self.options
         for piece in pieces:
             gap = piece.gap_before

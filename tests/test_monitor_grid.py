@@ -375,3 +375,22 @@ def test_read_only_output_folder(runs, tmp_path):
     # modes, a read-only file system refuses the first write: exit 4, the file named, nothing left
     assert proc.returncode in (2, 4) and str(folder / "m") in proc.stderr, proc.stdout + proc.stderr
     assert not (folder / "m").exists()
+
+
+@pytest.mark.parametrize("detector", ["cusum", "mae"])
+def test_a_skipped_gap_costs_no_evaluations(runs, tmp_path, detector):
+    """Both detectors move their clocks past a skipped gap: Case 2 with its rows after 50 s
+    moved 1e6 s later (no run.json, so the jump is a gap of 1e8 rows, not off the grid) gives
+    about 100 s of evaluations every 0.1 s, none inside the gap."""
+    from monitor import replay
+
+    lines = lines_of(runs["case2"])
+    moved = [lines[0]] + [ln if time_of(ln) <= 50.0 else with_time(ln, time_of(ln) + 1e6) for ln in lines[1:]]
+    path = copy_with(runs["case2"], tmp_path / "jump", moved, run_json=False)
+    warnings: list[str] = []
+    r = replay(path, model="harmonic", detector=detector, on_warning=warnings.append)
+    t = r.evaluations["time"].to_numpy()
+    assert 800 <= len(t) <= 1000                   # (100 - 9) s / 0.1 s = 910 evaluations, give or take the gap's edges
+    assert not ((t > 50.0 + 1e-9) & (t < 1e6 + 50.0)).any()
+    assert r.summary.grid.skipped_gaps == 1 and r.first_alarm_time == pytest.approx(10.0, abs=0.6)
+    assert any("100000000 row(s)" in w for w in warnings)
