@@ -37,9 +37,11 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import errno
 import json
 import math
 import os
+import stat
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterator
 
@@ -47,6 +49,7 @@ import numpy as np
 
 from fourbar_common import output_folder_problem, write_json_atomic
 from fourbar_common.files import replace_atomically
+from fourbar_common.run_record import NotRegularFileError, file_kind
 
 from .detector import ALARM_MESSAGE, Event, State
 from .errors import OutputDirError, OutputWriteError
@@ -75,9 +78,23 @@ def default_out_dir(exchange_path: str | os.PathLike[str]) -> Path:
     return path.parent / ("monitor" if path.name == "exchange.csv" else f"{path.stem}.monitor")
 
 
+def _not_regular_outputs(out: Path) -> None:
+    """Refuse a folder where one of the output names is a FIFO, device or folder (opening a FIFO
+    for writing would block until someone reads it)."""
+    for name in OUTPUT_FILES:
+        try:
+            mode = os.lstat(out / name).st_mode
+        except OSError:
+            continue
+        if not stat.S_ISREG(mode):
+            raise OutputDirError(f"{out / name}: {file_kind(mode)}, not a regular file; the monitor writes its "
+                                 "outputs there: remove it or choose another folder with --out")
+
+
 def checked_default_out_dir(exchange_path: str | os.PathLike[str]) -> Path:
     """:func:`default_out_dir`, refused when it exists and holds anything the monitor did not write."""
     out = default_out_dir(exchange_path)
+    _not_regular_outputs(out)
     if out.is_dir():
         foreign = sorted(p.name for p in out.iterdir()
                          if p.name not in OUTPUT_FILES and not (p.name.startswith(".") and p.name.endswith(".tmp")))
@@ -98,6 +115,7 @@ def checked_out_dir(out_dir: str | os.PathLike[str]) -> Path:
     problem = output_folder_problem(out, f"{', '.join(OUTPUT_FILES[:4])} and the plots")
     if problem is not None:
         raise OutputDirError(f"--out {out}: {problem}")
+    _not_regular_outputs(out)
     return out
 
 
@@ -123,6 +141,21 @@ def jsonable(value: Any) -> Any:
     return value
 
 
+def _open_output(path: Path) -> Any:
+    """``open(path, "w")`` that never blocks: a FIFO put there since the folder was checked
+    fails at once (``O_NONBLOCK``; ``ENXIO`` without a reader) or is refused after ``fstat``."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0), 0o666)
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise NotRegularFileError(errno.EINVAL, f"{file_kind(mode)}, not a regular file")
+        os.set_blocking(fd, True)
+        return os.fdopen(fd, "w", encoding="utf-8")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
 class OutputWriters:
     """The files of one monitor session; events, evaluations and forecasts are streamed.
 
@@ -137,6 +170,7 @@ class OutputWriters:
         self.out_dir = Path(out_dir)
         self.signals = tuple(signals)
         self._files: list[Any] = []
+        self._paths: dict[Any, Path] = {}
         with self._writing(self.out_dir):
             self.out_dir.mkdir(parents=True, exist_ok=True)
             # The summary and plots of an earlier session here describe other data: removed, so a
@@ -146,7 +180,9 @@ class OutputWriters:
         try:
             for name in ("events.jsonl", "evaluations.csv", "forecast.csv"):
                 with self._writing(self.out_dir / name):
-                    self._files.append(open(self.out_dir / name, "w", encoding="utf-8"))
+                    fh = _open_output(self.out_dir / name)
+                    self._files.append(fh)
+                    self._paths[fh] = self.out_dir / name
             self._events, self._evals, self._forecast = self._files
             self._headers()
         except BaseException:
@@ -163,7 +199,7 @@ class OutputWriters:
             raise OutputWriteError(f"{path}: cannot write: {exc.strerror or exc}") from exc
 
     def _put(self, fh: Any, text: str) -> None:
-        with self._writing(Path(fh.name)):
+        with self._writing(self._paths[fh]):
             fh.write(text)
             fh.flush()
 
@@ -198,7 +234,7 @@ class OutputWriters:
 
     def restart(self) -> None:
         for fh in (self._events, self._evals, self._forecast):
-            with self._writing(Path(fh.name)):
+            with self._writing(self._paths[fh]):
                 fh.seek(0)
                 fh.truncate()
         self._headers()
@@ -220,7 +256,7 @@ class OutputWriters:
         error = None
         for fh in self._files:
             try:
-                with self._writing(Path(fh.name)):
+                with self._writing(self._paths[fh]):
                     fh.close()
             except OutputWriteError as exc:
                 error = error or exc

@@ -394,3 +394,13 @@ def test_a_skipped_gap_costs_no_evaluations(runs, tmp_path, detector):
     assert not ((t > 50.0 + 1e-9) & (t < 1e6 + 50.0)).any()
     assert r.summary.grid.skipped_gaps == 1 and r.first_alarm_time == pytest.approx(10.0, abs=0.6)
     assert any("100000000 row(s)" in w for w in warnings)
+
+
+def test_a_fifo_among_the_outputs_is_refused_before_reading(runs, tmp_path):
+    """Opening a FIFO for writing blocks until someone reads it: refused (exit 2), nothing read."""
+    out = tmp_path / "m"
+    out.mkdir()
+    os.mkfifo(out / "events.jsonl")
+    proc = monitor(str(runs["case2"] / "exchange.csv"), *HARMONIC, "--out", str(out))
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "events.jsonl: is a FIFO (named pipe), not a regular file" in proc.stderr
