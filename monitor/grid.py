@@ -141,7 +141,8 @@ class GridChecker:
         self._off_run: list | None = None      # [first time, last time, rows] of the current off-grid run
 
     # -- issues -----------------------------------------------------------------------------
-    def _issue(self, kind: str, start: float, end: float, rows: int, message: str) -> GridIssue:
+    def _issue(self, kind: str, start: float, end: float, rows: int, message: str, *, said: bool = False
+               ) -> GridIssue:
         issue = GridIssue(kind, float(start), float(end), int(rows), f"{self.source}: {message}")
         self.stats.issue_count += 1
         if issue.affects(self.watch_from):
@@ -150,16 +151,15 @@ class GridChecker:
                 self.stats.first_watched = issue
         if len(self.stats.issues) < MAX_ISSUES:
             self.stats.issues.append(issue)
-        self.new_issues.append(issue)
+        if not said:
+            self.new_issues.append(issue)
         return issue
 
     def duplicate(self, time: float, rows: int, message: str) -> None:
         """The reader dropped ``rows`` rows whose time repeats or goes back, the first at
         ``time`` (the reader has warned with ``message`` already: not in :attr:`new_issues`)."""
         self.stats.duplicate_rows += rows
-        keep = list(self.new_issues)
-        self._issue("duplicate", time, time, rows, message)
-        self.new_issues = keep
+        self._issue("duplicate", time, time, rows, message, said=True)
 
     def _close_off_run(self) -> None:
         if self._off_run is None:
@@ -195,9 +195,7 @@ class GridChecker:
             else:                           # one row: nothing to check it against
                 pieces = [GridPiece(self._held_t, self._held_x)]
                 self._held_t, self._held_x = np.empty(0), None
-        issues = list(self.new_issues)
         self._close_off_run()
-        self.new_issues = issues + self.new_issues
         return pieces
 
     def _learn_and_release(self) -> list[GridPiece]:

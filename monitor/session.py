@@ -16,6 +16,14 @@ A dead writer: while run.json says ``running``, the follower checks on each poll
 the writing process (``writer.pid`` on ``writer.host``) still exists.  On the same host a
 vanished writer ends the session at once with status ``run_lost``.  On another host the
 silence timeout decides, where a newer heartbeat (``updated_at``) counts as progress.
+
+The time grid: every batch of rows goes through a :class:`~monitor.grid.GridChecker` (run.json's
+grid, else the file's dominant step) before the monitor; gaps longer than ``every`` are
+skipped (:meth:`Monitor.skip`), a long gap in the training window leaves nothing to fit, and
+problems reaching the training window make the verdict indeterminate
+(:attr:`Summary.indeterminate`, exit 5 without an alarm).  A run.json that is not a run
+record is refused (:class:`~monitor.errors.RunJsonError`).  An output write error removes the
+partial outputs and is the result's ``output_error`` (exit 4); monitoring goes on.
 """
 from __future__ import annotations
 
