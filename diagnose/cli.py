@@ -47,6 +47,9 @@ cannot be written then, the message says which (exit 4).
 Ctrl-C or SIGTERM stops the diagnosis with one line and writes nothing (exit 130 / 143); a
 signal during the writing of the files lets them finish first.
 
+A FIFO, device or folder in place of exchange.csv, run.json or summary.json, and JSON that
+is empty, nested too deeply or too large, are refused with the file named (exit 2).
+
 exit status: 0 explained, 1 unexplained or no change, 2 bad input or unusable --out (nothing
 written), 4 verdict printed but its files not (all) written, 130 interrupted (Ctrl-C),
 143 terminated (SIGTERM)

@@ -24,13 +24,13 @@ every branch: the same answer, much slower.
 """
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
 from fourbar_common import Event, RunRecord, RunRecordError, read_run_record
+from fourbar_common.run_record import JsonFileError, read_json_file
 
 from .errors import DiagnoseError, NoAlarm
 from .simulator import Grid
@@ -68,12 +68,18 @@ class RunInputs:
 
 
 def _load_json(path: Path, what: str, fix: str) -> dict:
-    if not path.is_file():
+    """A JSON object file of the run folder (a regular file; deep nesting, a huge file or a
+    FIFO give a :class:`DiagnoseError` naming the file, never a traceback or a hang)."""
+    if not path.exists():
         raise DiagnoseError(f"{path}: no {what}; {fix}")
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DiagnoseError(f"{path}: not a readable {what} ({' '.join(str(exc).split())}); {fix}") from None
+        data = read_json_file(path)
+    except FileNotFoundError:
+        raise DiagnoseError(f"{path}: no {what}; {fix}") from None
+    except (OSError, JsonFileError) as exc:
+        text = " ".join(str(exc).split())
+        text = text[len(str(path)) + 2:] if text.startswith(f"{path}: ") else text
+        raise DiagnoseError(f"{path}: not a readable {what} ({text}); {fix}") from None
     if not isinstance(data, dict):
         raise DiagnoseError(f"{path}: expected a JSON object, got {type(data).__name__}; {fix}")
     return data
@@ -81,7 +87,7 @@ def _load_json(path: Path, what: str, fix: str) -> dict:
 
 def _load_record(path: Path) -> RunRecord:
     fix = "expected a run folder written by fourbar-run"
-    if not path.is_file():
+    if not path.exists():
         raise DiagnoseError(f"{path}: no run.json; {fix}")
     try:
         return read_run_record(path)

@@ -25,18 +25,23 @@ Standard library only.
 """
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
+import stat
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Iterable, Mapping, NoReturn
+from typing import Any, BinaryIO, Iterable, Mapping, NoReturn
 
 from .drawing import Drawing, DrawingError
 from .events import Event, RampEvent, StepEvent, Value
 from .files import write_json_atomic
 
 __all__ = [
+    "JsonFileError",
+    "MAX_JSON_BYTES",
+    "NotRegularFileError",
     "PARAMETER_SOURCES",
     "ParameterStart",
     "READABLE_SCHEMAS",
@@ -49,7 +54,12 @@ __all__ = [
     "RunRecord",
     "RunRecordError",
     "SCHEMA_VERSION",
+    "file_kind",
+    "open_regular",
+    "parse_json",
+    "read_json_file",
     "read_run_record",
+    "read_text_file",
     "write_run_record",
 ]
 
@@ -296,23 +306,122 @@ class RunRecord:
         return _Parser(source).record(data)
 
 
+# ------------------------------------------------------------------------------------ reading files
+
+#: Largest JSON file of a run folder read (run.json, summary.json): fourbar-run's run.json of a
+#: mechanism with hundreds of parameters is tens of kB.
+MAX_JSON_BYTES = 16 << 20
+#: The fields a record of every schema has: a JSON object with none of them is not a run record.
+_RECORD_FIELDS = ("schema", "status", "run_id", "case", "experiment", "rows_written")
+
+
+class NotRegularFileError(OSError):
+    """A path names a FIFO, a device, a socket or a directory where a file was expected."""
+
+    def __str__(self) -> str:
+        return self.strerror or super().__str__()
+
+
+class JsonFileError(ValueError):
+    """A JSON file of a run folder cannot be used: not JSON, nested too deeply, too large."""
+
+
+def file_kind(mode: int) -> str:
+    """``is a FIFO``, ``is a directory``, ... for a file mode that is not a regular file's."""
+    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return f"is {name}"
+    return "is not a regular file"
+
+
+def open_regular(path: str | os.PathLike[str]) -> BinaryIO:
+    """Open ``path`` for reading in binary mode, refusing what is not a regular file.
+
+    The file is opened with ``O_NONBLOCK`` (so a FIFO without a writer does not block the
+    reader) and checked with ``fstat`` on the open descriptor (no race between a check and
+    the open); blocking mode is restored for a regular file.  Raises
+    :class:`NotRegularFileError` naming the path and what it is, ``FileNotFoundError`` when
+    there is none, other ``OSError`` as ``open`` does.
+    """
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags)
+    except IsADirectoryError:
+        raise NotRegularFileError(errno.EISDIR, f"{path}: is a directory, not a regular file") from None
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise NotRegularFileError(errno.EINVAL, f"{path}: {file_kind(mode)}, not a regular file")
+        if hasattr(os, "set_blocking"):
+            os.set_blocking(fd, True)
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def read_text_file(path: str | os.PathLike[str], *, max_bytes: int | None = None) -> str:
+    """The UTF-8 text of the regular file ``path``, at most ``max_bytes`` long (default
+    :data:`MAX_JSON_BYTES`).
+
+    Raises ``FileNotFoundError``, :class:`NotRegularFileError`, :class:`JsonFileError` (too
+    large, not UTF-8) naming the file, or ``OSError``.
+    """
+    if max_bytes is None:
+        max_bytes = MAX_JSON_BYTES
+    with open_regular(path) as handle:
+        data = handle.read(max_bytes + 1)
+    if len(data) > max_bytes:
+        raise JsonFileError(f"{path}: larger than {max_bytes} bytes; not a file fourbar-cosim writes")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise JsonFileError(f"{path}: not UTF-8 text: {exc.reason} at byte {exc.start}") from None
+
+
+def parse_json(text: str, source: str) -> Any:
+    """``json.loads(text)`` with every failure a :class:`JsonFileError` naming ``source``:
+    invalid JSON, and JSON nested deeper than Python's parser can follow (a RecursionError)."""
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise JsonFileError(f"{source}: JSON nested too deeply (arrays or objects inside each other more than "
+                            "about a thousand levels); not a file fourbar-cosim writes") from None
+    except ValueError as exc:
+        raise JsonFileError(f"{source}: not valid JSON: {exc}") from None
+
+
+def read_json_file(path: str | os.PathLike[str], *, max_bytes: int | None = None) -> Any:
+    """The parsed JSON file ``path`` (regular, at most ``max_bytes``); errors as
+    :func:`read_text_file` and :func:`parse_json`."""
+    return parse_json(read_text_file(path, max_bytes=max_bytes), str(path))
+
+
 def read_run_record(path: str | os.PathLike[str]) -> RunRecord:
     """Read and check the run.json at ``path``.
 
     Raises ``FileNotFoundError`` when there is none, :class:`RunRecordError` (naming the file
-    and, for a bad record, the field) when it cannot be read, is not JSON or is not a record.
+    and, for a bad record, the field) when it cannot be read, is not a regular file, is
+    empty, is not JSON (or nested too deeply, or over :data:`MAX_JSON_BYTES`) or is not a
+    record (an empty object ``{}`` included: the message lists the fields it lacks).
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_text_file(path)
     except FileNotFoundError:
         raise
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RunRecordError(f"{path}: cannot read: {exc}") from None
+    except (OSError, JsonFileError) as exc:
+        raise RunRecordError(f"{path}: cannot read: {exc}" if not str(exc).startswith(str(path))
+                             else str(exc)) from None
+    if not text.strip():
+        raise RunRecordError(f"{path}: is empty ({len(text.encode())} bytes): not a run record; expected the JSON "
+                             f"object fourbar-run writes, with fields {', '.join(_RECORD_FIELDS)}, ...")
     try:
-        data = json.loads(text)
-    except ValueError as exc:
-        raise RunRecordError(f"{path}: not valid JSON: {exc}") from None
+        data = parse_json(text, str(path))
+    except JsonFileError as exc:
+        raise RunRecordError(str(exc)) from None
     return RunRecord.from_json(data, str(path))
 
 
@@ -340,7 +449,10 @@ def _kind(value: Any) -> str:
 
 
 def _show(value: Any) -> str:
-    text = json.dumps(value, allow_nan=True, default=str)
+    try:
+        text = json.dumps(value, allow_nan=True, default=str)
+    except (RecursionError, ValueError):
+        return f"<{_kind(value)} nested too deeply to show>"
     return text if len(text) <= 60 else text[:57] + "..."
 
 
@@ -402,6 +514,11 @@ class _Parser:
         if not isinstance(data, dict):
             raise RunRecordError(f"{self.source}: the top level is {_kind(data)}; expected a JSON object written "
                                  f"by fourbar-run")
+        if not any(name in data for name in _RECORD_FIELDS):
+            raise RunRecordError(f"{self.source}: not a run record: fields {', '.join(_RECORD_FIELDS)} are missing"
+                                 + (" (the object is empty)" if not data else
+                                    f" (it has {', '.join(map(repr, list(data)[:5]))}"
+                                    + (", ..." if len(data) > 5 else "") + ")"))
         schema = self.get(data, "schema", "", self.is_int, f"an integer schema version ({' or '.join(map(str, READABLE_SCHEMAS))})")
         if schema not in READABLE_SCHEMAS:
             newer = schema > max(READABLE_SCHEMAS)

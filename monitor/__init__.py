@@ -31,7 +31,8 @@ from .options import FollowOptions, MonitorOptions
 from .session import follow, replay
 from .stream import Monitor
 from .summary import FaultScore, MonitorResult, Summary, score_alarms
-from .errors import ExchangeFormatError, ExchangeMissingError, MonitorError, OptionError, TrainingError
+from .errors import (ExchangeFormatError, ExchangeMissingError, MonitorError, OptionError, OutputWriteError,
+                     RunJsonError, TrainingError)
 from .forecasters import Forecaster, fit_forecaster
 from .reader import ExchangeReader, ExchangeWarning, RunInfo, read_exchange, read_run_info
 from .spectrum import PeriodEstimate, dominant_period
@@ -52,6 +53,8 @@ __all__ = [
     "MonitorOptions",
     "MonitorResult",
     "OptionError",
+    "OutputWriteError",
+    "RunJsonError",
     "PeriodEstimate",
     "RunInfo",
     "State",

@@ -1,8 +1,9 @@
 """``fourbar-monitor``: the paper's analysis part as a command (see ``--help``).
 
 Exit codes: 0 no alarm, 1 alarm (or the monitored run failed), 2 usage or input error,
-3 the run was cut off (its writer died without closing run.json), 130 interrupted (Ctrl-C),
-143 terminated (SIGTERM).  Input problems are reported in one line naming the file, field
+3 the run was cut off (its writer died without closing run.json), 4 the verdict was printed
+but the outputs could not be written, 5 indeterminate (no alarm, broken time grid),
+130 interrupted (Ctrl-C), 143 terminated (SIGTERM).  Input problems are reported in one line naming the file, field
 and value — never with a traceback.
 """
 from __future__ import annotations
@@ -62,9 +63,17 @@ Ctrl-C or SIGTERM: --follow ends as if the run had ended (summary.json, plots an
 are written); a replay stops at once, keeps the events, evaluations and forecasts written so far
 (no summary.json) and says so in one line.
 
+time grid: rows are checked against run.json's grid (start + k*step; without run.json the
+file's dominant step). Missing rows, time jumps, rows off the grid or duplicated are warned
+about with their span; a gap is skipped, not evaluated. A FIFO, device or folder in place of
+exchange.csv or run.json, and a run.json that is not a run record (empty, {}, not JSON, nested
+too deeply), are refused (exit 2). --follow DIR before DIR exists waits for the folder.
+
 exit status: 0 no alarm, 1 alarm or failed run, 2 usage/input error (nothing written), 3 the
-run was cut off (its writer died: run.json still says running), 130 interrupted (Ctrl-C),
-143 terminated (SIGTERM)
+run was cut off (its writer died: run.json still says running), 4 verdict printed but the
+outputs could not be written (the file is named; partial outputs removed), 5 indeterminate:
+no alarm, but the time grid is broken in the training or monitored window,
+130 interrupted (Ctrl-C), 143 terminated (SIGTERM)
 """
 
 
@@ -180,6 +189,12 @@ def _verdict(result: Any, out_dir: Path, stopped: str = "interrupted") -> str:
                      f", {s.false_alarms} false alarm(s) before it")
         elif s.false_alarms is not None:
             head += "; run.json records no fault: false alarm"
+        if s.indeterminate is not None:
+            head += f"; but {s.indeterminate}"
+    elif s.indeterminate is not None:
+        head = f"INDETERMINATE: no alarm, but {s.indeterminate}"
+        if s.fault_time is not None:
+            head += f"; fault at {s.fault_time:g} s (run.json) not detected in the rows that could be judged"
     else:
         head = "no alarm"
         if s.max_statistic_over_threshold is not None:
@@ -196,7 +211,8 @@ def _verdict(result: Any, out_dir: Path, stopped: str = "interrupted") -> str:
     span = ""
     if s.last_time is not None:
         span = f" [{s.evaluations} evaluations up to t = {s.last_time:g} s]"
-    return f"verdict: {head}{extra}{span}; outputs in {out_dir}"
+    where = f"outputs in {out_dir}" if result.output_error is None else "no outputs written (error below)"
+    return f"verdict: {head}{extra}{span}; {where}"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -266,13 +282,16 @@ def _main(argv: Sequence[str] | None, stop: Any) -> int:
     except OSError as exc:                # e.g. --out not writable
         if stop.received is not None:
             return _stopped(stop.received, printer, out_dir, err)
-        print(f"fourbar-monitor: error: {exc.filename or ''}: {exc.strerror or exc}", file=err, flush=True)
+        where = exc.filename or (out_dir if out_dir is not None else args.exchange)
+        print(f"fourbar-monitor: error: {where}: {exc.strerror or exc}", file=err, flush=True)
         return 2
     except Exception:
         if stop.received is not None:     # a library that failed because the signal reached it too
             return _stopped(stop.received, printer, out_dir, err)
         raise
     print(_verdict(result, out_dir, stop.reason), file=out, flush=True)
+    if result.output_error is not None:
+        print(f"fourbar-monitor: error: {result.output_error}", file=err, flush=True)
     if result.status == "interrupted":     # --follow stopped by a signal: the outputs are complete
         return stop.exit_code
     return result.exit_code

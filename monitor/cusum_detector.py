@@ -85,6 +85,10 @@ class CusumDetector(Detector):
         self.host.timing["evaluate"] += time.perf_counter() - start
         return f
 
+    def skip(self, start: float, end: float) -> None:
+        if self.engine is not None:
+            self.engine.skip(start, end)
+
     def _estimate(self, name: str, t: np.ndarray, x: np.ndarray) -> PeriodEstimate:
         try:
             return dominant_period(t, x, order=self.options.order)

@@ -187,6 +187,12 @@ class Detector(ABC):
         never on how they were batched.
         """
 
+    def skip(self, start: float, end: float) -> None:
+        """No samples will come in the open span (``start``, ``end``) s: a gap of the grid
+        (:mod:`monitor.grid`) longer than the evaluation interval.  A detector that evaluates
+        on a clock advances it past the gap here instead of evaluating the empty span point
+        by point (a +1e6 s jump must cost no more than a few rows); the default does nothing."""
+
     @property
     def refits(self) -> int:
         return 0

@@ -11,6 +11,8 @@ __all__ = [
     "ExchangeMissingError",
     "OptionError",
     "OutputDirError",
+    "OutputWriteError",
+    "RunJsonError",
     "TrainingError",
 ]
 
@@ -37,3 +39,14 @@ class TrainingError(MonitorError, ValueError):
 
 class OutputDirError(MonitorError, ValueError):
     """The output folder cannot be used (the default one holds files the monitor did not write)."""
+
+
+class RunJsonError(MonitorError, ValueError):
+    """The run.json beside the exchange file is not a run record (empty, not JSON, nested too
+    deeply, not a regular file, a field of the wrong type): the fault time and the grid it
+    holds are unknown, so the data are not judged."""
+
+
+class OutputWriteError(MonitorError, OSError):
+    """An output file could not be written (disk full, read-only folder); the message names it.
+    The session removes the partial outputs and ends with exit status 4."""

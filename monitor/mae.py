@@ -189,6 +189,13 @@ class MaeDetector(Detector):
         self._trim()
         return judged
 
+    def skip(self, start: float, end: float) -> None:
+        """Evaluations due before ``end`` (their windows end in the gap) are not made."""
+        if self._fit is None:
+            return
+        k_end = int(math.ceil((end - self._origin) / self.options.every - 1e-9))
+        self._next_k = max(self._next_k, k_end)
+
     def _estimate(self, t: np.ndarray, x: np.ndarray) -> PeriodEstimate:
         try:
             return dominant_period(t, x, order=self.options.order)

@@ -35,19 +35,24 @@ stopped by a signal before its summary leaves only its own (partial) events and 
 """
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
+import errno
 import json
 import math
 import os
+import stat
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Iterator
 
 import numpy as np
 
 from fourbar_common import output_folder_problem, write_json_atomic
+from fourbar_common.files import replace_atomically
+from fourbar_common.run_record import NotRegularFileError, file_kind
 
 from .detector import ALARM_MESSAGE, Event, State
-from .errors import OutputDirError
+from .errors import OutputDirError, OutputWriteError
 
 if TYPE_CHECKING:  # pragma: no cover
     from .summary import MonitorResult
@@ -73,9 +78,23 @@ def default_out_dir(exchange_path: str | os.PathLike[str]) -> Path:
     return path.parent / ("monitor" if path.name == "exchange.csv" else f"{path.stem}.monitor")
 
 
+def _not_regular_outputs(out: Path) -> None:
+    """Refuse a folder where one of the output names is a FIFO, device or folder (opening a FIFO
+    for writing would block until someone reads it)."""
+    for name in OUTPUT_FILES:
+        try:
+            mode = os.lstat(out / name).st_mode
+        except OSError:
+            continue
+        if not stat.S_ISREG(mode):
+            raise OutputDirError(f"{out / name}: {file_kind(mode)}, not a regular file; the monitor writes its "
+                                 "outputs there: remove it or choose another folder with --out")
+
+
 def checked_default_out_dir(exchange_path: str | os.PathLike[str]) -> Path:
     """:func:`default_out_dir`, refused when it exists and holds anything the monitor did not write."""
     out = default_out_dir(exchange_path)
+    _not_regular_outputs(out)
     if out.is_dir():
         foreign = sorted(p.name for p in out.iterdir()
                          if p.name not in OUTPUT_FILES and not (p.name.startswith(".") and p.name.endswith(".tmp")))
@@ -96,6 +115,7 @@ def checked_out_dir(out_dir: str | os.PathLike[str]) -> Path:
     problem = output_folder_problem(out, f"{', '.join(OUTPUT_FILES[:4])} and the plots")
     if problem is not None:
         raise OutputDirError(f"--out {out}: {problem}")
+    _not_regular_outputs(out)
     return out
 
 
@@ -121,46 +141,80 @@ def jsonable(value: Any) -> Any:
     return value
 
 
+def _open_output(path: Path) -> Any:
+    """``open(path, "w")`` that never blocks: a FIFO put there since the folder was checked
+    fails at once (``O_NONBLOCK``; ``ENXIO`` without a reader) or is refused after ``fstat``."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0), 0o666)
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise NotRegularFileError(errno.EINVAL, f"{file_kind(mode)}, not a regular file")
+        os.set_blocking(fd, True)
+        return os.fdopen(fd, "w", encoding="utf-8")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
 class OutputWriters:
     """The files of one monitor session; events, evaluations and forecasts are streamed.
 
     ``signals`` are the monitored columns, in the order of the forecast rows' columns.
+    Every write error (disk full, read-only folder) raises :class:`OutputWriteError`
+    naming the file; :meth:`discard` then removes what this session wrote, so no partial
+    output is left.  summary.json and the plots are written atomically (a temporary file
+    renamed over the name), so they are whole or absent.
     """
 
     def __init__(self, out_dir: Path, signals: tuple[str, ...]):
         self.out_dir = Path(out_dir)
         self.signals = tuple(signals)
-        self.out_dir.mkdir(parents=True, exist_ok=True)
-        # The summary and plots of an earlier session here describe other data: removed, so a
-        # session that is stopped before its own summary does not leave them beside its events.
-        for name in ("summary.json", *PLOT_FILES):
-            (self.out_dir / name).unlink(missing_ok=True)
-        opened = []
+        self._files: list[Any] = []
+        self._paths: dict[Any, Path] = {}
+        with self._writing(self.out_dir):
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+            # The summary and plots of an earlier session here describe other data: removed, so a
+            # session that is stopped before its own summary does not leave them beside its events.
+            for name in ("summary.json", *PLOT_FILES):
+                (self.out_dir / name).unlink(missing_ok=True)
         try:
             for name in ("events.jsonl", "evaluations.csv", "forecast.csv"):
-                opened.append(open(self.out_dir / name, "w", encoding="utf-8"))
+                with self._writing(self.out_dir / name):
+                    fh = _open_output(self.out_dir / name)
+                    self._files.append(fh)
+                    self._paths[fh] = self.out_dir / name
+            self._events, self._evals, self._forecast = self._files
+            self._headers()
         except BaseException:
-            for fh in opened:
-                fh.close()
+            self.discard()
             raise
-        self._events, self._evals, self._forecast = opened
-        self._headers()
+
+    @staticmethod
+    @contextlib.contextmanager
+    def _writing(path: Path) -> Iterator[None]:
+        """Turn an OSError of writing ``path`` into :class:`OutputWriteError` naming it."""
+        try:
+            yield
+        except OSError as exc:
+            raise OutputWriteError(f"{path}: cannot write: {exc.strerror or exc}") from exc
+
+    def _put(self, fh: Any, text: str) -> None:
+        with self._writing(self._paths[fh]):
+            fh.write(text)
+            fh.flush()
 
     def _headers(self) -> None:
-        self._evals.write("time,statistic,threshold,state\n")
-        self._forecast.write(FORECAST_HEADER)
-        for fh in (self._events, self._evals, self._forecast):
-            fh.flush()
+        self._put(self._evals, "time,statistic,threshold,state\n")
+        self._put(self._forecast, FORECAST_HEADER)
+        self._put(self._events, "")
 
     def event(self, e: Event) -> None:
         d = e.as_dict()
         d["wall"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds")
-        self._events.write(json.dumps(jsonable(d), allow_nan=False) + "\n")
-        self._events.flush()
+        self._put(self._events, json.dumps(jsonable(d), allow_nan=False) + "\n")
 
     def evaluation(self, t: float, statistic: float, threshold: float, state: State) -> None:
-        self._evals.write(f"{t!r},{statistic!r},{threshold!r},{state.value}\n")
-        self._evals.flush()
+        self._put(self._evals, f"{t!r},{statistic!r},{threshold!r},{state.value}\n")
 
     def forecast(self, t: np.ndarray, x: np.ndarray, f: np.ndarray) -> None:
         """Rows of judged samples: times ``t``, values ``x`` and forecasts ``f`` (one column per signal)."""
@@ -176,28 +230,59 @@ class OutputWriters:
             fs = ["" if v != v else repr(v) for v in f[:, j].tolist()]     # NaN (v != v): no forecast
             lines.append([f"{a},{name},{b},{c}\n" for a, b, c in zip(tt, xs, fs)])
         # sample by sample, each sample's signals together
-        self._forecast.write("".join(lines[0]) if len(lines) == 1 else "".join(map("".join, zip(*lines))))
-        self._forecast.flush()
+        self._put(self._forecast, "".join(lines[0]) if len(lines) == 1 else "".join(map("".join, zip(*lines))))
 
     def restart(self) -> None:
         for fh in (self._events, self._evals, self._forecast):
-            fh.seek(0)
-            fh.truncate()
+            with self._writing(self._paths[fh]):
+                fh.seek(0)
+                fh.truncate()
         self._headers()
 
     def finish(self, result: "MonitorResult", plots: bool = True) -> None:
         for fh in (self._events, self._evals, self._forecast):
-            fh.flush()
+            self._put(fh, "")
         summary = result.summary.as_json()
         summary["outputs"] = {"events": "events.jsonl", "evaluations": "evaluations.csv", "forecast": "forecast.csv",
                               "plots": list(PLOT_FILES) if plots and result.fits else []}
-        write_json_atomic(self.out_dir / "summary.json", jsonable(summary))
+        path = self.out_dir / "summary.json"
+        with self._writing(path):
+            write_json_atomic(path, jsonable(summary))
         if plots and result.fits:
             write_plots(result, self.out_dir)
 
     def close(self) -> None:
-        for fh in (self._events, self._evals, self._forecast):
-            fh.close()
+        """Close the streamed files (the first error, naming its file, is raised after all are closed)."""
+        error = None
+        for fh in self._files:
+            try:
+                with self._writing(self._paths[fh]):
+                    fh.close()
+            except OutputWriteError as exc:
+                error = error or exc
+        self._files = []
+        if error is not None:
+            raise error
+
+    def discard(self) -> None:
+        """After a write error: close and remove every file this session wrote (the streamed
+        files, summary.json, the plots), so nothing partial is left."""
+        for fh in self._files:
+            try:
+                fh.close()
+            except OSError:
+                pass                 # the data it could not write are being removed anyway
+        self._files = []
+        self.discard_in(self.out_dir)
+
+    @staticmethod
+    def discard_in(out_dir: Path) -> None:
+        """Remove the monitor's output files from ``out_dir`` (errors ignored: best effort)."""
+        for name in OUTPUT_FILES:
+            try:
+                (Path(out_dir) / name).unlink(missing_ok=True)
+            except OSError:
+                pass
 
 
 #: The history zoom shows this many periods of the signal before the earlier of the fault and
@@ -234,7 +319,10 @@ def write_plots(result: "MonitorResult", out_dir: str | os.PathLike[str]) -> lis
     paths = []
     for name, fig in plot_figures(result).items():
         path = out / name
-        fig.savefig(path)
+        try:            # atomically: a full disk leaves no truncated PNG
+            replace_atomically(path, lambda tmp, fig=fig: fig.savefig(tmp, format="png"))
+        except OSError as exc:
+            raise OutputWriteError(f"{path}: cannot write: {exc.strerror or exc}") from exc
         paths.append(path)
     return paths
 

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 import os
+import stat
 import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -38,7 +39,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from fourbar_common import Event, RunRecord, RunRecordError, read_run_record
-from fourbar_common.run_record import EXCHANGE_NAME
+from fourbar_common.run_record import EXCHANGE_NAME, NotRegularFileError, file_kind, open_regular
 
 from .errors import ExchangeFormatError, ExchangeMissingError
 
@@ -212,15 +213,20 @@ class ExchangeReader:
                 self._restart()
                 return _empty_batch(self.columns, missing=True, restarted=True)
             return _empty_batch(self.columns, missing=True)
+        if not stat.S_ISREG(st.st_mode):
+            raise ExchangeFormatError(f"{self.path}: {file_kind(st.st_mode)}, not a regular file; the exchange file "
+                                      "must be a file written by fourbar-run")
         ino = (st.st_dev, st.st_ino)
         if self._fh is not None and (ino != self._ino or st.st_size < self._offset or not self._signature_ok()):
             self._restart()
             restarted = True
         if self._fh is None:
             try:
-                self._fh = open(self.path, "rb")
+                self._fh = open_regular(self.path)
             except FileNotFoundError:
                 return _empty_batch(self.columns, missing=True, restarted=restarted)
+            except NotRegularFileError as exc:
+                raise ExchangeFormatError(f"{exc}; the exchange file must be a file written by fourbar-run") from None
             except OSError as exc:
                 raise ExchangeMissingError(f"{self.path}: cannot open exchange file: {exc.strerror}") from exc
             self._ino = (os.fstat(self._fh.fileno()).st_dev, os.fstat(self._fh.fileno()).st_ino)
@@ -469,14 +475,31 @@ class ExchangeReader:
 
 def exchange_file(path: str | Path, *, later: bool = False) -> Path:
     """The exchange file ``path`` names: itself, or a run folder's exchange.csv (which, with
-    ``later``, may not exist yet).  A folder without one raises :class:`ExchangeMissingError`."""
+    ``later``, may not exist yet).  A folder without one raises :class:`ExchangeMissingError`.
+
+    With ``later`` a path that does not exist yet is a run folder to come (its exchange.csv
+    is followed) unless its name ends in ``.csv``."""
     p = Path(path)
     if p.is_dir():
-        if later or (p / EXCHANGE_NAME).is_file():
+        if later or os.path.lexists(p / EXCHANGE_NAME):      # not a file: the reader says what it is
             return p / EXCHANGE_NAME
         raise ExchangeMissingError(f"{p}: is a directory with no {EXCHANGE_NAME} in it: give an exchange file or "
                                    f"a run folder")
+    if later and not p.exists() and p.suffix.lower() != ".csv":
+        return p / EXCHANGE_NAME        # a run folder still to come (a file to come ends in .csv)
     return p
+
+
+def regular_or_absent(path: Path) -> None:
+    """Raise :class:`ExchangeFormatError` when ``path`` exists and is not a regular file (a
+    FIFO, a device, a folder): checked with ``stat``, never opened, so nothing blocks."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return
+    if not stat.S_ISREG(mode):
+        raise ExchangeFormatError(f"{path}: {file_kind(mode)}, not a regular file; the exchange file must be a "
+                                  "file written by fourbar-run")
 
 
 def read_exchange(path: str | os.PathLike[str], columns: Sequence[str] | None = None) -> "pd.DataFrame":

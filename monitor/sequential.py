@@ -306,6 +306,23 @@ class ResidualCusum:
             i = j
         return out
 
+    def skip(self, start: float, end: float) -> None:
+        """No samples in (``start``, ``end``): move the block and evaluation clocks past the gap.
+
+        The pending samples (not yet confirmed healthy by ``guard`` s of later data) are
+        dropped rather than learnt; evaluations and tracker blocks due inside the gap are
+        not made; the statistics restart from zero after it (their onset estimate with them).
+        The tracker's prediction runs on over the gap (its variance is capped).
+        """
+        if self._pending.t.size:
+            self.blocks_skipped += 1
+        m = self._s.shape[1]
+        self._pending = _Pending(np.empty(0), np.empty((0, m)), np.empty((0, m)), np.empty(0), np.empty((0, m)))
+        self._next_block = max(self._next_block, int(math.ceil((end - self.origin) / self.block - 1e-9)))
+        self._next_eval = max(self._next_eval, int(math.ceil((end - self.origin) / self.every - 1e-9)))
+        self._s[:] = 0.0
+        self._zero_time[:] = end
+
     def _segment(self, t: np.ndarray, X: np.ndarray) -> np.ndarray:
         f, g, shift, var, c = self.forecast(t)
         r = X - f

@@ -16,6 +16,14 @@ A dead writer: while run.json says ``running``, the follower checks on each poll
 the writing process (``writer.pid`` on ``writer.host``) still exists.  On the same host a
 vanished writer ends the session at once with status ``run_lost``.  On another host the
 silence timeout decides, where a newer heartbeat (``updated_at``) counts as progress.
+
+The time grid: every batch of rows goes through a :class:`~monitor.grid.GridChecker` (run.json's
+grid, else the file's dominant step) before the monitor; gaps longer than ``every`` are
+skipped (:meth:`Monitor.skip`), a long gap in the training window leaves nothing to fit, and
+problems reaching the training window make the verdict indeterminate
+(:attr:`Summary.indeterminate`, exit 5 without an alarm).  A run.json that is not a run
+record is refused (:class:`~monitor.errors.RunJsonError`).  An output write error removes the
+partial outputs and is the result's ``output_error`` (exit 4); monitoring goes on.
 """
 from __future__ import annotations
 
@@ -27,14 +35,18 @@ from typing import Any, Callable
 import numpy as np
 
 from .detector import Event, State
-from .errors import ExchangeFormatError, ExchangeMissingError
+from .errors import ExchangeFormatError, ExchangeMissingError, OutputWriteError, RunJsonError
+from .grid import GridChecker, GridPiece, grid_of
 from .options import FollowOptions, MonitorOptions, merged
 from .outputs import OutputWriters
-from .reader import ExchangeReader, RunInfo, exchange_file, read_run_info
+from .reader import ExchangeReader, RunInfo, exchange_file, read_run_info, regular_or_absent
 from .stream import Monitor
 from .summary import MonitorResult, Summary, Timing, before_fault, score_alarms
 
 __all__ = ["follow", "replay", "warm_up"]
+
+#: Grid problems said one by one (the rest are counted in summary.json's ``grid``).
+GRID_WARNINGS = 20
 
 EventCallback = Callable[[Event], None]
 EvaluationCallback = Callable[[float, float, float, State], None]
@@ -56,35 +68,62 @@ class _Session:
         self.read_seconds = 0.0
         self.reads_with_rows = 0
         self._writers: OutputWriters | None = None
+        self._dropped = 0
+        self._grid_warnings = 0
+        #: why the outputs could not be written (None: they were)
+        self.output_error: str | None = None
 
         def event_cb(e: Event) -> None:
-            writers = self._outputs()
-            if writers is not None:
-                writers.event(e)
+            self._write(lambda w: w.event(e))
             if on_event is not None:
                 on_event(e)
 
         def eval_cb(t: float, m: float, th: float, s: State) -> None:
-            writers = self._outputs()
-            if writers is not None:
-                writers.evaluation(t, m, th, s)
+            self._write(lambda w: w.evaluation(t, m, th, s))
             if on_evaluation is not None:
                 on_evaluation(t, m, th, s)
 
         def samples_cb(t: np.ndarray, x: np.ndarray, f: np.ndarray) -> None:
-            writers = self._outputs()
-            if writers is not None:
-                writers.forecast(t, x, f)
+            self._write(lambda w: w.forecast(t, x, f))
 
         self.monitor = Monitor(self.options, source=str(path), on_event=event_cb, on_evaluation=eval_cb,
                                on_samples=samples_cb)
         self.reader = ExchangeReader(path, list(self.options.signals))
+        self.grid = GridChecker(str(path), None, watch_from=self.options.train[0])
+        #: why nothing could be trained (a long gap in the training window); rows are then not fed
+        self.untrainable: str | None = None
+
+    def use_run(self, run: RunInfo | None) -> None:
+        """Check the grid against ``run``'s (run.json's experiment); without one, the file's own step.
+        Called before the first row of a run is read."""
+        experiment = run.record.experiment if run is not None and run.record is not None else None
+        self.grid = GridChecker(str(self.path), grid_of(experiment), watch_from=self.options.train[0])
+        self.untrainable = None
 
     def _outputs(self) -> OutputWriters | None:
         """The output files, created at the first thing worth writing."""
-        if self._writers is None and self.out_dir is not None:
+        if self._writers is None and self.out_dir is not None and self.output_error is None:
             self._writers = OutputWriters(self.out_dir, self.options.signals)
         return self._writers
+
+    def _write(self, action: Callable[[OutputWriters], None]) -> None:
+        """Write through the output files; a write error (disk full, read-only folder) removes
+        the partial outputs, is remembered (exit 4) and said once; monitoring goes on."""
+        try:
+            writers = self._outputs()
+            if writers is not None:
+                action(writers)
+        except OutputWriteError as exc:
+            self._output_failed(exc)
+
+    def _output_failed(self, exc: OutputWriteError) -> None:
+        if self._writers is not None:
+            self._writers.discard()
+            self._writers = None
+        elif self.out_dir is not None:
+            OutputWriters.discard_in(self.out_dir)
+        self.output_error = f"{exc}; the partial outputs in {self.out_dir} were removed"
+        self.warnings.append(self.output_error)     # said once, as the error of the result (exit 4)
 
     def warn(self, message: str) -> None:
         self.warnings.append(message)
@@ -100,18 +139,71 @@ class _Session:
         if batch.restarted:
             self.warn(f"{self.path}: the file was replaced or truncated; starting again from its beginning")
             self.restart()
+        dropped = self.reader.stats.duplicate_time + self.reader.stats.decreasing_time - self._dropped
+        self._dropped += dropped
         for issue in batch.issues:
             self.warn(issue.message)
+            if issue.kind in ("duplicate_time", "decreasing_time") and dropped > 0:
+                self.grid.duplicate(float(issue.value), 1, issue.message)
+                dropped -= 1
+        if dropped > 0:        # beyond the reader's examples: counted
+            self.grid.duplicate(self.reader.last_time, dropped, f"{dropped} more duplicated or decreasing row(s)")
         if len(batch):
             self.reads_with_rows += 1
-        self.monitor.feed(batch.time, np.column_stack([batch.values[s] for s in self.options.signals]))
+            self._feed(self.grid.split(batch.time, np.column_stack([batch.values[s] for s in self.options.signals])))
         progressed = batch.restarted or self.reader.offset != before
         return len(batch), progressed, batch.missing
 
+    def _feed(self, pieces: list[GridPiece]) -> None:
+        """Feed on-grid rows to the monitor, skipping long gaps (:mod:`monitor.grid`)."""
+        for issue in self.grid.new_issues:
+            self._grid_warnings += 1
+            if self._grid_warnings <= GRID_WARNINGS:
+                self.warn(issue.message)
+            elif self._grid_warnings == GRID_WARNINGS + 1:
+                self.warn(f"{self.path}: further time-grid problems are only counted (summary.json 'grid')")
+        o = self.options
+        for piece in pieces:
+            gap = piece.gap_before
+            if gap is not None and self.untrainable is None:
+                long = gap.end - gap.start > max(o.every, 2.0 * self.grid.grid.step)
+                if not self.monitor.trained and long and gap.end > o.train[0] and gap.start < o.train[1]:
+                    self.untrainable = (f"{gap.message}, inside the training window {o.train[0]:g}–{o.train[1]:g} s: "
+                                        "no model fitted, nothing monitored")
+                    self.warn(self.untrainable)
+                elif long:
+                    self.monitor.skip(gap.start, gap.end)
+                    self.grid.stats.skipped_gaps += 1
+            if self.untrainable is None:
+                self.monitor.feed(piece.time, piece.values)
+
+    def end_of_data(self, run: RunInfo | None) -> None:
+        """The data ended: release the rows held to learn the grid; rows run.json records after
+        the file's last are missing."""
+        self._feed(self.grid.flush())
+        if run is not None and run.ended and run.last_time is not None:
+            self.grid.missing_after(run.last_time)
+            self._feed([])
+
+    def indeterminate(self) -> str | None:
+        """Why no verdict can be given on the data (None: the grid was whole where it mattered)."""
+        if self.untrainable is not None:
+            return self.untrainable
+        g = self.grid.stats
+        if not g.watched:
+            return None
+        counts = [f"{n} {what}" for n, what in ((g.missing_rows, "missing"), (g.off_grid_rows, "off the grid"),
+                                               (g.duplicate_rows, "duplicated")) if n]
+        return (f"the time grid is broken in the training or monitored window ({', '.join(counts)} row(s); "
+                f"first: {g.first_watched.message})")
+
     def restart(self) -> None:
         self.monitor.reset()
+        self.grid.reset()
+        self.untrainable = None
+        self._dropped = 0
         if self._writers is not None:
-            self._writers.restart()
+            self._write(lambda w: w.restart())
 
     def drain(self) -> tuple[bool, bool]:
         """Read everything available now; returns (anything read, file missing)."""
@@ -125,7 +217,10 @@ class _Session:
     def close(self) -> None:
         self.reader.close()
         if self._writers is not None:
-            self._writers.close()
+            try:
+                self._writers.close()
+            except OutputWriteError as exc:
+                self._output_failed(exc)
 
     def reject_empty(self, run: RunInfo | None) -> None:
         """Raise if the file gave no usable row; a failed run's own error is part of the message."""
@@ -159,16 +254,21 @@ class _Session:
             max_statistic_over_threshold=mon.max_ratio if mon.n_evaluations else None,
             max_statistic_before_fault=float(pre.max()) if pre.size else None,
             alarm_events=alarms, score=score_alarms([e.time for e in alarms], fault) if run is not None else None,
-            run=run, timing=timing, warnings=len(self.warnings))
+            run=run, timing=timing, warnings=len(self.warnings), grid=self.grid.stats,
+            indeterminate=self.indeterminate())
 
     def result(self, status: str, run: RunInfo | None, error: str | None = None,
                plots: bool = True) -> MonitorResult:
         mon = self.monitor
         result = MonitorResult(self.path, self.summary(status, run, error), [e.as_dict() for e in mon.events],
                                mon.evaluation_frame(), mon.history_frame(), list(self.warnings))
-        writers = self._outputs()
-        if writers is not None:
-            writers.finish(result, plots=plots)
+        self._write(lambda w: w.finish(result, plots=plots))
+        if self._writers is not None:
+            try:
+                self._writers.close()
+            except OutputWriteError as exc:
+                self._output_failed(exc)
+        result.output_error = self.output_error
         return result
 
 
@@ -183,6 +283,15 @@ def warm_up(model: str) -> None:
 
         with quiet_prophet():
             import prophet  # noqa: F401
+
+
+def _checked_run_info(path: Path) -> RunInfo | None:
+    """run.json beside ``path`` (None: there is none); one that is not a run record is refused."""
+    run = read_run_info(path)
+    if run is not None and run.record is None:
+        raise RunJsonError(f"{run.error}; a run folder's run.json must be the record fourbar-run writes "
+                           "(remove it to monitor the exchange file alone)")
+    return run
 
 
 def _lost_message(run: RunInfo) -> str:
@@ -210,13 +319,12 @@ def replay(exchange_path: str | os.PathLike[str], *, options: MonitorOptions | N
     path = exchange_file(exchange_path)
     if not path.exists():
         raise ExchangeMissingError(f"{path}: exchange file not found (use --follow to wait for it)")
-    run = read_run_info(path)
+    run = _checked_run_info(path)
     session = _Session(path, opts, out_dir, on_event, on_evaluation, on_warning)
+    session.use_run(run)
     try:
         lost = run is not None and run.status == "running" and run.writer_alive() is False
-        if run is not None and run.status == "unreadable":
-            session.warn(f"{run.error}; fault time unknown")
-        elif lost:
+        if lost:
             session.warn(_lost_message(run))
         elif run is not None and run.status == "running":
             session.warn(f"{run.path}: the run is still running; replaying the rows written so far "
@@ -224,6 +332,7 @@ def replay(exchange_path: str | os.PathLike[str], *, options: MonitorOptions | N
         if session.drain()[1]:
             raise ExchangeMissingError(f"{path}: the exchange file disappeared while being read")
         session.reject_empty(run)
+        session.end_of_data(run)
         note = session.reader.skip_summary()
         if note:
             session.warn(note)
@@ -233,7 +342,9 @@ def replay(exchange_path: str | os.PathLike[str], *, options: MonitorOptions | N
             session.warn(f"{run.path}: {error}")
         elif lost:
             status, error = "run_lost", "the run was cut off (its writer is gone)"
-        if status == "finished" or session.monitor.trained:
+        if session.untrainable is not None:
+            pass                                # said already; the verdict is indeterminate
+        elif status == "finished" or session.monitor.trained:
             session.monitor.finish()
         else:
             session.warn(f"{path}: the run ended ({status}) before the training window was complete; "
@@ -262,10 +373,11 @@ def follow(exchange_path: str | os.PathLike[str], *, options: MonitorOptions | N
     opts = merged(options or MonitorOptions(), settings)
     fopts = merged(FollowOptions(), {"poll": poll, "timeout": timeout})
     path = exchange_file(exchange_path, later=True)
+    regular_or_absent(path)
     say = on_wait or (lambda message: None)
     warm_up(opts.model)
     session = _Session(path, opts, out_dir, on_event, on_evaluation, on_warning)
-    initial = read_run_info(path)
+    initial = _checked_run_info(path)
     skip = initial.identity if initial is not None and initial.status != "running" else None
     if skip is not None:
         say(f"{path.parent} holds {initial.describe()}, which has ended ({initial.status}); waiting for the next "
@@ -279,7 +391,7 @@ def follow(exchange_path: str | os.PathLike[str], *, options: MonitorOptions | N
     try:
         try:
             while True:
-                run = read_run_info(path)          # read before the rows: rows precede the status
+                run = _checked_run_info(path)      # read before the rows: rows precede the status
                 if run is not None and skip is not None and run.identity == skip:
                     run = None                     # still the old, ended run: do not read its rows
                 else:
@@ -290,6 +402,8 @@ def follow(exchange_path: str | os.PathLike[str], *, options: MonitorOptions | N
                         session.reader.close()
                         session.reader = ExchangeReader(path, list(opts.signals))
                     if run is not None and (following is None or run.identity != following.identity):
+                        if session.reader.offset == 0:
+                            session.use_run(run)
                         following = run
                         say(f"following {run.describe()}")
                     if session.drain()[0]:
@@ -312,7 +426,7 @@ def follow(exchange_path: str | os.PathLike[str], *, options: MonitorOptions | N
                             session.warn(f"{run.path}: the run was interrupted; stopping")
                         break
                     if run.status == "running" and run.writer_alive() is False:
-                        again = read_run_info(path)      # it may have ended just before exiting
+                        again = _checked_run_info(path)  # it may have ended just before exiting
                         if again is not None and again.identity == run.identity and again.status == "running":
                             session.drain()
                             status, error = "run_lost", "the run was cut off (its writer is gone)"
@@ -341,9 +455,12 @@ def follow(exchange_path: str | os.PathLike[str], *, options: MonitorOptions | N
         note = session.reader.skip_summary()
         if note:
             session.warn(note)
+        if session.reader.header is not None:
+            session.end_of_data(run)
         if status in ("finished", "timeout"):
             session.reject_empty(run)
-            session.monitor.finish()
+            if session.untrainable is None:
+                session.monitor.finish()
         elif not session.monitor.trained:
             what = "monitoring was interrupted" if status == "interrupted" else f"the run ended ({status})"
             session.warn(f"{path}: {what} before the training window was complete; nothing monitored")

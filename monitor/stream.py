@@ -143,6 +143,13 @@ class Monitor:
             return
         self._process(t, x)
 
+    def skip(self, start: float, end: float) -> None:
+        """No samples will come in (``start``, ``end``) s (a gap of the grid): the detector
+        moves its evaluation clock past it (:meth:`Detector.skip`).  Before the training
+        the session decides (a gap in the training window leaves nothing to fit)."""
+        if self._fit is not None:
+            self.detector.skip(float(start), float(end))
+
     def _process(self, t: np.ndarray, x: np.ndarray) -> None:
         """Samples after the training window, with a fitted model."""
         f = np.asarray(self.detector.update(t, x), dtype=float)

@@ -16,12 +16,17 @@ import numpy as np
 
 from .detector import ALARM_MESSAGE, Event, Fit, State
 from .options import MonitorOptions
+from .grid import GridStats
 from .reader import ReaderStats, RunInfo
 from .spectrum import PeriodEstimate
 from .threshold import ThresholdRule
 
-__all__ = ["FaultScore", "MonitorResult", "SCHEMA", "Summary", "Timing", "before_fault", "score_alarms"]
+__all__ = ["INDETERMINATE_EXIT", "OUTPUT_ERROR_EXIT", "FaultScore", "MonitorResult", "SCHEMA", "Summary", "Timing", "before_fault", "score_alarms"]
 
+#: Exit status of a session whose output files could not be written (the verdict was printed).
+OUTPUT_ERROR_EXIT = 4
+#: Exit status of a session whose data allow no verdict (no alarm, broken time grid).
+INDETERMINATE_EXIT = 5
 #: Version of summary.json's layout.
 SCHEMA = 1
 #: Times within this of the fault time count as "at the fault time" (evaluation times are sums of floats).
@@ -112,6 +117,9 @@ class Summary:
     run: RunInfo | None
     timing: Timing
     warnings: int
+    grid: GridStats | None = None
+    #: why the data allow no verdict (a broken time grid where it mattered), None when they do
+    indeterminate: str | None = None
 
     # -- the figures people ask for -----------------------------------------------------------
     @property
@@ -175,6 +183,8 @@ class Summary:
             "detector": self.options.detector,
             "options": self.options.as_dict(),
             "rows": self.rows.as_dict(),
+            "grid": self.grid.as_dict() if self.grid is not None else None,
+            "indeterminate": self.indeterminate,
             "reads_with_rows": self.reads_with_rows,
             "restarts": self.restarts,
             "samples": self.samples,
@@ -221,6 +231,8 @@ class MonitorResult:
     evaluations: Any                  # DataFrame time, mae, threshold, state
     history: Any                      # DataFrame time, <signal>, forecast (decimated when long)
     warnings: list[str] = field(default_factory=list)
+    #: why the output files could not be written (they were removed); None when they were
+    output_error: str | None = None
 
     @property
     def status(self) -> str:
@@ -268,9 +280,15 @@ class MonitorResult:
 
     @property
     def exit_code(self) -> int:
-        """0 no alarm, 1 alarm or failed run, 3 the run was cut off (its writer died), 130 interrupted."""
+        """0 no alarm, 1 alarm or failed run, 3 the run was cut off (its writer died),
+        4 the verdict was reached but the output files could not be written, 5 indeterminate (no alarm, but the time grid was broken in the training or monitored
+        window: :attr:`Summary.indeterminate`), 130 interrupted."""
         if self.status == "interrupted":
             return 130
+        if self.output_error is not None:
+            return OUTPUT_ERROR_EXIT
         if self.status == "run_lost":
             return 3
-        return 1 if (self.alarmed or self.status == "run_failed") else 0
+        if self.alarmed or self.status == "run_failed":
+            return 1
+        return INDETERMINATE_EXIT if self.summary.indeterminate is not None else 0

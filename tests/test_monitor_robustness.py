@@ -19,6 +19,7 @@ import pytest
 from monitor import (ExchangeFormatError, ExchangeMissingError, ExchangeReader, ExchangeWarning, Monitor,
                      MonitorOptions, follow, read_exchange, replay)
 from monitor.cli import main
+from monitor.errors import RunJsonError
 from test_monitor_support import copy_run, orchestrated
 
 FAST = dict(model="harmonic")
@@ -398,13 +399,15 @@ def test_run_json_failed_before_training(case2_lines, tmp_path, capsys):
     assert "the run failed: FMU crashed" in err and "before the training window was complete" in err
 
 
-def test_run_json_unreadable(case2, reference, tmp_path):
+def test_run_json_unreadable(case2, tmp_path, capsys):
+    """A run.json that is not a run record is refused (issue 36: it used to be read as "fault
+    time unknown", and an alarm at the fault was then called a false alarm)."""
     path = copy_run(case2, tmp_path)
     (tmp_path / "run.json").write_text("{not json")
-    warnings = []
-    r = replay(path, on_warning=warnings.append, **FAST)
-    assert any("run.json: not valid JSON" in w for w in warnings)
-    assert r.fault_time is None and r.first_alarm_time == reference.first_alarm_time
+    with pytest.raises(RunJsonError, match="run.json: not valid JSON"):
+        replay(path, **FAST)
+    code, out, err = cli([str(path), "--model", "harmonic", "--no-plots", "--out", str(tmp_path / "m")], capsys)
+    assert code == 2 and "run.json: not valid JSON" in err and not (tmp_path / "m").exists()
 
 
 # -- memory stays bounded ---------------------------------------------------------------------------------

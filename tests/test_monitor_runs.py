@@ -147,7 +147,9 @@ def test_killed_writer_is_noticed_at_once(fourbar_fmu, tmp_path):
                 proc.kill()
     assert json.loads((out / "run.json").read_text())["status"] == "running"      # nobody closed it
     assert follower.returncode == 3, (stdout, stderr)
-    assert noticed < 5.0, noticed                   # the pid check, not the 600 s silence timeout
+    # the pid check, not the 600 s silence timeout: a hang guard far below 600 s and far above the
+    # time a loaded machine needs (14 s measured with a load average of 9 on 2 cores)
+    assert noticed < 120.0, noticed
     assert "the run was cut off" in stderr and f"pid {writer.pid}" in stderr
     summary = json.loads((out / "monitor" / "summary.json").read_text())
     assert summary["status"] == "run_lost" and summary["last_time"] >= 12.0

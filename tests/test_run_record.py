@@ -8,6 +8,7 @@ FmuDescription), so a writer that drops or mislabels one is caught.
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -194,3 +195,43 @@ def test_a_case_without_every_parameter_runs_monitors_and_diagnoses(tmp_path, na
     # noise-free: the issue's diagnosis targets, value within 0.1 % and time within 0.02 s
     assert best["value"] == pytest.approx(after, rel=1e-3)
     assert best["change_time"] == pytest.approx(FAULT_TIME, abs=0.02)
+
+
+# -- issue 36: what is not a run record is refused, naming the file and what is wrong ------------------
+@pytest.mark.parametrize("text, expected", [
+    ("[" * 100_000 + "]" * 100_000, "JSON nested too deeply"),
+    ('{"schema": 2, "x": ' + "{\"a\": " * 50_000 + "1" + "}" * 50_000 + "}", "JSON nested too deeply"),
+    ("{}", "not a run record: fields schema, status, run_id, case, experiment, rows_written are missing "
+           "(the object is empty)"),
+    ('{"hello": 1}', "not a run record: fields schema, status"),
+    ("", "is empty (0 bytes): not a run record"),
+    ("  \n", "is empty (3 bytes): not a run record"),
+])
+def test_what_is_not_a_record_is_refused(tmp_path, text, expected):
+    path = tmp_path / "run.json"
+    path.write_text(text)
+    with pytest.raises(RunRecordError) as info:
+        read_run_record(path)
+    assert str(info.value).startswith(f"{path}: ") and expected in str(info.value)
+
+
+def test_a_huge_run_json_is_refused(tmp_path, monkeypatch):
+    import fourbar_common.run_record as rr
+
+    path = tmp_path / "run.json"
+    path.write_text('{"schema": 2, "pad": "' + "x" * 2000 + '"}')
+    monkeypatch.setattr(rr, "MAX_JSON_BYTES", 1000)       # the default (16 MB) with a small file
+    with pytest.raises(RunRecordError, match="larger than 1000 bytes"):
+        read_run_record(path)
+
+
+@pytest.mark.parametrize("make, kind", [(os.mkfifo, "a FIFO"), (os.mkdir, "a directory")])
+def test_a_fifo_or_folder_is_not_opened(tmp_path, make, kind):
+    from fourbar_common.run_record import NotRegularFileError, open_regular
+
+    path = tmp_path / "run.json"
+    make(path)                         # a blocking open of a FIFO without a writer would hang here
+    with pytest.raises(RunRecordError, match=f"run.json: is {kind}"):
+        read_run_record(path)
+    with pytest.raises(NotRegularFileError, match=f"is {kind}"):
+        open_regular(path)

@@ -111,3 +111,48 @@ def test_series_windows_and_bins():
     assert env["high"].max() <= 1.0 and env["low"].min() >= -1.0 and (env["high"] - env["low"]).min() > 0.5
     assert s.index_at(0.005) == 0 and s.index_at(-1.0) == -1
     assert s.nbytes <= 2 * len(t) * 2 * 8               # two float columns, doubling growth
+
+
+# -- issue 36: files that are not files, JSON nested too deeply, empty records ----------------------
+NESTED = "[" * 100_000 + "]" * 100_000
+
+
+@pytest.mark.parametrize("name", ["exchange.csv", "run.json", "monitor/events.jsonl"])
+def test_a_fifo_in_the_folder_is_refused_without_blocking(folder, name):
+    (folder / "monitor").mkdir()
+    path = folder / name
+    path.unlink(missing_ok=True)
+    os.mkfifo(path)            # opened for reading in blocking mode, it would hang (no writer)
+    with pytest.raises(RunFolderError, match=f"{name}: is a FIFO \\(named pipe\\), not a regular file"):
+        check_run_folder(folder)
+
+
+def test_a_fifo_appearing_later_is_never_opened(folder):
+    source = RunFolder(folder)
+    (folder / "monitor").mkdir()
+    os.mkfifo(folder / "monitor" / "events.jsonl")
+    update = source.poll()              # returns (a blocking open would hang the test)
+    assert update.events == []
+
+
+@pytest.mark.parametrize("text, expected", [
+    (NESTED, "JSON nested too deeply"),
+    ("{}", "not a run record: fields schema, status, run_id, case, experiment, rows_written are missing"),
+    ("", "is empty (0 bytes): not a run record"),
+])
+def test_nested_or_empty_run_json_is_a_problem(folder, text, expected):
+    (folder / "run.json").write_text(text)
+    update = RunFolder(folder).poll()
+    assert update.record is None and expected in update.record_problem
+
+
+def test_a_nested_events_line_or_diagnosis_is_a_warning(folder):
+    (folder / "monitor").mkdir()
+    event = {"time": 1.0, "event": "alarm", "state": "alarm", "statistic": 2.0, "threshold": 1.0}
+    (folder / "monitor" / "events.jsonl").write_text(NESTED + "\n" + json.dumps(event) + "\n" + '{"time": 2.0')
+    (folder / "diagnosis").mkdir()
+    (folder / "diagnosis" / "diagnosis.json").write_text(NESTED)
+    update = RunFolder(folder).poll()
+    assert [e.time for e in update.events] == [1.0]            # the torn last line is not read
+    assert any("events.jsonl: JSON nested too deeply" in w for w in update.warnings)
+    assert any("diagnosis.json: cannot be read" in w and "nested too deeply" in w for w in update.warnings)

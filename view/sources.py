@@ -5,7 +5,10 @@ adds ``monitor/`` (``events.jsonl``, ``evaluations.csv``, ``forecast.csv``, ``su
 and ``fourbar-diagnose`` adds ``diagnosis/diagnosis.json``.  :class:`RunFolder` polls them:
 each :meth:`RunFolder.poll` returns only what is new since the last one (:class:`Update`), so a
 page streams rows instead of re-sending the run.  Complete lines only: a writer appends whole
-lines, and a last line without its newline is read at the next poll.  A file replaced by a new
+lines, and a last line without its newline is read at the next poll (a torn last line left by a
+killed writer is never read).  A FIFO, device or folder in place of a file is refused by
+:func:`check_run_folder` and never opened by a poll; JSON nested too deeply or too large is a
+warning naming the file, not a traceback.  A file replaced by a new
 run (shorter, or another ``run_id``) starts again from its top, and the update says so.
 
 The formats are the contracts of docs/contracts.md; this module reads them with pandas and
@@ -15,9 +18,9 @@ code.
 from __future__ import annotations
 
 import io
-import json
 import math
 import os
+import stat
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,9 +29,13 @@ from typing import Any
 import pandas as pd
 
 from fourbar_common import RunRecord, RunRecordError, read_run_record
+from fourbar_common.run_record import (JsonFileError, NotRegularFileError, file_kind, open_regular, parse_json,
+                                      read_json_file)
 
 __all__ = ["Diagnosis", "MonitorEvent", "RunFolder", "RunFolderError", "Update", "check_run_folder"]
 
+#: Most bytes of one file read by one poll (the rest comes at the next polls).
+MAX_READ_BYTES = 16 << 20
 #: A writer that has not touched run.json for this many heartbeats is taken as stopped.
 STALE_HEARTBEATS = 5.0
 
@@ -51,6 +58,15 @@ def check_run_folder(path: str | os.PathLike[str]) -> Path:
     if not (folder / "run.json").exists():
         raise RunFolderError(f"{folder}: has exchange.csv but no run.json; the view needs the run's record "
                              f"(written by fourbar-run beside the exchange file)")
+    for name in ("run.json", "exchange.csv", "monitor/events.jsonl", "monitor/evaluations.csv",
+                 "monitor/forecast.csv", "diagnosis/diagnosis.json"):
+        try:
+            mode = (folder / name).stat().st_mode
+        except OSError:
+            continue
+        if not stat.S_ISREG(mode):
+            raise RunFolderError(f"{folder / name}: {file_kind(mode)}, not a regular file; a run folder holds "
+                                 "the files fourbar-run, fourbar-monitor and fourbar-diagnose write")
     return folder
 
 
@@ -120,6 +136,10 @@ class _LineTail:
             restarted = self.offset > 0
             self.reset()
             return [], restarted
+        if not stat.S_ISREG(st.st_mode):       # a FIFO or a folder put in its place: never opened
+            restarted = self.offset > 0
+            self.reset()
+            return [], restarted
         restarted = False
         if (self.inode is not None and st.st_ino != self.inode) or st.st_size < self.offset:
             self.reset()
@@ -127,9 +147,14 @@ class _LineTail:
         self.inode = st.st_ino
         if st.st_size == self.offset:
             return [], restarted
-        with open(self.path, "rb") as f:
+        try:
+            f = open_regular(self.path)
+        except (FileNotFoundError, NotRegularFileError):
+            return [], restarted
+        with f:
             f.seek(self.offset)
-            chunk = f.read(st.st_size - self.offset)
+            # only up to the size seen: bytes appended since are read at the next poll
+            chunk = f.read(min(st.st_size - self.offset, MAX_READ_BYTES))
         end = chunk.rfind(b"\n")
         if end < 0:
             return [], restarted
@@ -237,9 +262,9 @@ class RunFolder:
         update.monitor_restarted = update.monitor_restarted or restarted
         for line in lines:
             try:
-                data = json.loads(line)
-            except ValueError:
-                update.warnings.append(f"{self.events.path}: a line that is not JSON was skipped")
+                data = parse_json(line, str(self.events.path))
+            except JsonFileError as exc:     # not JSON, or nested too deeply
+                update.warnings.append(f"{exc}; the line was skipped")
                 continue
             if not isinstance(data, dict) or _number(data.get("time")) is None:
                 continue
@@ -254,7 +279,7 @@ class RunFolder:
         if not self._changed(path):
             return
         try:
-            data = json.loads(path.read_text(encoding="utf-8"))
+            data = read_json_file(path)
             best = data.get("best") or {}
             update.diagnosis = Diagnosis(verdict=str(data["verdict"]), message=str(data.get("message", "")),
                                          parameter=best.get("parameter"), before=_number(best.get("before")),
