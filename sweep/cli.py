@@ -112,12 +112,16 @@ def _main(argv: list[str] | None, stop=None) -> int:
             print("fourbar-sweep: error: --dashboard serves the local cluster's dashboard; a scheduler given by "
                   "--scheduler serves its own", file=sys.stderr)
             return 2
-        from view.served import AddressError, ignore_bokeh_environment, parse_address
+        from view.served import AddressError, Bind, ignore_bokeh_environment, parse_address
 
         try:
             bind = parse_address(args.dashboard, 8787, option="--dashboard")
         except AddressError as exc:
             _err(f"error: {exc}")
+            return 2
+        problem = Bind(bind.host, 0).listen_problem("--dashboard")     # the port may be taken: Dask then picks one
+        if problem is not None:
+            _err(f"error: {problem}")
             return 2
         args.dashboard = bind.where
         warning = bind.warning("the Dask dashboard")

@@ -323,7 +323,7 @@ def test_a_dashboard_on_another_address_is_warned_about_and_bad_ones_refused(smo
                            "--dry-run", "--out", str(tmp_path / "o")], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert "warning" in done.stderr and "0.0.0.0:8787" in done.stderr and "no authentication" in done.stderr
-    for bad in ("0.0.0.0:99999", "tcp://x:1", "no.such.host.invalid:8787"):
+    for bad in ("0.0.0.0:99999", "tcp://x:1", "no.such.host.invalid:8787", "192.0.2.1:8787"):  # TEST-NET-1
         done = subprocess.run([sys.executable, "-m", "sweep.cli", str(smoke_file), "--dashboard", bad, "--dry-run",
                                "--out", str(tmp_path / "o")], capture_output=True, text=True, timeout=120)
         assert done.returncode == 2 and "--dashboard" in done.stderr and "Traceback" not in done.stderr, done.stderr

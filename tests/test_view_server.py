@@ -161,7 +161,9 @@ def test_another_address_is_bound_as_asked_with_a_warning(run_folder):
 
 
 def test_bad_addresses_exit_2_with_a_message(run_folder):
-    for address, said in (("no.such.host.invalid", "not an address"), ("http://x", "not a URL")):
+    # 192.0.2.1: TEST-NET-1 (RFC 5737), an address no computer has
+    for address, said in (("no.such.host.invalid", "not an address"), ("http://x", "not a URL"),
+                          ("192.0.2.1", "cannot listen there")):
         done = subprocess.run([FOURBAR_VIEW, str(run_folder), "--address", address], capture_output=True, text=True,
                               timeout=HANG_GUARD_S)
         assert done.returncode == 2 and "--address" in done.stderr and said in done.stderr, done.stderr

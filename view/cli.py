@@ -8,7 +8,6 @@ happen after the arguments are checked, so ``--help`` answers at once.
 from __future__ import annotations
 
 import argparse
-import socket
 import sys
 from pathlib import Path
 from typing import Sequence
@@ -100,26 +99,10 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _socket_for(host: str, port: int) -> socket.socket:
-    family = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0][0]
-    return socket.socket(family, socket.SOCK_STREAM)
-
-
-def free_port_problem(port: int, host: str = "127.0.0.1") -> str | None:
-    """Why ``port`` cannot be served on ``host`` (None: it can; 0 always can)."""
-    if port == 0:
-        return None
-    with _socket_for(host, port) as s:
-        try:
-            s.bind((host, port))
-        except OSError as exc:
-            return (f"port {port} on {host} cannot be served on ({exc.strerror}); choose another with --port, "
-                    f"or --port 0")
-    return None
-
-
 def _any_free_port(host: str = "127.0.0.1") -> int:
     """A port on ``host`` that no one listens on now (the system's choice)."""
+    from .served import _socket_for
+
     with _socket_for(host, 0) as s:
         s.bind((host, 0))
         return int(s.getsockname()[1])
@@ -165,7 +148,7 @@ def _main(argv: Sequence[str] | None) -> int:
     if bind.port != args.port:
         print(f"fourbar-view: error: --address {args.address!r}: give the port with --port", file=sys.stderr)
         return 2
-    problem = free_port_problem(bind.port, bind.host)
+    problem = bind.listen_problem("--address", "--port")
     if problem is not None:
         print(f"fourbar-view: error: {problem}", file=sys.stderr)
         return 2

@@ -100,6 +100,21 @@ class Bind:
             hosts.add(e if e.rsplit(":", 1)[-1].isdigit() and not e.endswith("]") else f"{e}:{self.port}")
         return tuple(sorted(hosts))
 
+    def listen_problem(self, address_option: str, port_option: str | None = None) -> str | None:
+        """Why this address and port cannot be listened on now (None: they can; port 0 can
+        whenever the address is one of this computer's), naming the options to change."""
+        try:
+            with _socket_for(self.host, self.port) as s:
+                s.bind((self.host, self.port))
+        except OSError as exc:
+            why = exc.strerror or str(exc)
+            if self.port == 0:
+                return f"{address_option} {self.host}: cannot listen there ({why}); is it an address of this computer?"
+            change = f"{port_option}" if port_option else address_option
+            return (f"port {self.port} on {self.host} cannot be served on ({why}); choose another with {change}"
+                    + (f", or {port_option} 0" if port_option else ""))
+        return None
+
     def warning(self, what: str) -> str | None:
         """What to say when the address is reachable from other computers (None: loopback)."""
         if self.loopback:
@@ -107,6 +122,11 @@ class Bind:
         return (f"warning: {what} listens on {self.where}, reachable from other computers, and has no "
                 f"authentication: anyone who can reach this address can read it. Bind 127.0.0.1 (the default) "
                 f"unless you mean this")
+
+
+def _socket_for(host: str, port: int) -> socket.socket:
+    family = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0][0]
+    return socket.socket(family, socket.SOCK_STREAM)
 
 
 def parse_address(text: str, default_port: int, *, option: str) -> Bind:
