@@ -14,7 +14,15 @@ Protocol ``Performance.getMetrics``) and the rows the page's data sources hold. 
 page records, every 10 ms, the newest time its recent-signal source holds; a block's latency is
 from the wall time its last line was written to the first record at or after that time.
 
+With ``--concurrent N`` it measures instead N page loads at once on a finished run (the same
+hour, cached): N threads each GET the page (what a browser's first request does: Bokeh builds
+the session's document for it) at the same moment; reported are the median and largest time to
+the page's last byte, and the server's resident memory before the loads, its largest during
+them, after the sessions closed (a session no browser connects to is dropped after 5 s), and
+after a second round of N loads (memory bounded: it does not grow by a round's worth).
+
 Usage: python benchmarks/view_load.py [--hours 1] [--pace 30] [--out DIR] [--quick]
+       python benchmarks/view_load.py --concurrent 50 [--hours 1] [--out DIR]
 """
 from __future__ import annotations
 
@@ -148,15 +156,125 @@ RECORDER = """() => {
 }"""
 
 
+def _rss(proc) -> int:
+    """Resident memory of ``proc`` and its children, bytes."""
+    import psutil
+
+    try:
+        return sum(m.memory_info().rss for m in [proc, *proc.children(recursive=True)])
+    except psutil.Error:
+        return 0
+
+
+def concurrent_loads(folder: Path, n: int, out: Path, seconds: int) -> int:
+    """``n`` page loads at once on the finished run ``folder``: latency and server memory."""
+    import urllib.request
+
+    import psutil
+
+    server_log = out / "server_concurrent.log"
+    with open(server_log, "w") as log:
+        server = subprocess.Popen([str(BIN / "fourbar-view"), str(folder), "--quiet"], stdout=subprocess.PIPE,
+                                  stderr=log, text=True)
+    try:
+        url = server.stdout.readline().strip()
+        if not url:
+            print(f"view_load: fourbar-view did not start: {server_log.read_text()}", file=sys.stderr)
+            return 1
+        proc = psutil.Process(server.pid)
+        time.sleep(2.0)
+        idle = _rss(proc)
+        t0 = time.perf_counter()
+        with urllib.request.urlopen(url, timeout=600) as response:      # the first load reads the run
+            response.read()
+        first = time.perf_counter() - t0
+        time.sleep(10.0)               # its session dropped
+        before = _rss(proc)
+        barrier = threading.Barrier(n)
+        latencies: list[float] = []
+        failures: list[str] = []
+        peak = [before]
+        done = threading.Event()
+
+        def load() -> None:
+            barrier.wait()
+            t0 = time.perf_counter()
+            try:
+                with urllib.request.urlopen(url, timeout=600) as response:
+                    response.read()
+                latencies.append(time.perf_counter() - t0)
+            except OSError as exc:
+                failures.append(str(exc))
+
+        def sample() -> None:
+            while not done.wait(0.2):
+                peak[0] = max(peak[0], _rss(proc))
+
+        sampler = threading.Thread(target=sample, daemon=True)
+        sampler.start()
+
+        def round_of_loads() -> float:
+            threads = [threading.Thread(target=load) for _ in range(n)]
+            t_all = time.perf_counter()
+            for t in threads:
+                t.start()
+            for t in threads:
+                t.join()
+            return time.perf_counter() - t_all
+
+        wall = round_of_loads()
+        after_loads = _rss(proc)
+        time.sleep(15.0)               # unused sessions are dropped 5 s after their load, checked every 2 s
+        after_close = _rss(proc)
+        first_round = list(latencies)
+        round_of_loads()               # again: memory bounded means it does not grow by a round's worth
+        time.sleep(15.0)
+        done.set()
+        sampler.join()
+        after_second = _rss(proc)
+        latencies[:] = first_round
+    finally:
+        server.send_signal(signal.SIGTERM)
+        server.wait(timeout=30)
+    lat = np.array(latencies) if latencies else np.array([np.nan])
+    print(f"Command: `python benchmarks/view_load.py --concurrent {n}` (`--hours {seconds / 3600:g}`). "
+          f"{n} page loads at once (one thread each, an HTTP GET of the page, which builds its session) of "
+          f"`fourbar-view` on a finished run of {seconds:,} s at 100 Hz; all done in {wall:.1f} s.")
+    print()
+    print("| measure | value |")
+    print("|---|---:|")
+    print(f"| page loads answered | {len(latencies)} of {n} |")
+    print(f"| time to the page's last byte, median (s; first round) | {np.median(lat):.2f} |")
+    print(f"| time to the page's last byte, largest (s; first round) | {np.max(lat):.2f} |")
+    print(f"| first page load, alone (s; it reads the run for every later session) | {first:.2f} |")
+    print(f"| server resident memory idle, before any load (MB) | {idle / 1e6:.0f} |")
+    print(f"| server resident memory before the {n} loads, after the first (MB) | {before / 1e6:.0f} |")
+    print(f"| server resident memory, largest during both rounds (MB) | {peak[0] / 1e6:.0f} |")
+    print(f"| server resident memory after the loads (MB) | {after_loads / 1e6:.0f} |")
+    print(f"| server resident memory 15 s later, the sessions closed (MB) | {after_close / 1e6:.0f} |")
+    print(f"| the same after a second round of {n} loads, its sessions closed (MB) | {after_second / 1e6:.0f} |")
+    if failures:
+        print(f"view_load: {len(failures)} load(s) failed: {failures[0]}", file=sys.stderr)
+    return 0 if not failures else 1
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hours", type=float, default=1.0, help="length of the run followed (default 1)")
     parser.add_argument("--pace", type=float, default=30.0, help="times real time the rows are written (default 30)")
     parser.add_argument("--out", type=Path, default=REPO / "out" / "benchmarks" / "view")
     parser.add_argument("--quick", action="store_true", help="smoke test: 60 s of run at 20x")
+    parser.add_argument("--concurrent", type=int, metavar="N",
+                        help="instead: N page loads at once on the finished run (latency, server memory)")
     args = parser.parse_args(argv)
     if args.quick:
         args.hours, args.pace = 60 / 3600, 20.0
+    if args.concurrent is not None:
+        if args.concurrent < 1:
+            parser.error(f"--concurrent: expected a number of loads >= 1, got {args.concurrent}")
+        args.out.mkdir(parents=True, exist_ok=True)
+        seconds = round(args.hours * 3600)
+        return concurrent_loads(source_run(args.out, seconds), args.concurrent, args.out, seconds)
     from view.headless import chromium_path, launch
 
     if chromium_path() is None:

@@ -31,6 +31,7 @@ _EPILOG = """\
 examples:
   fourbar-sweep sweeps/smoke.toml                       # 8 short scenarios, a first try
   fourbar-sweep sweeps/l2_step.toml --workers 2
+  fourbar-sweep sweeps/l2_step.toml --dashboard          # Dask's dashboard on 127.0.0.1:8787
   fourbar-sweep sweeps/l2_step.toml --dry-run           # count the scenarios, run nothing
   fourbar-sweep sweeps/l2_step.toml --scheduler tcp://10.0.0.5:8786 --out /shared/sweeps/l2
 
@@ -61,9 +62,12 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="address of a running Dask scheduler, e.g. tcp://host:8786 (default: start a "
                              "local cluster); its workers need this package, the FMU and DIR at the same paths")
-    parser.add_argument("--dashboard", metavar="ADDRESS", nargs="?", const=":8787", default=None,
-                        help="serve the local cluster's Dask dashboard (task stream, worker load) at ADDRESS "
-                             "(default when given without one: :8787) and print its link; off by default")
+    parser.add_argument("--dashboard", metavar="HOST:PORT", nargs="?", const="127.0.0.1:8787", default=None,
+                        help="serve the local cluster's Dask dashboard (task stream, worker load) at HOST:PORT "
+                             "(default when given without one: 127.0.0.1:8787, this computer only; :PORT or PORT "
+                             "is 127.0.0.1 too) and print its link; off by default.  The dashboard has no "
+                             "authentication: another address (e.g. 0.0.0.0:8787) gets a warning; requests "
+                             "naming another host get 403; BOKEH_* variables are ignored")
     parser.add_argument("--workers", metavar="N", type=_positive_int,
                         help="worker processes of the local cluster (default: one per core)")
     parser.add_argument("--out", metavar="DIR", help="output directory (default: out/sweeps/<sweep name>)")
@@ -103,6 +107,29 @@ def _main(argv: list[str] | None, stop=None) -> int:
         print("fourbar-sweep: error: --workers sets the size of the local cluster; with --scheduler the "
               "cluster's own workers are used (start them with `dask worker`)", file=sys.stderr)
         return 2
+    if args.dashboard is not None:
+        if args.scheduler:
+            print("fourbar-sweep: error: --dashboard serves the local cluster's dashboard; a scheduler given by "
+                  "--scheduler serves its own", file=sys.stderr)
+            return 2
+        from view.served import AddressError, Bind, ignore_bokeh_environment, parse_address
+
+        try:
+            bind = parse_address(args.dashboard, 8787, option="--dashboard")
+        except AddressError as exc:
+            _err(f"error: {exc}")
+            return 2
+        problem = Bind(bind.host, 0).listen_problem("--dashboard")     # the port may be taken: Dask then picks one
+        if problem is not None:
+            _err(f"error: {problem}")
+            return 2
+        args.dashboard = bind.where
+        warning = bind.warning("the Dask dashboard")
+        if warning:
+            _err(warning)
+        ignored = ignore_bokeh_environment()      # before Bokeh serves: BOKEH_ALLOW_WS_ORIGIN would widen it
+        if ignored and not args.quiet:
+            _err(f"note: ignoring {', '.join(ignored)} from the environment for the dashboard")
     return _sweep(args.sweep, scheduler=args.scheduler, workers=args.workers, out=args.out, limit=args.limit,
                   retry_failed=args.retry_failed, dry_run=args.dry_run, quiet=args.quiet, dashboard=args.dashboard,
                   stop=stop)

@@ -35,7 +35,8 @@ from .plan import Scenario, plan_scenarios
 from .results import ResultsStore, table_from_rows
 from .scenario import failed_row, run_scenario
 
-__all__ = ["ClusterError", "SweepInterrupted", "SweepResult", "default_workers", "open_client", "run_sweep"]
+__all__ = ["ClusterError", "SweepInterrupted", "SweepResult", "dashboard_link", "default_workers", "open_client",
+           "run_sweep"]
 
 
 class ClusterError(RuntimeError):
@@ -92,8 +93,15 @@ def open_client(scheduler: str | None = None, workers: int | None = None, *,
     """A Dask client: on ``scheduler`` (an address), else on a new ``LocalCluster`` of
     ``workers`` processes (default :func:`default_workers`) with one thread each, serving
     its dashboard at ``dashboard`` (e.g. ``":8787"``; None: no dashboard).
-    Client and cluster are closed on exit; ``client.dashboard_link`` says where it is."""
+    Client and cluster are closed on exit; :func:`dashboard_link` says where it is.
+
+    ``dashboard`` is ``HOST:PORT``, ``:PORT`` or ``PORT`` (127.0.0.1: this computer only;
+    :func:`view.served.parse_address`).  The dashboard answers only requests whose Host header
+    names the bound address (403 otherwise) and its websocket only those origins."""
+    import dask
     from dask.distributed import Client, LocalCluster
+
+    from view.served import Bind, parse_address, refuse_other_hosts
 
     if scheduler:
         try:
@@ -112,17 +120,37 @@ def open_client(scheduler: str | None = None, workers: int | None = None, *,
     # user who asked for no dashboard.  Without a dashboard that API gets a free port on the
     # loopback interface instead, so nothing is printed and nothing is exposed.
     quiet_http = {} if dashboard is not None else {"dashboard_address": _NO_DASHBOARD_HTTP}
+    asked = parse_address(dashboard, 8787, option="--dashboard") if dashboard is not None else None
+    # the dashboard's websocket takes only the bound address's names as origins (distributed's
+    # default is "*": any web page open in this computer's browser could read the dashboard)
+    origins = {"distributed.scheduler.dashboard.bokeh-application.allow_websocket_origin":
+               [n for n in asked.names() if ":" not in n]} if asked is not None else {}
     try:
-        with _children_ignore_sigint():
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard,
+        with _children_ignore_sigint(), dask.config.set(origins):
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                   dashboard_address=asked.where if asked is not None else None,
                                    scheduler_kwargs=quiet_http, silence_logs=logging.CRITICAL)
     except (OSError, TimeoutError) as exc:
         raise ClusterError(f"cannot start a local Dask cluster of {n} worker processes: {exc}") from None
+    if asked is not None:
+        http = cluster.scheduler.http_server
+        # requests naming another host (DNS rebinding) get 403 before any handler runs
+        refuse_other_hosts(cluster.scheduler.http_application, Bind(asked.host, http.port).host_names())
     try:
         with Client(cluster) as client:
             yield client
     finally:
         cluster.close()
+
+
+def dashboard_link(client) -> str:
+    """The dashboard's link at the address its local cluster's scheduler really bound (not
+    distributed's ``dashboard_link``, which names the scheduler's host whatever the dashboard
+    bound: it printed 127.0.0.1 for a dashboard on 0.0.0.0)."""
+    from view.served import Bind
+
+    http = client.cluster.scheduler.http_server
+    return Bind(http.address, http.port).url + "status"
 
 
 @contextmanager
@@ -245,7 +273,7 @@ def _sweep_locked(sweep: Sweep, out: Path, store: ResultsStore, plan, by_id, not
             else:
                 with open_client(scheduler, workers, dashboard=dashboard) as own:
                     if on_dashboard is not None and dashboard is not None:
-                        on_dashboard(own.dashboard_link)
+                        on_dashboard(dashboard_link(own))
                     _run_on(own, sweep, pending, out, store, new_rows, progress, snapshot)
     except KeyboardInterrupt:
         interrupted = True

@@ -265,10 +265,65 @@ def test_a_local_cluster_without_dashboard_says_nothing_about_port_8787():
     assert said == [], said
 
 
-def test_a_local_cluster_with_dashboard_serves_it_where_asked():
-    """--dashboard ADDRESS keeps serving the Bokeh dashboard there (port 0: any free one)."""
-    from sweep.runner import open_client
+def _get(host: str, port: int, path: str, headers: dict[str, str]) -> int:
+    """Status of a GET to 127.0.0.1:port with these headers (Host among them)."""
+    import http.client
 
-    with open_client(workers=1, dashboard="127.0.0.1:0") as client:
-        assert client.dashboard_link.startswith("http://127.0.0.1:")
-        assert _http_status(client.dashboard_link) == 200          # .../status: the dashboard page
+    c = http.client.HTTPConnection("127.0.0.1", port, timeout=60)
+    try:
+        c.putrequest("GET", path, skip_host=True)
+        for k, v in {"Host": host, **headers}.items():
+            c.putheader(k, v)
+        c.endheaders()
+        r = c.getresponse()
+        r.read()
+        return r.status
+    finally:
+        c.close()
+
+
+def _listening(port: int) -> set[str]:
+    import psutil
+
+    return {c.laddr.ip for c in psutil.Process().net_connections(kind="inet")
+            if c.status == psutil.CONN_LISTEN and c.laddr.port == port}
+
+
+def test_a_local_cluster_with_dashboard_serves_it_where_asked():
+    """--dashboard :0 serves the Bokeh dashboard on 127.0.0.1 (a port given alone is loopback;
+    distributed binds ":PORT" to every interface), the link names the port really bound,
+    requests naming another host get 403 (DNS rebinding), and its websocket refuses another
+    origin even with BOKEH_ALLOW_WS_ORIGIN set (distributed's default origin list is "*")."""
+    from sweep.runner import dashboard_link, open_client
+    from view.served import ignore_bokeh_environment
+
+    os.environ["BOKEH_ALLOW_WS_ORIGIN"] = "evil.example"
+    ignore_bokeh_environment()                    # what fourbar-sweep --dashboard does first
+    assert "BOKEH_ALLOW_WS_ORIGIN" not in os.environ
+    with open_client(workers=1, dashboard=":0") as client:
+        http = client.cluster.scheduler.http_server
+        assert _listening(http.port) == {"127.0.0.1"}
+        link = dashboard_link(client)
+        assert link == f"http://127.0.0.1:{http.port}/status"
+        assert _http_status(link) == 200                             # .../status: the dashboard page
+        assert _get(f"localhost:{http.port}", http.port, "/status", {}) == 200
+        assert _get(f"evil.example:{http.port}", http.port, "/status", {}) == 403
+        assert _get("evil.example", http.port, "/health", {}) == 403
+        ws = {"Upgrade": "websocket", "Connection": "Upgrade", "Sec-WebSocket-Version": "13",
+              "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ=="}
+        assert _get(f"127.0.0.1:{http.port}", http.port, "/status/ws", {**ws, "Origin": "http://evil.example"}) == 403
+        assert _get(f"127.0.0.1:{http.port}", http.port, "/status/ws",
+                    {**ws, "Origin": f"http://127.0.0.1:{http.port}"}) == 101
+
+
+def test_a_dashboard_on_another_address_is_warned_about_and_bad_ones_refused(smoke_file, tmp_path):
+    """--dashboard 0.0.0.0:8787 says the dashboard is reachable and has no authentication
+    (--dry-run: nothing is served); an address that is not one exits 2 naming it."""
+    done = subprocess.run([sys.executable, "-m", "sweep.cli", str(smoke_file), "--dashboard", "0.0.0.0:8787",
+                           "--dry-run", "--out", str(tmp_path / "o")], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "warning" in done.stderr and "0.0.0.0:8787" in done.stderr and "no authentication" in done.stderr
+    for bad in ("0.0.0.0:99999", "tcp://x:1", "no.such.host.invalid:8787", "192.0.2.1:8787"):  # TEST-NET-1
+        done = subprocess.run([sys.executable, "-m", "sweep.cli", str(smoke_file), "--dashboard", bad, "--dry-run",
+                               "--out", str(tmp_path / "o")], capture_output=True, text=True, timeout=120)
+        assert done.returncode == 2 and "--dashboard" in done.stderr and "Traceback" not in done.stderr, done.stderr

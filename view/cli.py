@@ -8,7 +8,6 @@ happen after the arguments are checked, so ``--help`` answers at once.
 from __future__ import annotations
 
 import argparse
-import socket
 import sys
 from pathlib import Path
 from typing import Sequence
@@ -25,7 +24,10 @@ monitor's state (TRAINING / STABLE / ALARM, with the paper's message at the alar
 diagnosis when fourbar-diagnose has written it, and the run's facts.  While fourbar-run and
 `fourbar-monitor --follow` write the folder, the page follows them; a finished run is
 played back at --speed, with pause and a time slider.  The view reads files only and
-serves on 127.0.0.1 (this computer only).
+serves on 127.0.0.1 (this computer only) unless --address says otherwise; the page has no
+authentication.  It answers only requests addressed to the name it serves (the Host header:
+127.0.0.1, localhost or [::1] with its port; others get 403) and ignores BOKEH_* environment
+variables (--allow-host admits another name).
 """
 
 _EPILOG = """\
@@ -33,6 +35,7 @@ examples:
   fourbar-view out/case2_fault_L2                   # serve it; open the URL it prints
   fourbar-view out/case2_fault_L2 --speed 5         # replay a finished run 5x faster
   fourbar-view out/case2_fault_L2 --animate case2.gif   # an animation for a report (no server)
+  fourbar-view out/case2_fault_L2 --address 0.0.0.0 --port 5006   # other computers too (no authentication!)
 
 The page and its controls: docs/view.md.  Stop the server with Ctrl-C (the view writes
 nothing, so stopping it loses nothing).
@@ -67,7 +70,14 @@ def build_parser() -> argparse.ArgumentParser:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run_dir", metavar="RUN_DIR", help="the run folder (fourbar-run --out; default out/<case>)")
     parser.add_argument("--port", type=_port, default=0,
-                        help="port on 127.0.0.1 to serve on (default 0: a free port, printed)")
+                        help="port to serve on (default 0: a free port, printed)")
+    parser.add_argument("--address", default="127.0.0.1", metavar="HOST",
+                        help="address to serve on (default 127.0.0.1: this computer only; another address, "
+                             "e.g. 0.0.0.0, lets other computers read the page, which has no authentication: a "
+                             "warning says so)")
+    parser.add_argument("--allow-host", action="append", default=[], metavar="HOST[:PORT]",
+                        help="also answer requests (and websocket origins) naming this host, e.g. a proxy's "
+                             "name; repeatable.  BOKEH_ALLOW_WS_ORIGIN and other BOKEH_* variables are ignored")
     parser.add_argument("--speed", type=_positive, default=1.0,
                         help="replay speed of a finished run (and of --animate): simulated seconds per "
                              "second (default 1)")
@@ -89,22 +99,12 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def free_port_problem(port: int) -> str | None:
-    """Why ``port`` cannot be served on 127.0.0.1 (None: it can; 0 always can)."""
-    if port == 0:
-        return None
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        try:
-            s.bind(("127.0.0.1", port))
-        except OSError as exc:
-            return f"port {port} on 127.0.0.1 is in use ({exc.strerror}); choose another with --port, or --port 0"
-    return None
+def _any_free_port(host: str = "127.0.0.1") -> int:
+    """A port on ``host`` that no one listens on now (the system's choice)."""
+    from .served import _socket_for
 
-
-def _any_free_port() -> int:
-    """A port on 127.0.0.1 that no one listens on now (the system's choice)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
+    with _socket_for(host, 0) as s:
+        s.bind((host, 0))
         return int(s.getsockname()[1])
 
 
@@ -135,45 +135,81 @@ def _main(argv: Sequence[str] | None) -> int:
         return 2
     if args.animate is not None:
         return _animate(folder, Path(args.animate), args)
-    problem = free_port_problem(args.port)
+    from .served import AddressError, parse_address
+
+    host = args.address.strip()
+    if ":" in host and not host.startswith("["):        # --address names a host only; an IPv6 one bare
+        host = f"[{host}]"
+    try:
+        bind = parse_address(host, args.port, option="--address")
+    except AddressError as exc:
+        print(f"fourbar-view: error: {exc}", file=sys.stderr)
+        return 2
+    if bind.port != args.port:
+        print(f"fourbar-view: error: --address {args.address!r}: give the port with --port", file=sys.stderr)
+        return 2
+    problem = bind.listen_problem("--address", "--port")
     if problem is not None:
         print(f"fourbar-view: error: {problem}", file=sys.stderr)
         return 2
-    return serve(folder, port=args.port, speed=args.speed, window=args.window, at=args.at, quiet=args.quiet)
+    return serve(folder, port=bind.port, address=bind.host, allow_hosts=tuple(args.allow_host), speed=args.speed,
+                 window=args.window, at=args.at, quiet=args.quiet)
 
 
-def serve(folder: Path, *, port: int = 0, speed: float = 1.0, window: float = 20.0, at: float | None = None,
-          quiet: bool = False, on_ready=None) -> int:
-    """Serve the page of ``folder`` on 127.0.0.1:``port`` until Ctrl-C / SIGTERM; prints the URL."""
+def serve(folder: Path, *, port: int = 0, address: str = "127.0.0.1", allow_hosts: tuple[str, ...] = (),
+          speed: float = 1.0, window: float = 20.0, at: float | None = None, quiet: bool = False,
+          on_ready=None) -> int:
+    """Serve the page of ``folder`` on ``address``:``port`` until Ctrl-C / SIGTERM; prints the URL.
+
+    Every session shares one reader of the folder (:class:`~view.page.SharedRun`).  Requests
+    whose Host header is not a name of the bound address (or of ``allow_hosts``) get 403, the
+    websocket accepts only those origins, and BOKEH_* environment variables are dropped first
+    (:mod:`view.served`)."""
     import logging
 
+    from .served import Bind, ignore_bokeh_environment, refuse_other_hosts
+
+    ignored = ignore_bokeh_environment()   # before Bokeh is imported and reads them
     import panel as pn
 
-    from .page import PageSettings, RunPage
+    from .page import PageSettings, RunPage, SharedRun
 
+    if ignored and not quiet:
+        print(f"fourbar-view: note: ignoring {', '.join(ignored)} from the environment (use --allow-host to admit "
+              f"another host)", file=sys.stderr)
     settings = PageSettings(speed=speed, window_s=window, at=at)
+    shared = SharedRun(folder, settings.poll_ms / 1000)
     for name in ("bokeh", "tornado", "panel"):
         logging.getLogger(name).setLevel(logging.ERROR)
 
     def page():
-        return RunPage(folder, settings).servable()
+        return RunPage(shared, settings).servable()
 
     if port == 0:
-        port = _any_free_port()
+        port = _any_free_port(address)
+    bind = Bind(address, port)
+    hosts = bind.host_names(allow_hosts)
+    warning = bind.warning("fourbar-view")
+    if warning:
+        print(f"fourbar-view: {warning}", file=sys.stderr, flush=True)
     try:
-        server = pn.serve({"/": page}, port=port, address="127.0.0.1", show=False, start=False, threaded=False,
+        server = pn.serve({"/": page}, port=port, address=address, show=False, start=False, threaded=False,
                           title=f"fourbar-view: {folder.name}",
-                          websocket_origin=[f"127.0.0.1:{port}", f"localhost:{port}"],
+                          # Bokeh's origin list cannot hold an IPv6 literal ([::1]:PORT): those names
+                          # pass the Host check but open no websocket
+                          websocket_origin=[h for h in hosts if h.count(":") == 1],
                           check_unused_sessions=2000, unused_session_lifetime=5000, verbose=False)
     except OSError as exc:                 # taken between the check and now
-        print(f"fourbar-view: error: port {port} on 127.0.0.1: {exc.strerror}; choose another with --port",
+        print(f"fourbar-view: error: port {port} on {address}: {exc.strerror}; choose another with --port",
               file=sys.stderr)
         return 2
-    url = f"http://127.0.0.1:{port}/"
+    refuse_other_hosts(server._tornado, hosts)     # Bokeh's Server keeps its Tornado application there
+    url = bind.url
     if quiet:
         print(url, flush=True)
     else:
-        print(f"fourbar-view: {folder} at {url}  (Ctrl-C to stop)", flush=True)
+        where = f" (listening on {bind.where}: every interface)" if bind.wildcard else ""
+        print(f"fourbar-view: {folder} at {url}{where}  (Ctrl-C to stop)", flush=True)
     if on_ready is not None:
         on_ready(url)
     server.start()

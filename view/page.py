@@ -1,7 +1,11 @@
 """The live page of one run folder: Panel on Bokeh.
 
-Each browser session gets its own :class:`RunPage`: a :class:`~view.sources.RunFolder` polled
-every ``poll_ms``, a :class:`~view.timeline.Timeline` of what was read, and a clock.  The clock
+One :class:`SharedRun` per server reads the folder for every session: a
+:class:`~view.sources.RunFolder` polled at most every ``poll_ms`` (by whichever session's tick
+comes first), a :class:`~view.timeline.Timeline` of what was read, and the mechanism's scene.
+Each browser session gets its own :class:`RunPage`: its Bokeh models and a clock over the
+shared timeline.  (One reader per session made 50 sessions on an hour-long run read and keep
+the run 50 times: benchmarks/view_load.py --concurrent 50, docs/view.md.)  The clock
 follows the newest row while the run is written (live) and plays the run back at a chosen
 speed once it is finished (replay, with pause and a time slider).  At each tick the page
 streams to the browser only the rows between the last time shown and the clock
@@ -20,8 +24,10 @@ from __future__ import annotations
 
 import html
 import math
+import threading
 import time as _time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -29,7 +35,7 @@ from .geometry import Geometry, faulted_bodies
 from .sources import RunFolder
 from .timeline import Timeline
 
-__all__ = ["PageSettings", "RunPage"]
+__all__ = ["PageSettings", "RunPage", "SharedRun"]
 
 #: s of run between two recomputations of the guides and ground marks while a run is written.
 SCENE_EVERY_S = 5.0
@@ -52,17 +58,68 @@ class PageSettings:
     at: float | None = None        # open paused at this run time (None: follow, or play from the start)
 
 
-class RunPage:
-    """One session's page.  ``panel`` is imported here, when a page is made."""
+class SharedRun:
+    """The run folder as every session of one server sees it: one reader, one timeline.
 
-    def __init__(self, folder, settings: PageSettings = PageSettings()):
+    :meth:`refresh` polls the folder when ``poll_s`` has passed since the last poll (the first
+    session's tick after that does it; the others read what it read), so the folder is read
+    once per period whatever the number of sessions, and the rows are kept once.  The
+    mechanism's scene (guides and ground marks, from a sample of every row) is made once per
+    ``SCENE_EVERY_S`` of run for all sessions too."""
+
+    def __init__(self, folder: str | Path, poll_s: float = 0.25):
+        self.folder = RunFolder(folder)
+        self.timeline = Timeline()
+        self.poll_s = poll_s
+        self.record_version = 0            # +1 whenever run.json was read again
+        self._polled = -math.inf
+        self._lock = threading.Lock()
+        self._scene = None
+        self._scene_key: tuple | None = None
+        self._scene_t = -math.inf
+
+    def refresh(self) -> Timeline:
+        """The timeline, read again from the folder when ``poll_s`` has passed."""
+        with self._lock:
+            now = _time.monotonic()
+            if now - self._polled >= self.poll_s:
+                self._polled = now
+                update = self.folder.poll()
+                self.timeline.feed(update)
+                if update.record is not None:
+                    self.record_version += 1
+            return self.timeline
+
+    def scene(self, geometry: Geometry):
+        """The scene of ``geometry`` over every row read (a sample of at most ~5,000 of them),
+        made again every SCENE_EVERY_S of run while the run is written."""
+        tl = self.timeline
+        key = (tl.generation, geometry.drawing)
+        running = tl.record is not None and not tl.record.ended
+        if self._scene is None or self._scene_key != key or (running and tl.rows.last_time - self._scene_t
+                                                             >= SCENE_EVERY_S):
+            import pandas as pd
+
+            n = tl.rows.n
+            take = np.unique(np.r_[np.arange(0, n, max(1, n // 5000)), n - 1])
+            self._scene = geometry.scene(pd.DataFrame({c: tl.rows.column(c)[take] for c in tl.rows.columns}))
+            self._scene_key, self._scene_t = key, tl.rows.last_time
+        return self._scene
+
+
+class RunPage:
+    """One session's page over a :class:`SharedRun` (or a folder: then a run of its own).
+    ``panel`` is imported here, when a page is made."""
+
+    def __init__(self, shared: SharedRun | str | Path, settings: PageSettings = PageSettings()):
         import panel as pn
         from bokeh.models import ColumnDataSource
 
         self.pn = pn
         self.settings = settings
-        self.folder = RunFolder(folder)
-        self.timeline = Timeline()
+        self.shared = shared if isinstance(shared, SharedRun) else SharedRun(shared, settings.poll_ms / 1000)
+        self.timeline = self.shared.timeline
+        self._record_version = -1
         self.geometry: Geometry | None = None
         self.scene = None
         self.shown_t: float | None = None          # the clock value the plots show
@@ -74,7 +131,6 @@ class RunPage:
         self._overview_bin = -1
         self._signal: str | None = None
         self._rollover: dict[int, int] = {}       # per timeline series: its recent plot's rollover
-        self._scene_t = -math.inf                 # run time of the last row the scene was made from
 
         self.src = {
             "signal_recent": ColumnDataSource({"time": [], "value": []}, name="signal_recent"),
@@ -165,10 +221,16 @@ class RunPage:
         self.layout = pn.Row(left, right, sizing_mode="stretch_width")
 
     def servable(self):
-        """The layout, with this session's periodic update attached."""
+        """The layout, filled once; its periodic update starts when a browser has loaded the
+        page (``pn.state.onload``), so a session no browser connects to (a bare GET, a page
+        closed while loading) costs no ticks until Bokeh drops it."""
+        self.tick()
+        self.pn.state.onload(self._start_ticking)
+        return self.layout
+
+    def _start_ticking(self) -> None:
         self.tick()
         self.pn.state.add_periodic_callback(self.tick, period=self.settings.poll_ms)
-        return self.layout
 
     # -- controls -----------------------------------------------------------------------
     def _on_play(self, event) -> None:
@@ -190,12 +252,11 @@ class RunPage:
     # -- one tick -------------------------------------------------------------------------
     def tick(self) -> None:
         """Read what is new, move the clock, send the browser what changed."""
-        update = self.folder.poll()
-        tl = self.timeline
-        tl.feed(update)
+        tl = self.shared.refresh()
         if tl.generation != self.generation:
             self._reset()
-        if update.record is not None:
+        if self.shared.record_version != self._record_version:
+            self._record_version = self.shared.record_version
             self._set_facts()
         self._set_notice()
         last = tl.last_time
@@ -237,7 +298,6 @@ class RunPage:
         for name in ("signal_recent", "forecast_recent", "statistic", "signal_overview", "bodies", "joints"):
             self.src[name].data = {k: [] for k in self.src[name].data}
         self.shown_t, self.clock, self.geometry, self.scene, self._overview_bin = None, None, None, None, -1
-        self._scene_t = -math.inf
         self._rollover.clear()
 
     # -- what the browser gets ---------------------------------------------------------
@@ -349,16 +409,10 @@ class RunPage:
         i = tl.rows.index_at(t)
         if i < 0:
             return
-        # guides and ground marks span what the joints reach: from every row read (a sample of at
-        # most ~5,000 of them), again every SCENE_EVERY_S of run while the run is written
-        if self.scene is None or (tl.record is not None and not tl.record.ended
-                                  and tl.rows.last_time - self._scene_t >= SCENE_EVERY_S):
-            import pandas as pd
-
-            n = tl.rows.n
-            take = np.unique(np.r_[np.arange(0, n, max(1, n // 5000)), n - 1])
-            self.scene = self.geometry.scene(pd.DataFrame({c: tl.rows.column(c)[take] for c in tl.rows.columns}))
-            self._scene_t = tl.rows.last_time
+        # guides and ground marks span what the joints reach (the shared scene: SharedRun.scene)
+        scene = self.shared.scene(self.geometry)
+        if scene is not self.scene:
+            self.scene = scene
             self.src["guides"].data = {"xs": [list(g[0]) for g in self.scene.guides],
                                        "ys": [list(g[1]) for g in self.scene.guides]}
             self.src["ground"].data = {"x": [g[0] for g in self.scene.ground], "y": [g[1] for g in self.scene.ground]}
