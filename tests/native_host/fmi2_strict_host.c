@@ -13,7 +13,12 @@
    recovery by fmi2Reset and fmi2SetFMUstate, fmi2Instantiate's refusals, an FMU state of one
    type refused by an instance of the other, wrong state and event-indicator counts, and two
    short healthy runs: co-simulation with a parameter change replayed from a saved FMU state;
-   model exchange with explicit Euler steps, an event that changes the parameter, and a replay.
+   model exchange with explicit Euler steps, an event that changes the parameter, and a replay;
+   steps that cannot be taken (0, < 0, inf, NaN, under 1 ns, a non-finite time), non-finite
+   parameter values, states of no physical size (+-1e308), and crafted FMU states: a valid
+   serialized state with each of a few integers at every 4-byte offset, each of a few doubles at
+   every 8-byte offset, and random bytes at random places, each refused or survived (run under
+   -fsanitize=address,undefined by tests/test_fmu_bounds.py).
 
    What it requires (the FMI 2.0 standard, as the Modelica Reference-FMUs implement it):
    - a call the state machine does not allow returns fmi2Error, logs a message naming the

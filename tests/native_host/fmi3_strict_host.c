@@ -21,8 +21,10 @@
    fmi3SetTime / fmi3SetContinuousStates / fmi3GetContinuousStateDerivatives /
    fmi3CompletedIntegratorStep, a parameter change in event mode applied by
    fmi3UpdateDiscreteStates, a replay from a saved state, the directional derivatives of every output
-   and derivative) against the FMI 2.0 twin's, and fmi3Terminate / fmi3Reset / fmi3FreeInstance in
-   every state.
+   and derivative) against the FMI 2.0 twin's, fmi3Terminate / fmi3Reset / fmi3FreeInstance in
+   every state, steps that cannot be taken (inf, under 1 ns, ...), non-finite parameter values,
+   states of no physical size (+-1e308) and crafted FMU states (fmi2_strict_host.c's sweep; run
+   under -fsanitize=address,undefined by tests/test_fmu_bounds.py).
 
    What it requires (the FMI 3.0 standard; where it leaves a choice, as the Modelica Reference-FMUs):
    - a call the state machine does not allow returns fmi3Error, logs a message naming the function
