@@ -76,7 +76,6 @@
  * - the small dense kernels are unrolled and inlined (linalg.h).
  * Results agree with dae.py's to round-off: tests/test_fmu_native.py.
  */
-#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -1569,7 +1568,7 @@ int dae_advance(ModelState *s, double t_end, double max_evaluations)
     const unsigned long first = s->rhs_evaluations;
     const double t_start = s->t;
     /* the bound rhs() enforces: every evaluation past it fails (0: none) */
-    s->evaluation_limit = max_evaluations >= (double)ULONG_MAX - (double)first ? 0
+    s->evaluation_limit = max_evaluations >= (double)(unsigned long)-1 - (double)first ? 0
                           : first + (unsigned long)max_evaluations;
     int r = advance(s, t_end);
     if (r && s->evaluation_limit && s->rhs_evaluations > s->evaluation_limit) {
