@@ -241,11 +241,12 @@ def test_keeps_todays_variables(native_fmu, today_fmu):
                  v.min) for v in md.modelVariables]
     now, today = table(native_fmu), table(today_fmu)
     # today's 27 variables exactly; the joint reactions the mechanism file adds come after them,
-    # then the joints' positions (tests/test_fmu_drawing.py), then Model Exchange's derivatives
+    # then the joints' positions (tests/test_fmu_drawing.py), then the bound on one doStep's work
+    # (issue 36), then Model Exchange's derivatives
     assert now[:len(today)] == today
     assert [v[0] for v in now[len(today):]] == ["O2_Fx", "O2_Fy", "A_Fx", "A_Fy", "B_Fx", "B_Fy", "O4_Fx", "O4_Fy",
                                                 "O2_x", "O2_y", "A_x", "A_y", "B_x", "B_y", "O4_x", "O4_y",
-                                                "der(theta2)", "der(omega2)"]
+                                                "max_evaluations", "der(theta2)", "der(omega2)"]
 
 
 @pytest.fixture(scope="module")

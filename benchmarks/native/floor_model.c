@@ -117,3 +117,22 @@ int model_past_stop_time(ModelInstance *m, const char *function, double current_
     (void)m; (void)function; (void)current_time; (void)step;
     return 0;
 }
+
+int model_bad_step(ModelInstance *m, const char *function, double current_time, double step)
+{
+    (void)m; (void)function; (void)current_time; (void)step;
+    return 0;
+}
+
+int model_non_finite_values(ModelInstance *m, const char *function, const unsigned int *vr, const double *value,
+                            size_t n)
+{
+    (void)m; (void)function; (void)vr; (void)value; (void)n;
+    return 0;
+}
+
+int model_non_finite_states(ModelInstance *m, const char *function, const double *x, size_t n)
+{
+    (void)m; (void)function; (void)x; (void)n;
+    return 0;
+}

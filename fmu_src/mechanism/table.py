@@ -2,14 +2,16 @@
 
 Value-reference order: the file's [parameters] (tunable, or fixed with ``fixed = true``), the
 start values of the independent coordinates (``<coordinate>_start``, fixed), the integrator's
-``rtol``, ``atol`` and ``integrator``, then the outputs in the file's order.
+``rtol``, ``atol`` and ``integrator``, then the outputs in the file's order, then
+``max_evaluations`` (added after the outputs so that no earlier value reference moved).
 """
 from __future__ import annotations
 
 from ..mechanism_model.variables import POSITIVE, Variable
 from .derivation import MechanismEquations
 
-__all__ = ["variable_table", "native_variable_table", "model_exchange_states", "DEFAULT_TOLERANCE"]
+__all__ = ["variable_table", "native_variable_table", "model_exchange_states", "DEFAULT_TOLERANCE",
+           "DEFAULT_MAX_EVALUATIONS"]
 
 #: rtol = atol of the Runge-Kutta error control when the case does not set them.  Table 1 gives
 #: 1e-9 and 1e-6 (its case files set them).  At those values the integrator's energy error moves
@@ -17,6 +19,12 @@ __all__ = ["variable_table", "native_variable_table", "model_exchange_states", "
 #: (relative) in jumps over minutes: a healthy run then drifts like a faulty one
 #: (docs/monitor.md, Limitations).  1e-10 costs ~15 % more time in the native FMU.
 DEFAULT_TOLERANCE = 1e-10
+
+#: The most right-hand-side evaluations one communication step (doStep) may take before it ends
+#: with an error (both FMUs).  The shipped cases need at most 75 per 0.01 s step, at rtol = atol =
+#: 1e-13 too (benchmarks/fmu_step_work.py): a factor of 1333; the runaway step it ends (case 1 at
+#: omega2_start = 1e15, which never returned) takes 0.03-0.06 s natively (docs/fmi_hosts.md).
+DEFAULT_MAX_EVALUATIONS = 100000.0
 
 
 def variable_table(eqs: MechanismEquations) -> tuple[Variable, ...]:
@@ -41,6 +49,9 @@ def variable_table(eqs: MechanismEquations) -> tuple[Variable, ...]:
     for out in eqs.outputs:
         rows.append(Variable(out.name, "Real", "output", "continuous", None, out.unit, out.description,
                              out.display_unit))
+    rows.append(Variable("max_evaluations", "Real", "parameter", "fixed", DEFAULT_MAX_EVALUATIONS, "1",
+                         "Most right-hand-side evaluations one communication step may take; beyond it the step "
+                         "ends with an error [-]", None, 1.0))
     names = [v.name for v in rows]
     clash = sorted({n for n in names if names.count(n) > 1})
     if clash:

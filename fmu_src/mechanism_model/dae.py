@@ -138,6 +138,7 @@ class MechanismDAE:
         self.n, self.m = eq.N_COORDINATES, eq.N_CONSTRAINTS
         self.rhs_evaluations = 0
         self.failed_evaluations = 0
+        self._cap = None        # during advance: (evaluation count not to pass, its message's words)
         self.starts = 0
         self.repartitions = 0
         self._solver = None
@@ -388,6 +389,15 @@ class MechanismDAE:
 
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         self.rhs_evaluations += 1
+        if self._cap is not None and self.rhs_evaluations > self._cap[0]:
+            # the bound on one advance's work, checked here so that no loop inside a Runge-Kutta
+            # step (its rejections) escapes it
+            t_start, t_end, max_evaluations = self._cap[1]
+            raise IntegrationError(
+                f"the communication step from t = {t_start:.9g} s to {t_end:.9g} s needed more than "
+                f"max_evaluations = {max_evaluations:.17g} right-hand-side evaluations; it reached "
+                f"t = {self._solver.t:.9g} s (raise max_evaluations, a fixed parameter, to allow more work per "
+                f"step, or shorten the step)")
         yl = y.tolist()
         try:
             q, qd = self._state(t, yl)
@@ -424,17 +434,22 @@ class MechanismDAE:
                                                 rtol=self.rtol, atol=self.atol, **kwargs)
         self.starts += 1
 
-    def advance(self, t_end: float) -> None:
+    def advance(self, t_end: float, max_evaluations: float = math.inf) -> None:
         """Integrate to ``t_end`` (s) and store the consistent state in ``q``, ``qd``.
 
         The integrator keeps its own step size; communication points inside an accepted step
         are read from its dense output (the points of a regular grid that fall inside the
         current step are interpolated together in one vectorised call and cached).
+
+        The bound on the work of one call: the right-hand-side evaluation that would pass
+        ``max_evaluations`` (rejected attempts and restarts included) raises IntegrationError
+        naming the cap and the time reached (dae.c's dae_advance does the same).
         """
         solver = self._solver
         eps = 1e-12 * max(1.0, abs(t_end))      # a step ending within round-off reaches t_end
         rescues = 0
         t_start = self.t
+        self._cap = (self.rhs_evaluations + max_evaluations, (t_start, t_end, max_evaluations))
         pending = None          # other coordinates the review of a step past t_end chose
         try:
             while solver.t < t_end - eps:
@@ -473,6 +488,8 @@ class MechanismDAE:
             q, qd = self._state(t_end, y)
         except AssemblyError as exc:
             raise IntegrationError(f"at t = {t_end:.9g} s {exc}") from None
+        finally:
+            self._cap = None
         self._last_step = t_end - t_start
         self.t, self.q, self.qd = float(t_end), q, qd
         k = len(self.independent)

@@ -130,10 +130,30 @@ class MechanismSlave(Fmi2Slave):
         self._dae = dae
         self._publish()
 
+    def _bad_step(self, current_time, step_size) -> str | None:
+        """Why a communication step cannot be taken as given (the native FMU's model_bad_step), or None."""
+        if not math.isfinite(current_time):
+            return f"do_step: the current communication point must be finite (got {current_time!r} s)"
+        if not (math.isfinite(step_size) and step_size > 0.0 and math.isfinite(current_time + step_size)):
+            return (f"do_step: the communication step size must be a finite positive number of seconds "
+                    f"(got {step_size!r} s at t = {current_time!r} s)")
+        if not snap_time(current_time + step_size) > snap_time(current_time):
+            return (f"do_step: a step of {step_size!r} s from t = {current_time!r} s cannot advance the time: the "
+                    f"FMU's communication times are whole nanoseconds (give a step of at least 1e-9 s)")
+        return None
+
     def do_step(self, current_time, step_size):
+        """One communication step.  A failure (a step that cannot be taken as given, a parameter
+        that cannot be applied, an integration failure, more than ``max_evaluations``
+        right-hand-side evaluations) is logged with status error and returns False, which
+        pythonfmu 0.7 reports as fmi2Discard (it has no way to return fmi2Error from a step; an
+        exception would be fmi2Fatal); the native FMU returns fmi2Error."""
         dae = self._dae
         if dae is None:
             return self._fail("do_step called before initialization")
+        bad = self._bad_step(current_time, step_size)
+        if bad:
+            return self._fail(bad)
         if abs(snap_time(current_time) - dae.t) > 1e-9 * max(1.0, abs(dae.t)):
             return self._fail(f"do_step at t = {current_time!r} s, but the model is at t = {dae.t!r} s")
         p = self._parameters()
@@ -150,7 +170,7 @@ class MechanismSlave(Fmi2Slave):
                      f"{', '.join(equations.COORDINATES[i] for i in dae.independent) or 'the drivers'})",
                      Fmi2Status.ok)
         try:
-            dae.advance(snap_time(current_time + step_size))
+            dae.advance(snap_time(current_time + step_size), max_evaluations=float(self.max_evaluations))
             self._publish()
         except (IntegrationError, AssemblyError, ArithmeticError) as exc:
             return self._fail(str(exc))

@@ -949,6 +949,10 @@ static int rhs(void *context, double t, const double *y, double *f)
     Configuration c;
     double lam[MA];
     s->rhs_evaluations++;
+    if (s->evaluation_limit && s->rhs_evaluations > s->evaluation_limit) {
+        s->rhs_failed = DAE_INTEGRATION;    /* the bound on one doStep's work: dae_advance says so */
+        return RK_FUNCTION_ERROR;
+    }
     e->t = NAN;                   /* not an evaluation until it succeeds */
 #if MECH_RED
     double power = 0.0;
@@ -1486,7 +1490,7 @@ static int reported_state(ModelState *s, double t, const double *y, Configuratio
     return state_at(s, t, y, c);
 }
 
-int dae_advance(ModelState *s, double t_end)
+static int advance(ModelState *s, double t_end)
 {
     RKSolver *solver = &s->solver;
     const char *method = INTEGRATOR_NAMES[s->integrator];
@@ -1557,6 +1561,25 @@ int dae_advance(ModelState *s, double t_end)
     if (!pending) return DAE_OK;
     set_partition(s, independent, dependent);
     return dae_start(s, s->solver.h_abs);
+}
+
+int dae_advance(ModelState *s, double t_end, double max_evaluations)
+{
+    const unsigned long first = s->rhs_evaluations;
+    const double t_start = s->t;
+    /* the bound rhs() enforces: every evaluation past it fails (0: none) */
+    s->evaluation_limit = max_evaluations >= (double)(unsigned long)-1 - (double)first ? 0
+                          : first + (unsigned long)max_evaluations;
+    int r = advance(s, t_end);
+    if (r && s->evaluation_limit && s->rhs_evaluations > s->evaluation_limit) {
+        snprintf(s->rhs_message, MODEL_MESSAGE, "the communication step from t = %.9g s to %.9g s needed more than "
+                 "max_evaluations = %.17g right-hand-side evaluations; it reached t = %.9g s (raise max_evaluations, "
+                 "a fixed parameter, to allow more work per step, or shorten the step)", t_start, t_end,
+                 max_evaluations, s->solver.t);
+        r = DAE_INTEGRATION;
+    }
+    s->evaluation_limit = 0;
+    return r;
 }
 
 /* -- outputs ------------------------------------------------------------------------------- */

@@ -47,8 +47,12 @@ int dae_assemble(ModelState *s, double t, const double *guess, const double *rat
 /* (Re)start the integrator at s->t from the consistent state (first_step <= 0: scipy's choice). */
 int dae_start(ModelState *s, double first_step);
 
-/* Integrate to t_end (s) and store the consistent state; may re-partition (and restart). */
-int dae_advance(ModelState *s, double t_end);
+/* Integrate to t_end (s) and store the consistent state; may re-partition (and restart).  Once the
+   call has made max_evaluations right-hand-side evaluations (rejected attempts and restarts
+   included) every further one fails (ModelState's evaluation_limit, checked in the right-hand
+   side, so that no loop inside a Runge-Kutta step escapes it): DAE_INTEGRATION, the message
+   naming the cap and the time reached (the bound on the work of one doStep). */
+int dae_advance(ModelState *s, double t_end, double max_evaluations);
 
 /* Apply new parameters at s->t: re-assembly keeping the independent coordinates and their rates,
    the drivers continuing from where they are; on DAE_ASSEMBLY the state is unchanged.  Does

@@ -318,9 +318,11 @@ fmi2Status fmi2Terminate(fmi2Component c)
     /* the integration's statistics (with logging on: a host that wants to know how hard it was) */
     model_log(m, MODEL_OK, "logAll", "statistics at t = %.9g s: %lu right-hand-side evaluations (%lu on the full system), %lu by "
               "continuation from the last accepted state, %lu at trial points not reached (their steps "
-              "rejected); %lu Newton-Raphson iterations, %lu integrator starts, %lu re-partitions", m->state.t,
+              "rejected); %lu Newton-Raphson iterations, %lu integrator starts, %lu re-partitions; at most %lu "
+              "right-hand-side evaluations in one communication step (max_evaluations = %.17g)", m->state.t,
               m->state.rhs_evaluations, m->state.full_evaluations, m->state.continuations,
-              m->state.failed_evaluations, m->state.newton_iterations, m->state.starts, m->state.repartitions);
+              m->state.failed_evaluations, m->state.newton_iterations, m->state.starts, m->state.repartitions,
+              m->state.most_step_evaluations, m->state.values[VR_max_evaluations]);
     return fmi2OK;
 }
 
@@ -366,7 +368,7 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     REQUIRE_ARRAY(vr, nvr);
     REQUIRE_ARRAY(value, nvr);
     if (!check_refs(m, __func__, vr, nvr, KIND(KIND_TUNABLE) | KIND(KIND_FIXED), "a Real parameter")
-        || !settable_now(m, __func__, vr, nvr))
+        || !settable_now(m, __func__, vr, nvr) || model_non_finite_values(m, __func__, vr, value, nvr))
         return fmi2Error;
     for (size_t i = 0; i < nvr; i++) m->state.values[vr[i]] = value[i];   /* checked, and applied, at the next doStep */
     return fmi2OK;
@@ -481,6 +483,11 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
                   type_name(m->model_exchange));
         return fmi2Error;
     }
+    char why[MODEL_MESSAGE];
+    if (model_check_state(&saved->state, saved->model_exchange, why, sizeof why)) {    /* a corrupted state */
+        model_log(m, MODEL_ERROR, "logStatusError", "fmi2SetFMUstate: the FMU state is refused: its %s", why);
+        return fmi2Error;
+    }
     memcpy(&m->state, &saved->state, sizeof(ModelState));
     return fmi2OK;
 }
@@ -524,10 +531,16 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
     ENTER(ALL_STATES);
     REQUIRE(serializedState);
     REQUIRE(FMUstate);
-    const int problem = model_deserialize((const unsigned char *)serializedState, size, STATE_MAGIC, &read);
+    char why[MODEL_MESSAGE];
+    const int problem = model_deserialize((const unsigned char *)serializedState, size, STATE_MAGIC, &read, why,
+                                          sizeof why);
     if (problem == MODEL_WRONG_SIZE) {
         model_log(m, MODEL_ERROR, "logStatusError", "fmi2DeSerializeFMUstate: expected %u bytes, got %u",
                   (unsigned)model_serialized_size(), (unsigned)size);
+        return fmi2Error;
+    }
+    if (problem == MODEL_INVALID) {     /* the instance is unchanged, still usable */
+        model_log(m, MODEL_ERROR, "logStatusError", "fmi2DeSerializeFMUstate: the state is refused: its %s", why);
         return fmi2Error;
     }
     if (problem) {
@@ -620,9 +633,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     ENTER(MODE_STEP_COMPLETE);
     CS_ONLY;
     (void)noSetFMUStatePriorToCurrentPoint;
-    if (!(communicationStepSize > 0.0) || !isfinite(currentCommunicationPoint)) {
-        model_log(m, MODEL_ERROR, "logStatusError", "fmi2DoStep: the step size must be positive (got %g s at t = %g s)",
-                  communicationStepSize, currentCommunicationPoint);
+    if (model_bad_step(m, __func__, currentCommunicationPoint, communicationStepSize)) {   /* logged why */
         m->state.mode = MODE_ERROR;
         return fmi2Error;
     }
@@ -790,12 +801,7 @@ fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t n
     ME_ONLY;
     REQUIRE_ARRAY(x, nx);
     if (!count_is(m, __func__, nx, FB_N_STATES, "states")) return fmi2Error;
-    for (size_t i = 0; i < nx; i++)
-        if (!isfinite(x[i])) {
-            model_log(m, MODEL_ERROR, "logStatusError", "fmi2SetContinuousStates: state %u is %g: must be finite",
-                      (unsigned)i, x[i]);
-            return fmi2Error;
-        }
+    if (model_non_finite_states(m, __func__, x, nx)) return fmi2Error;
     model_me_set_states(m, x);
     return fmi2OK;
 }

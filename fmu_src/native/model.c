@@ -158,6 +158,13 @@ static ModelStatus me_evaluate(ModelInstance *m)
         s->t = t;
         return fail(m, "at t = %.9g s: %s", s->me_t, s->rhs_message);
     }
+    for (int k = 0; k < FB_N_STATES; k++)
+        if (!isfinite(s->me_f[k])) {       /* states of no physical size (1e308) overflow */
+            char a[40];
+            return fail(m, "at t = %.9g s: the derivative der(%s) = %s is not finite at the states the host set "
+                        "(are they of a physical size?)", s->me_t, NAMES[STATE_VRS[k]],
+                        real_text(a, sizeof a, s->me_f[k]));
+        }
     s->me_fresh = 1;
     publish(m);
     return MODEL_OK;
@@ -343,7 +350,10 @@ ModelStatus model_do_step(ModelInstance *m, double current_time, double step)
         return fail(m, "do_step at t = %s s, but the model is at t = %s s", real_text(a, sizeof a, current_time),
                     real_text(b, sizeof b, s->t));
     if (apply_parameter_changes(m, current_time) != MODEL_OK) return MODEL_ERROR;
-    if (dae_advance(s, dae_snap_time(current_time + step))) return fail(m, "%s", s->rhs_message);
+    const unsigned long before = s->rhs_evaluations;
+    if (dae_advance(s, dae_snap_time(current_time + step), s->values[VR_max_evaluations]))
+        return fail(m, "%s", s->rhs_message);
+    if (s->rhs_evaluations - before > s->most_step_evaluations) s->most_step_evaluations = s->rhs_evaluations - before;
     return publish(m);
 }
 
@@ -437,6 +447,53 @@ int model_past_stop_time(ModelInstance *m, const char *function, double current_
     fail(m, "%s: a step from t = %.9g s to %.9g s goes past the stop time %.9g s the host defined at initialization",
          function, current_time, current_time + step, s->stop_time);
     return 1;
+}
+
+int model_bad_step(ModelInstance *m, const char *function, double current_time, double step)
+{
+    char a[40], b[40];
+    if (!isfinite(current_time)) {
+        fail(m, "%s: the current communication point must be finite (got %s s)", function,
+             real_text(a, sizeof a, current_time));
+        return 1;
+    }
+    if (!isfinite(step) || !(step > 0.0) || !isfinite(current_time + step)) {
+        fail(m, "%s: the communication step size must be a finite positive number of seconds (got %s s at "
+             "t = %s s)", function, real_text(a, sizeof a, step), real_text(b, sizeof b, current_time));
+        return 1;
+    }
+    if (!(dae_snap_time(current_time + step) > dae_snap_time(current_time))) {
+        fail(m, "%s: a step of %s s from t = %s s cannot advance the time: the FMU's communication times are "
+             "whole nanoseconds (give a step of at least 1e-9 s)", function, real_text(a, sizeof a, step),
+             real_text(b, sizeof b, current_time));
+        return 1;
+    }
+    return 0;
+}
+
+int model_non_finite_values(ModelInstance *m, const char *function, const unsigned int *vr, const double *value,
+                            size_t n)
+{
+    char a[40];
+    for (size_t i = 0; i < n; i++)
+        if (!isfinite(value[i])) {
+            fail(m, "%s: %s = %s: must be finite (nothing was set)", function,
+                 vr[i] < FB_N_VARIABLES ? NAMES[vr[i]] : "?", real_text(a, sizeof a, value[i]));
+            return 1;
+        }
+    return 0;
+}
+
+int model_non_finite_states(ModelInstance *m, const char *function, const double *x, size_t n)
+{
+    char a[40];
+    for (size_t i = 0; i < n && i < FB_N_STATES; i++)
+        if (!isfinite(x[i])) {
+            fail(m, "%s: the continuous state %s = %s: must be finite (nothing was set)", function,
+                 NAMES[STATE_VRS[i]], real_text(a, sizeof a, x[i]));
+            return 1;
+        }
+    return 0;
 }
 
 ModelStatus model_me_sensitivity(ModelInstance *m, const char *function, const Directional *d, unsigned long vr,

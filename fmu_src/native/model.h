@@ -69,6 +69,8 @@ typedef struct {
     unsigned long continuations;                /* trial points reached by continuation from the base */
     unsigned long failed_evaluations;           /* trial points not reached: the step was rejected */
     unsigned long full_evaluations;             /* right-hand sides not served by the reduced system (dae.c) */
+    unsigned long most_step_evaluations;        /* the most right-hand-side evaluations of one doStep */
+    unsigned long evaluation_limit;             /* during dae_advance: rhs_evaluations may not pass it (0: none) */
     int rhs_failed;                             /* DAE_ASSEMBLY or DAE_INTEGRATION (dae.h), with: */
     char rhs_message[MODEL_MESSAGE];
     /* Model Exchange: the states the host set (at time t) and, when me_fresh, the current state is
@@ -94,12 +96,20 @@ typedef struct {
 } SavedState;
 /* Its serialized form, shared by the FMI layers: a header (`magic`, which tells the layers' states
    apart, the ModelState's size, the build's GUID, the type), then the ModelState's bytes.
-   model_deserialize: 0, or MODEL_WRONG_SIZE when `size` is not model_serialized_size(), or
-   MODEL_NOT_OURS when the bytes are not a state of this build and layer. */
-enum { MODEL_WRONG_SIZE = 1, MODEL_NOT_OURS = 2 };
+   model_deserialize: 0 (*saved filled), or MODEL_WRONG_SIZE when `size` is not
+   model_serialized_size(), MODEL_NOT_OURS when the bytes are not a state of this build and layer,
+   or MODEL_INVALID when a field of the state cannot be used (model_check_state: why in `why`, n
+   bytes); *saved is then unchanged. */
+enum { MODEL_WRONG_SIZE = 1, MODEL_NOT_OURS = 2, MODEL_INVALID = 3 };
 size_t model_serialized_size(void);
 void model_serialize(const SavedState *saved, const char magic[8], unsigned char *bytes);
-int model_deserialize(const unsigned char *bytes, size_t size, const char magic[8], SavedState *saved);
+int model_deserialize(const unsigned char *bytes, size_t size, const char magic[8], SavedState *saved, char *why,
+                      size_t n);
+/* 0 when a ModelState from outside can be used by an instance of its type (model_exchange 0 or 1):
+   a mode of that type's state machine, indices in range (integrator, the partition: a permutation
+   of the coordinates), enumerations and flags of their values, the numbers the model computes from
+   finite, the message terminated.  Else 1 with the first problem in `why` (n bytes). */
+int model_check_state(const ModelState *s, int model_exchange, char *why, size_t n);
 
 /* Logging through the host's callback (defined by the FMI layer). */
 void model_log(ModelInstance *m, ModelStatus status, const char *category, const char *fmt, ...);
@@ -110,6 +120,17 @@ ModelStatus model_do_step(ModelInstance *m, double current_time, double step);
 /* 1, after logging why, when a step from current_time goes past a stop time the host defined
    (FMI 2.0 and 3.0: the FMU has to return an error), on the 1 ns grid the FMU's times live on. */
 int model_past_stop_time(ModelInstance *m, const char *function, double current_time, double step);
+/* 1, after logging why, when a communication step cannot be taken as given (FMI 2.0 and 3.0: the
+   FMU returns an error): a current time, a step size or their sum that is not finite, a step
+   size that is not positive, or one too small to advance the time on the FMU's 1 ns grid (the
+   step would end where it starts). */
+int model_bad_step(ModelInstance *m, const char *function, double current_time, double step);
+/* 1, after logging why, when value[i] set to vr[i] (a Real parameter) is not finite: a setter
+   refuses it changing nothing (naming the variable). */
+int model_non_finite_values(ModelInstance *m, const char *function, const unsigned int *vr, const double *value,
+                            size_t n);
+/* 1, after logging why, when a continuous state the host sets (Model Exchange) is not finite. */
+int model_non_finite_states(ModelInstance *m, const char *function, const double *x, size_t n);
 /* Model Exchange (dae.h): the states (FB_N_STATES values, value references FB_STATE_VRS), set and
    evaluated lazily; the derivatives; an accepted integrator step; an event's parameter changes
    (re-assembly keeping the states).  MODEL_ERROR after logging why. */

@@ -13,7 +13,12 @@
    recovery by fmi2Reset and fmi2SetFMUstate, fmi2Instantiate's refusals, an FMU state of one
    type refused by an instance of the other, wrong state and event-indicator counts, and two
    short healthy runs: co-simulation with a parameter change replayed from a saved FMU state;
-   model exchange with explicit Euler steps, an event that changes the parameter, and a replay.
+   model exchange with explicit Euler steps, an event that changes the parameter, and a replay;
+   steps that cannot be taken (0, < 0, inf, NaN, under 1 ns, a non-finite time), non-finite
+   parameter values, states of no physical size (+-1e308), and crafted FMU states: a valid
+   serialized state with each of a few integers at every 4-byte offset, each of a few doubles at
+   every 8-byte offset, and random bytes at random places, each refused or survived (run under
+   -fsanitize=address,undefined by tests/test_fmu_bounds.py).
 
    What it requires (the FMI 2.0 standard, as the Modelica Reference-FMUs implement it):
    - a call the state machine does not allow returns fmi2Error, logs a message naming the
@@ -29,13 +34,14 @@
    - stricter than the Reference-FMUs, as the native FourBar FMU promises: in the error state no
      value can be read (fmi2GetXXX, fmi2GetFMUstate and the output derivatives are refused).
 
-   usage: fmi2_strict_host [--in-process] LIBRARY GUID VR_TUNABLE VR_OUTPUT VR_STRING N_STATES
+   usage: fmi2_strict_host [--in-process] [--only TEXT] LIBRARY GUID VR_TUNABLE VR_OUTPUT VR_STRING N_STATES
      VR_TUNABLE: a tunable Real parameter that must be positive (set to -1 to make
      initialization, a step and an event update fail); VR_OUTPUT: a Real output; VR_STRING: a
      fixed String parameter; N_STATES: the number of continuous states (the model description's
      <Derivatives> unknowns; 1 to MAX_STATES).  Each case runs in a forked child, so a crash is
      reported as a failed case;
-     --in-process runs them in one process (for valgrind).
+     --in-process runs them in one process (for valgrind); --only runs the cases whose label
+     contains TEXT (tests/test_fmu_bounds.py: the crafted states under the sanitizers).
    Prints "FAIL ..." for each failed check and a summary line; exit status 0 when everything
    holds, 1 when a check failed, 2 for a usage or loading error.
    tests/test_fmu_native_strict.py builds and runs it. */
@@ -761,14 +767,160 @@ static void case_set_state_after_failed_step(const void *arg)
     F.FreeInstance(c);
 }
 
+/* Communication steps that cannot be taken as given: each refused with fmi2Error and a message,
+   never fmi2OK without advancing (the FMU's times are whole nanoseconds). */
 static void case_bad_step_arguments(const void *arg)
 {
-    fmi2Component c = make(R_STEP_COMPLETE);
+    static const struct { const char *label; double t, h; const char *says; } BAD[] = {
+        {"fmi2DoStep(h = 0)", 0.0, 0.0, "step size"}, {"fmi2DoStep(h = -0.01)", 0.0, -0.01, "step size"},
+        {"fmi2DoStep(h = inf)", 0.0, INFINITY, "step size"}, {"fmi2DoStep(h = -inf)", 0.0, -INFINITY, "step size"},
+        {"fmi2DoStep(h = NaN)", 0.0, NAN, "step size"}, {"fmi2DoStep(h = 1e-12)", 0.0, 1e-12, "cannot advance"},
+        {"fmi2DoStep(h = 4e-10)", 0.0, 4e-10, "cannot advance"},
+        {"fmi2DoStep(t = inf)", INFINITY, 0.01, "communication point"},
+        {"fmi2DoStep(t = NaN)", NAN, 0.01, "communication point"}};
+    fmi2Real t = -1.0;
     (void)arg;
+    for (size_t i = 0; i < sizeof BAD / sizeof *BAD; i++) {
+        fmi2Component c = make(R_STEP_COMPLETE);
+        if (!c) return;
+        expect(BAD[i].label, F.DoStep(c, BAD[i].t, BAD[i].h, fmi2True), fmi2Error, 1, "fmi2DoStep", BAD[i].says);
+        expect("fmi2GetReal after a failed fmi2DoStep", call_GetReal(c), fmi2Error, 1, "fmi2GetReal", "state error");
+        F.FreeInstance(c);
+    }
+    fmi2Component c = make(R_STEP_COMPLETE);        /* the shortest step that advances: 1 ns */
     if (!c) return;
-    expect("fmi2DoStep(h = 0)", F.DoStep(c, 0.0, 0.0, fmi2True), fmi2Error, 1, "fmi2DoStep", NULL);
-    expect("fmi2GetReal after a failed fmi2DoStep", call_GetReal(c), fmi2Error, 1, "fmi2GetReal", "state error");
+    expect("fmi2DoStep(h = 1e-9)", F.DoStep(c, 0.0, 1e-9, fmi2True), fmi2OK, 1, NULL, NULL);
+    expect("fmi2GetRealStatus(fmi2LastSuccessfulTime)", F.GetRealStatus(c, fmi2LastSuccessfulTime, &t), fmi2OK, 1,
+           NULL, NULL);
+    if (!(t > 0.0)) fail("fmi2DoStep(h = 1e-9) returned fmi2OK but the time is %g", t);
     F.FreeInstance(c);
+}
+
+/* A parameter value that is not finite is refused by fmi2SetReal, naming why, changing nothing. */
+static void case_non_finite_values(const void *arg)
+{
+    static const double VALUES[] = {NAN, INFINITY, -INFINITY};
+    fmi2Real v = 0.0;
+    (void)arg;
+    fmi2Component c = make(R_INITIALIZATION);
+    if (!c) return;
+    for (size_t i = 0; i < sizeof VALUES / sizeof *VALUES; i++)
+        expect("fmi2SetReal(tunable = a non-finite value)", F.SetReal(c, &VR_TUNABLE, 1, &VALUES[i]), fmi2Error, 1,
+               "fmi2SetReal", "must be finite");
+    expect("fmi2GetReal(tunable)", F.GetReal(c, &VR_TUNABLE, 1, &v), fmi2OK, 1, NULL, NULL);
+    if (v != TUNABLE_START) fail("a refused fmi2SetReal changed the tunable parameter to %g (was %g)", v, TUNABLE_START);
+    F.FreeInstance(c);
+}
+
+static int all_finite(const fmi2Real *x, int n);
+
+/* Model exchange at finite states of no physical size (1e308, -1e308, ...): the derivatives are
+   either refused (fmi2Error, the instance in the error state) or finite; never NaN with fmi2OK. */
+static void case_huge_states(const void *arg)
+{
+    fmi2Real x[MAX_STATES], dx[MAX_STATES];
+    (void)arg;
+    fmi2Component c = make(R_CONTINUOUS);
+    if (!c) return;
+    for (int i = 0; i < NX; i++) x[i] = i % 2 ? -1e308 : 1e308;
+    expect("fmi2SetContinuousStates(+-1e308)", F.SetContinuousStates(c, x, (size_t)NX), fmi2OK, 1, NULL, NULL);
+    const fmi2Status status = F.GetDerivatives(c, dx, (size_t)NX);
+    if (status == fmi2OK) {
+        if (!all_finite(dx, NX)) fail("fmi2GetDerivatives at states +-1e308 returned fmi2OK with a non-finite value");
+        clear_log();
+    } else {
+        expect("fmi2GetDerivatives at states +-1e308", status, fmi2Error, 1, "not finite", NULL);
+    }
+    F.FreeInstance(c);
+}
+
+/* -- crafted FMU states ------------------------------------------------------------------ */
+/* A serialized FMU state of the donor with its bytes changed: at every 4-byte offset each of a few
+   integers (out-of-range indices, a mode of 12345, -1), at every 8-byte offset each of a few
+   doubles (NaN, inf, -1e308); then random bytes at random places (a fixed seed).  Each must be
+   refused with fmi2Error and a message, or, accepted (a field no check needs), survive being used:
+   fmi2SetFMUstate, the output, the String parameter, a step, the states and derivatives.  No
+   crash and, under -fsanitize=address,undefined, no report: the harness exits non-zero on one.
+   The instance that deserializes stays usable: it steps after the sweep. */
+static unsigned long RANDOM = 36;
+static unsigned long next_random(void)
+{
+    RANDOM = RANDOM * 6364136223846793005UL + 1442695040888963407UL;
+    return RANDOM >> 33;
+}
+
+static int CRAFTED_REFUSED, CRAFTED_ACCEPTED;
+
+/* One crafted state, deserialized by `reader` (a healthy instance of the donor's type) and, when
+   accepted, set into and used by `user`. */
+static void try_crafted(fmi2Component reader, fmi2Component user, const fmi2Byte *bytes)
+{
+    fmi2FMUstate state = NULL;
+    fmi2Real v, x[MAX_STATES], dx[MAX_STATES];
+    fmi2String s;
+    const fmi2Status status = F.DeSerializeFMUstate(reader, bytes, SERIAL_SIZE, &state);
+    if (status != fmi2OK) {
+        CRAFTED_REFUSED++;
+        expect("fmi2DeSerializeFMUstate(crafted)", status, fmi2Error, 1, "fmi2DeSerializeFMUstate", NULL);
+        return;
+    }
+    CRAFTED_ACCEPTED++;
+    clear_log();
+    if (F.SetFMUstate(user, state) == fmi2OK) {
+        F.GetReal(user, &VR_OUTPUT, 1, &v);
+        F.GetString(user, &VR_STRING, 1, &s);
+        if (TYPE == CS) {
+            F.DoStep(user, 0.0, 0.01, fmi2True);
+            F.GetReal(user, &VR_OUTPUT, 1, &v);
+        } else {
+            F.GetContinuousStates(user, x, (size_t)NX);
+            F.EnterContinuousTimeMode(user);
+            F.GetDerivatives(user, dx, (size_t)NX);
+        }
+    }
+    clear_log();
+    F.FreeFMUstate(reader, &state);
+}
+
+static void case_crafted_states(const void *arg)
+{
+    static const int INTS[] = {-1, 12345, 100000000, 7};
+    static const double DOUBLES[] = {NAN, INFINITY, -1e308};
+    const int type = *(const int *)arg;
+    fmi2Component reader = make(type == ME ? R_EVENT : R_STEP_COMPLETE);
+    fmi2Component user = make(type == ME ? R_EVENT : R_STEP_COMPLETE);
+    fmi2Byte *bytes = malloc(SERIAL_SIZE);
+    fmi2Real v;
+    CRAFTED_REFUSED = CRAFTED_ACCEPTED = 0;
+    if (!reader || !user || !bytes) goto done;
+    for (size_t at = 0; at + sizeof(int) <= SERIAL_SIZE; at += sizeof(int))
+        for (size_t k = 0; k < sizeof INTS / sizeof *INTS; k++) {
+            memcpy(bytes, SERIAL, SERIAL_SIZE);
+            memcpy(bytes + at, &INTS[k], sizeof(int));
+            try_crafted(reader, user, bytes);
+        }
+    for (size_t at = 0; at + sizeof(double) <= SERIAL_SIZE; at += sizeof(double))
+        for (size_t k = 0; k < sizeof DOUBLES / sizeof *DOUBLES; k++) {
+            memcpy(bytes, SERIAL, SERIAL_SIZE);
+            memcpy(bytes + at, &DOUBLES[k], sizeof(double));
+            try_crafted(reader, user, bytes);
+        }
+    for (int trial = 0; trial < 3000; trial++) {
+        memcpy(bytes, SERIAL, SERIAL_SIZE);
+        for (int n = 1 + (int)(next_random() % 8); n > 0; n--) bytes[next_random() % SERIAL_SIZE] = (fmi2Byte)next_random();
+        try_crafted(reader, user, bytes);
+    }
+    if (CRAFTED_REFUSED == 0) fail("no crafted state was refused (%d accepted)", CRAFTED_ACCEPTED);
+    printf("crafted states (%s): %d refused, %d accepted\n", type == ME ? "model exchange" : "co-simulation",
+           CRAFTED_REFUSED, CRAFTED_ACCEPTED);
+    /* the reader is still usable */
+    if (type == CS)
+        expect("fmi2DoStep after the crafted states", F.DoStep(reader, 0.0, 0.01, fmi2True), fmi2OK, 1, NULL, NULL);
+    expect("fmi2GetReal after the crafted states", F.GetReal(reader, &VR_OUTPUT, 1, &v), fmi2OK, 1, NULL, NULL);
+done:
+    free(bytes);
+    if (reader) F.FreeInstance(reader);
+    if (user) F.FreeInstance(user);
 }
 
 /* Steps `from` .. `to` - 1 of 0.01 s, the tunable parameter raised by 10 % before step 50;
@@ -1073,11 +1225,13 @@ static void case_instantiate_refusals(const void *arg)
 
 /* -- running the cases ------------------------------------------------------------------ */
 static int ISOLATE = 1;
+static const char *ONLY;                             /* --only: run the cases whose label contains it */
 
 /* One case: in a forked child unless --in-process (a crash is then a failure, not the end of
    the run); in both, every block the FMU allocated during the case must be freed by it. */
 static void run(const char *label, void (*fn)(const void *), const void *arg)
 {
+    if (ONLY && !strstr(label, ONLY)) return;
     CASES++;
     CASE = label;
     if (ISOLATE) {
@@ -1138,9 +1292,14 @@ static int setup_donor(int type)
 int main(int argc, char **argv)
 {
     int first = 1;
-    if (argc > 1 && strcmp(argv[1], "--in-process") == 0) { ISOLATE = 0; first = 2; }
+    for (;;) {
+        if (argc > first && strcmp(argv[first], "--in-process") == 0) { ISOLATE = 0; first++; continue; }
+        if (argc > first + 1 && strcmp(argv[first], "--only") == 0) { ONLY = argv[first + 1]; first += 2; continue; }
+        break;
+    }
     if (argc - first != 6) {
-        fprintf(stderr, "usage: %s [--in-process] LIBRARY GUID VR_TUNABLE VR_OUTPUT VR_STRING N_STATES\n", argv[0]);
+        fprintf(stderr, "usage: %s [--in-process] [--only TEXT] LIBRARY GUID VR_TUNABLE VR_OUTPUT VR_STRING N_STATES\n",
+                argv[0]);
         return 2;
     }
     NX = atoi(argv[first + 5]);
@@ -1189,7 +1348,13 @@ int main(int argc, char **argv)
     run("a refused fmi2SetReal changes nothing", case_refused_set_changes_nothing, NULL);
     run("fmi2Reset after a failed fmi2ExitInitializationMode", case_reset_after_failed_init, NULL);
     run("fmi2SetFMUstate after a failed fmi2DoStep", case_set_state_after_failed_step, NULL);
-    run("fmi2DoStep with a zero step", case_bad_step_arguments, NULL);
+    run("fmi2DoStep with steps that cannot be taken (0, < 0, inf, NaN, < 1 ns) and a non-finite time",
+        case_bad_step_arguments, NULL);
+    run("fmi2SetReal with non-finite values", case_non_finite_values, NULL);
+    run("model exchange at states +-1e308", case_huge_states, NULL);
+    static const int TYPES[2] = {CS, ME};
+    run("crafted FMU states (co-simulation)", case_crafted_states, &TYPES[CS]);
+    run("crafted FMU states (model exchange)", case_crafted_states, &TYPES[ME]);
     run("fmi2Instantiate's refusals", case_instantiate_refusals, NULL);
     run("a healthy run with a parameter change, saved and replayed", case_run, NULL);
     run("an FMU state of the other type", case_state_of_the_other_type, NULL);

@@ -21,8 +21,10 @@
    fmi3SetTime / fmi3SetContinuousStates / fmi3GetContinuousStateDerivatives /
    fmi3CompletedIntegratorStep, a parameter change in event mode applied by
    fmi3UpdateDiscreteStates, a replay from a saved state, the directional derivatives of every output
-   and derivative) against the FMI 2.0 twin's, and fmi3Terminate / fmi3Reset / fmi3FreeInstance in
-   every state.
+   and derivative) against the FMI 2.0 twin's, fmi3Terminate / fmi3Reset / fmi3FreeInstance in
+   every state, steps that cannot be taken (inf, under 1 ns, ...), non-finite parameter values,
+   states of no physical size (+-1e308) and crafted FMU states (fmi2_strict_host.c's sweep; run
+   under -fsanitize=address,undefined by tests/test_fmu_bounds.py).
 
    What it requires (the FMI 3.0 standard; where it leaves a choice, as the Modelica Reference-FMUs):
    - a call the state machine does not allow returns fmi3Error, logs a message naming the function
@@ -1332,13 +1334,14 @@ static const char *model_text(const char *log, const char *mark)
     return p ? p : "";
 }
 
-/* An impossible value of the tunable parameter (-1: it must be positive; NaN), at initialization:
+/* An impossible value of the tunable parameter (-1 and 0: it must be positive; a NaN is refused by the
+   setter already, case_non_finite_values), at initialization:
    fmi3ExitInitializationMode fails with a message naming the parameter and the value, as the FMI 2.0
    twin's; the instance is in the error state; fmi3Reset makes it usable, with the start values. */
 static void case_impossible_at_initialization(const void *arg)
 {
-    const double bad[2] = {-1.0, NAN};
-    const char *const says[2] = {"= -1.0", "= nan"};
+    const double bad[2] = {-1.0, 0.0};
+    const char *const says[2] = {"= -1.0", "= 0.0"};
     fmi3Float64 v, first[5 * MAX_VARIABLES], again[5 * MAX_VARIABLES];
     (void)arg;
     for (int i = 0; i < 2; i++) {
@@ -1530,6 +1533,9 @@ static void case_step_arguments(const void *arg)
     struct { const char *what; double t, h; const char *says; } bad[] = {
         {"fmi3DoStep(h = 0)", 0.0, 0.0, "step size"}, {"fmi3DoStep(h = -0.01)", 0.0, -0.01, "step size"},
         {"fmi3DoStep(h = NaN)", 0.0, NAN, "step size"}, {"fmi3DoStep(t = NaN)", NAN, 0.01, "fmi3DoStep"},
+        {"fmi3DoStep(h = inf)", 0.0, INFINITY, "step size"}, {"fmi3DoStep(h = -inf)", 0.0, -INFINITY, "step size"},
+        {"fmi3DoStep(h = 1e-12)", 0.0, 1e-12, "cannot advance"}, {"fmi3DoStep(h = 4e-10)", 0.0, 4e-10, "cannot advance"},
+        {"fmi3DoStep(t = inf)", INFINITY, 0.01, "communication point"},
         {"fmi3DoStep(t = 5 s, the model at 0 s)", 5.0, 0.01, "the model is at t = 0.0 s"}};
     StepAnswer s;
     fmi3Float64 v;
@@ -1553,6 +1559,128 @@ static void case_step_arguments(const void *arg)
     OK(F.GetFloat64(c, &VR_TIME, 1, &v, 1), "fmi3GetFloat64(time)");
     if (v != 0.25) fail("the independent variable reads %.17g after a step to 0.25 s", v);
     F.FreeInstance(c);
+}
+
+/* A parameter value that is not finite is refused by fmi3SetFloat64, naming why, changing nothing. */
+static void case_non_finite_values(const void *arg)
+{
+    static const double VALUES[] = {NAN, INFINITY, -INFINITY};
+    fmi3Float64 v = 0.0;
+    (void)arg;
+    fmi3Instance c = make(R_INITIALIZATION);
+    if (!c) return;
+    for (size_t i = 0; i < sizeof VALUES / sizeof *VALUES; i++)
+        expect("fmi3SetFloat64(tunable = a non-finite value)", set_tunable(c, VALUES[i]), fmi3Error, 1,
+               "fmi3SetFloat64", "must be finite");
+    OK(F.GetFloat64(c, &VR_TUNABLE, 1, &v, 1), "fmi3GetFloat64(tunable)");
+    if (v != TUNABLE_START) fail("a refused fmi3SetFloat64 changed the tunable parameter to %g (was %g)", v, TUNABLE_START);
+    F.FreeInstance(c);
+}
+
+/* Model exchange at finite states of no physical size (1e308, -1e308, ...): the derivatives are
+   either refused (fmi3Error) or finite; never NaN with fmi3OK. */
+static void case_huge_states(const void *arg)
+{
+    fmi3Float64 x[MAX_STATES], dx[MAX_STATES];
+    (void)arg;
+    fmi3Instance c = make(R_CONTINUOUS);
+    if (!c) return;
+    for (int i = 0; i < NX; i++) x[i] = i % 2 ? -1e308 : 1e308;
+    OK(F.SetContinuousStates(c, x, (size_t)NX), "fmi3SetContinuousStates(+-1e308)");
+    const fmi3Status status = F.GetContinuousStateDerivatives(c, dx, (size_t)NX);
+    if (status == fmi3OK) {
+        for (int i = 0; i < NX; i++)
+            if (!isfinite(dx[i])) fail("fmi3GetContinuousStateDerivatives at states +-1e308 returned fmi3OK with %g", dx[i]);
+        clear_log();
+    } else {
+        expect("fmi3GetContinuousStateDerivatives at states +-1e308", status, fmi3Error, 1,
+               "not finite", NULL);
+    }
+    F.FreeInstance(c);
+}
+
+/* Crafted FMU states, as fmi2_strict_host.c's case_crafted_states: the donor's serialized state with
+   an integer (out-of-range indices, a mode of 12345, -1) at every 4-byte offset, a double (NaN,
+   inf, -1e308) at every 8-byte offset, then random bytes at random places (a fixed seed).  Each is
+   refused with fmi3Error and a message, or, accepted, survives being set and used; the reader
+   stays usable.  Under -fsanitize=address,undefined a report ends the run non-zero. */
+static unsigned long RANDOM = 36;
+static unsigned long next_random(void)
+{
+    RANDOM = RANDOM * 6364136223846793005UL + 1442695040888963407UL;
+    return RANDOM >> 33;
+}
+
+static int CRAFTED_REFUSED, CRAFTED_ACCEPTED;
+
+static void try_crafted(fmi3Instance reader, fmi3Instance user, const fmi3Byte *bytes)
+{
+    fmi3FMUState state = NULL;
+    fmi3Float64 v, x[MAX_STATES], dx[MAX_STATES];
+    fmi3String text;
+    StepAnswer s;
+    const fmi3Status status = F.DeserializeFMUState(reader, bytes, SERIAL_SIZE, &state);
+    if (status != fmi3OK) {
+        CRAFTED_REFUSED++;
+        expect("fmi3DeserializeFMUState(crafted)", status, fmi3Error, 1, "fmi3DeserializeFMUState", NULL);
+        return;
+    }
+    CRAFTED_ACCEPTED++;
+    clear_log();
+    if (F.SetFMUState(user, state) == fmi3OK) {
+        F.GetFloat64(user, &VR_OUTPUT, 1, &v, 1);
+        F.GetString(user, &VR_STRING, 1, &text, 1);
+        if (TYPE == CS) {
+            do_step(user, 0.0, 0.01, &s);
+            F.GetFloat64(user, &VR_OUTPUT, 1, &v, 1);
+        } else {
+            F.GetContinuousStates(user, x, (size_t)NX);
+            F.EnterContinuousTimeMode(user);
+            F.GetContinuousStateDerivatives(user, dx, (size_t)NX);
+        }
+    }
+    clear_log();
+    F.FreeFMUState(reader, &state);
+}
+
+static void case_crafted_states(const void *arg)
+{
+    static const int INTS[] = {-1, 12345, 100000000, 7};
+    static const double DOUBLES[] = {NAN, INFINITY, -1e308};
+    const int type = *(const int *)arg;
+    fmi3Instance reader = make(type == ME ? R_EVENT : R_STEP);
+    fmi3Instance user = make(type == ME ? R_EVENT : R_STEP);
+    fmi3Byte *bytes = malloc(SERIAL_SIZE);
+    fmi3Float64 v;
+    StepAnswer s;
+    CRAFTED_REFUSED = CRAFTED_ACCEPTED = 0;
+    if (!reader || !user || !bytes) goto done;
+    for (size_t at = 0; at + sizeof(int) <= SERIAL_SIZE; at += sizeof(int))
+        for (size_t k = 0; k < sizeof INTS / sizeof *INTS; k++) {
+            memcpy(bytes, SERIAL, SERIAL_SIZE);
+            memcpy(bytes + at, &INTS[k], sizeof(int));
+            try_crafted(reader, user, bytes);
+        }
+    for (size_t at = 0; at + sizeof(double) <= SERIAL_SIZE; at += sizeof(double))
+        for (size_t k = 0; k < sizeof DOUBLES / sizeof *DOUBLES; k++) {
+            memcpy(bytes, SERIAL, SERIAL_SIZE);
+            memcpy(bytes + at, &DOUBLES[k], sizeof(double));
+            try_crafted(reader, user, bytes);
+        }
+    for (int trial = 0; trial < 3000; trial++) {
+        memcpy(bytes, SERIAL, SERIAL_SIZE);
+        for (int n = 1 + (int)(next_random() % 8); n > 0; n--) bytes[next_random() % SERIAL_SIZE] = (fmi3Byte)next_random();
+        try_crafted(reader, user, bytes);
+    }
+    if (CRAFTED_REFUSED == 0) fail("no crafted state was refused (%d accepted)", CRAFTED_ACCEPTED);
+    printf("crafted states (%s): %d refused, %d accepted\n", type == ME ? "model exchange" : "co-simulation",
+           CRAFTED_REFUSED, CRAFTED_ACCEPTED);
+    if (type == CS) OK(do_step(reader, 0.0, 0.01, &s), "fmi3DoStep after the crafted states");
+    OK(F.GetFloat64(reader, &VR_OUTPUT, 1, &v, 1), "fmi3GetFloat64 after the crafted states");
+done:
+    free(bytes);
+    if (reader) F.FreeInstance(reader);
+    if (user) F.FreeInstance(user);
 }
 
 /* fmi3EnterInitializationMode's arguments: a NaN start time, a stop time before the start: refused,
@@ -2169,6 +2297,11 @@ static void register_cases(void)
     run("an impossible parameter value at initialization, then fmi3Reset", case_impossible_at_initialization, NULL);
     run("an impossible parameter value between steps, then fmi3SetFMUState", case_impossible_between_steps, NULL);
     run("fmi3DoStep's arguments", case_step_arguments, NULL);
+    run("fmi3SetFloat64 with non-finite values", case_non_finite_values, NULL);
+    run("model exchange at states +-1e308", case_huge_states, NULL);
+    static const int TYPES[2] = {CS, ME};
+    run("crafted FMU states (co-simulation)", case_crafted_states, &TYPES[CS]);
+    run("crafted FMU states (model exchange)", case_crafted_states, &TYPES[ME]);
     run("a start time that is not finite, a stop time before it", case_start_time, NULL);
     run("a step past the stop time", case_stop_time, NULL);
     run("Case 2 in co-simulation, the tunable parameter +10 % at 10 s, against the FMI 2.0 twin", case_case2, NULL);

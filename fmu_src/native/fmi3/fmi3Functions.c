@@ -408,9 +408,11 @@ fmi3Status fmi3Terminate(fmi3Instance instance)
     m->state.mode = MODE_TERMINATED;
     model_log(m, MODEL_OK, "logAll", "statistics at t = %.9g s: %lu right-hand-side evaluations (%lu on the full system), %lu by "
               "continuation from the last accepted state, %lu at trial points not reached (their steps "
-              "rejected); %lu Newton-Raphson iterations, %lu integrator starts, %lu re-partitions", m->state.t,
+              "rejected); %lu Newton-Raphson iterations, %lu integrator starts, %lu re-partitions; at most %lu "
+              "right-hand-side evaluations in one communication step (max_evaluations = %.17g)", m->state.t,
               m->state.rhs_evaluations, m->state.full_evaluations, m->state.continuations,
-              m->state.failed_evaluations, m->state.newton_iterations, m->state.starts, m->state.repartitions);
+              m->state.failed_evaluations, m->state.newton_iterations, m->state.starts, m->state.repartitions,
+              m->state.most_step_evaluations, m->state.values[VR_max_evaluations]);
     return fmi3OK;
 }
 
@@ -465,7 +467,8 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueR
     SCALARS(nValueReferences, nValues);
     if (!check_refs(m, __func__, valueReferences, nValueReferences, KIND(KIND_TUNABLE) | KIND(KIND_FIXED),
                     "a Float64 parameter")
-        || !settable_now(m, __func__, valueReferences, nValueReferences))
+        || !settable_now(m, __func__, valueReferences, nValueReferences)
+        || model_non_finite_values(m, __func__, valueReferences, values, nValueReferences))
         return fmi3Error;
     for (size_t i = 0; i < nValueReferences; i++)        /* checked, and applied, at the next doStep or event update */
         m->state.values[valueReferences[i]] = values[i];
@@ -819,6 +822,11 @@ fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState)
                   type_name(m->model_exchange));
         return fmi3Error;
     }
+    char why[MODEL_MESSAGE];
+    if (model_check_state(&saved->state, saved->model_exchange, why, sizeof why)) {    /* a corrupted state */
+        model_log(m, MODEL_ERROR, "logStatusError", "fmi3SetFMUState: the FMU state is refused: its %s", why);
+        return fmi3Error;
+    }
     memcpy(&m->state, &saved->state, sizeof(ModelState));
     return fmi3OK;
 }
@@ -863,10 +871,16 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte seriali
     ENTER(ALL_STATES);
     REQUIRE(serializedState);
     REQUIRE(FMUState);
-    const int problem = model_deserialize((const unsigned char *)serializedState, size, STATE_MAGIC, &read);
+    char why[MODEL_MESSAGE];
+    const int problem = model_deserialize((const unsigned char *)serializedState, size, STATE_MAGIC, &read, why,
+                                          sizeof why);
     if (problem == MODEL_WRONG_SIZE) {
         model_log(m, MODEL_ERROR, "logStatusError", "fmi3DeserializeFMUState: expected %u bytes, got %u",
                   (unsigned)model_serialized_size(), (unsigned)size);
+        return fmi3Error;
+    }
+    if (problem == MODEL_INVALID) {     /* the instance is unchanged, still usable */
+        model_log(m, MODEL_ERROR, "logStatusError", "fmi3DeserializeFMUState: the state is refused: its %s", why);
         return fmi3Error;
     }
     if (problem) {
@@ -928,9 +942,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     *terminateSimulation = fmi3False;
     *earlyReturn = fmi3False;
     *lastSuccessfulTime = m->state.t;
-    if (!(communicationStepSize > 0.0) || !isfinite(currentCommunicationPoint)) {
-        model_log(m, MODEL_ERROR, "logStatusError", "fmi3DoStep: the step size must be positive (got %g s at t = %g s)",
-                  communicationStepSize, currentCommunicationPoint);
+    if (model_bad_step(m, __func__, currentCommunicationPoint, communicationStepSize)) {   /* logged why */
         m->state.mode = MODE_ERROR;
         return fmi3Error;
     }
@@ -1023,12 +1035,7 @@ fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 cont
     ME_ONLY;
     REQUIRE_ARRAY(continuousStates, nContinuousStates);
     if (!count_is(m, __func__, nContinuousStates, FB_N_STATES, "states")) return fmi3Error;
-    for (size_t i = 0; i < nContinuousStates; i++)
-        if (!isfinite(continuousStates[i])) {
-            model_log(m, MODEL_ERROR, "logStatusError", "fmi3SetContinuousStates: state %u is %g: must be finite",
-                      (unsigned)i, continuousStates[i]);
-            return fmi3Error;
-        }
+    if (model_non_finite_states(m, __func__, continuousStates, nContinuousStates)) return fmi3Error;
     model_me_set_states(m, continuousStates);
     return fmi3OK;
 }
