@@ -194,10 +194,17 @@ def test_rk45_is_selectable_and_accurate(either_fmu, times):
 
 @pytest.mark.parametrize("name, value, unit", [("L4", -1.0, "m"), ("m3", 0.0, "kg"), ("L1", float("nan"), "m")])
 def test_bad_start_parameters_are_rejected(either_fmu, name, value, unit):
+    """A value outside a parameter's range is refused when the FMU initialises; the native FMU
+    refuses a NaN at fmi2SetReal already (nothing is set), the pythonfmu FMU at initialisation
+    (its setter cannot refuse: pythonfmu turns an exception there into fmi2Fatal)."""
     LOG.clear()
-    with pytest.raises(FMICallException, match="fmi2ExitInitializationMode"):
+    native_nan = either_fmu.name.startswith("FourBarNative") and value != value
+    with pytest.raises(FMICallException, match="fmi2SetReal" if native_nan else "fmi2ExitInitializationMode"):
         run(either_fmu, stop=0.1, start_values={name: value}, capture_log=True)
-    assert any(f"{name} = {value!r} {unit}: must be a finite positive number" in m for m in LOG), LOG
+    if native_nan:
+        assert any(name in m and "finite" in m for m in LOG), LOG
+    else:
+        assert any(f"{name} = {value!r} {unit}: must be a finite positive number" in m for m in LOG), LOG
 
 
 def test_unassemblable_length_fails_the_step_cleanly(either_fmu):

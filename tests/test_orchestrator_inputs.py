@@ -208,7 +208,10 @@ def test_refused_start_values_write_nothing_and_name_the_value(fmu_kind, native_
     assert "the FMU refused the case's start values: fmi2ExitInitializationMode returned" in proc.stderr
     # The values the case set away from the FMU's own start values: the one override.
     assert "the case sets these away from the FMU's own start values: L2 = 1e+308 (from --set)" in proc.stderr
-    assert "the loop cannot be closed" in proc.stderr      # both FMUs: the iteration runs away
+    # The native FMU's iteration runs away; the pythonfmu FMU's float arithmetic breaks down
+    # first or after it, depending on the numpy/scipy versions (a domain error in 2.4/1.17).
+    assert ("the loop cannot be closed" in proc.stderr
+            or (fmu_kind == "pythonfmu" and "the arithmetic overflowed" in proc.stderr)), proc.stderr
     assert "nothing was run or written" in proc.stderr
     no_traceback(proc)
     assert folder_bytes(out) == before
