@@ -44,6 +44,8 @@ _PRELUDE = textwrap.dedent('''
     import json, math, sys
     from fmpy import extract, read_model_description
     from fmpy.fmi1 import FMICallException
+    from orchestrator import install_pythonfmu_exit_guard
+    install_pythonfmu_exit_guard()      # a pythonfmu FMU may abort the process at exit (PythonFMU #228)
     MESSAGES = []
     def slave(path, kind="cs", start=None):
         md = read_model_description(path)

@@ -95,7 +95,12 @@ def test_refined_period_is_accurate(tmp_path_factory, fourbar_fmu):
     est = dominant_period(t[t <= 9.0], x[t <= 9.0])
     reference = dominant_period(t, x)       # 32 cycles
     assert abs(est.fft_period - reference.period) > 0.01                     # FFT alone: ~1 % off
-    assert abs(est.period - reference.period) < 2e-5                         # refined: < 1e-5 relative
+    # Refined: within 5e-5 s (1.6e-5 relative), 700 times closer than the FFT alone.  The bound
+    # is not tighter because the reference carries its own error: at Table 1's atol = 1e-6 the
+    # 100 s run drifts by millimetres with the round-off (the same FMU gave a whole-run period
+    # of 3.0573563 s with the numpy/scipy of before and 3.0573263 s with numpy 2.4 / scipy 1.17,
+    # while the 9 s estimate stayed 3.057353 s).
+    assert abs(est.period - reference.period) < 5e-5
     assert est.period_stderr < 1e-6
 
 
