@@ -4,7 +4,9 @@ from __future__ import annotations
 import json
 import os
 import re
+import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -160,3 +162,20 @@ def logged_callbacks(sink):
     addLoggerProxy(byref(callbacks))
     _KEPT.append(callbacks)
     return callbacks
+
+
+def wait_for_rows(out: Path, proc: subprocess.Popen, rows: int = 1, guard: float = 120.0) -> dict:
+    """run.json of ``out`` once it says ``running`` with at least ``rows`` rows; fails the test
+    if ``proc`` ends first or nothing comes within ``guard`` s (a hang guard, not a timing)."""
+    deadline = time.monotonic() + guard
+    while time.monotonic() < deadline:
+        assert proc.poll() is None, proc.communicate()
+        try:
+            record = json.loads((out / "run.json").read_text())
+        except (OSError, ValueError):
+            record = {}
+        if record.get("status") == "running" and record.get("rows_written", 0) >= rows:
+            return record
+        time.sleep(0.05)
+    proc.kill()
+    pytest.fail(f"the run into {out} never started writing rows")

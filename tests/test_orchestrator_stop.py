@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from support import REPO, case_file
+from support import REPO, case_file, wait_for_rows
 
 #: s: hang guard only (a stuck run would otherwise wait for the doStep, i.e. for days).
 HANG_GUARD = 60.0
@@ -44,20 +44,6 @@ def start_stuck_run(fmu: Path, tmp_path: Path, out: Path, **popen) -> subprocess
                             stderr=subprocess.PIPE, text=True, **popen)
 
 
-def wait_for_rows(out: Path, proc: subprocess.Popen, rows: int = 1) -> dict:
-    """Wait (hang guard) until run.json says ``running`` with at least ``rows`` rows."""
-    deadline = time.monotonic() + HANG_GUARD
-    while time.monotonic() < deadline:
-        assert proc.poll() is None, proc.communicate()
-        try:
-            record = json.loads((out / "run.json").read_text())
-        except (OSError, ValueError):
-            record = {}
-        if record.get("status") == "running" and record.get("rows_written", 0) >= rows:
-            return record
-        time.sleep(0.05)
-    proc.kill()
-    pytest.fail("the run never started writing rows")
 
 
 @pytest.mark.parametrize("signum,code,words", [(signal.SIGTERM, 143, "terminated by SIGTERM"),

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-from support import FOURBAR_RUN, REPO, case_file
+from support import FOURBAR_RUN, REPO, case_file, wait_for_rows
 
 #: s: hang guard only; no test here depends on the machine's speed.
 HANG_GUARD = 120.0
@@ -39,19 +39,6 @@ def start(*args, **kwargs) -> subprocess.Popen:
                             text=True, cwd=REPO, **kwargs)
 
 
-def wait_running(out: Path, proc: subprocess.Popen, rows: int = 1) -> dict:
-    deadline = time.monotonic() + HANG_GUARD
-    while time.monotonic() < deadline:
-        assert proc.poll() is None, proc.communicate()
-        try:
-            record = json.loads((out / "run.json").read_text())
-        except (OSError, ValueError):
-            record = {}
-        if record.get("status") == "running" and record.get("rows_written", 0) >= rows:
-            return record
-        time.sleep(0.05)
-    proc.kill()
-    pytest.fail("the run never started")
 
 
 def test_a_second_writer_is_refused_and_the_first_run_is_untouched(native_fmu, tmp_path):
@@ -61,7 +48,7 @@ def test_a_second_writer_is_refused_and_the_first_run_is_untouched(native_fmu, t
     out = tmp_path / "shared"
     # real time: the first run holds the folder for at least 10 s, however fast the machine
     first = start(path, "--out", out, "--quiet", "--realtime", "1")
-    record = wait_running(out, first)
+    record = wait_for_rows(out, first)
     second = run(path, "--out", out, "--quiet")
     assert second.returncode == 2, second.stderr
     holder = re.search(r"another writer holds this folder: fourbar-run \(pid (\d+), on host ([^,]+), "
@@ -83,7 +70,7 @@ def test_a_lock_and_an_unpacked_fmu_left_by_a_killed_run_do_not_stay(native_fmu,
     scratch.mkdir()
     env = {**os.environ, "TMPDIR": str(scratch)}
     killed = start(path, "--out", out, "--quiet", "--realtime", "1", env=env)
-    wait_running(out, killed)
+    wait_for_rows(out, killed)
     assert json.loads((out / ".lock").read_text())["pid"] == killed.pid
     killed.send_signal(signal.SIGKILL)
     killed.communicate(timeout=HANG_GUARD)
@@ -127,7 +114,7 @@ def test_exchange_csv_replaced_during_the_run_is_reported(native_fmu, tmp_path):
     path = case_file("case1_normal", native_fmu, tmp_path, stop=10.0, flush_interval=0.5)
     out = tmp_path / "out"
     proc = start(path, "--out", out, "--quiet", "--realtime", "5")
-    wait_running(out, proc, rows=2)
+    wait_for_rows(out, proc, rows=2)
     subprocess.run(["sed", "-i", "2d", str(out / "exchange.csv")], check=True, timeout=HANG_GUARD)
     _, err = proc.communicate(timeout=HANG_GUARD)
     assert proc.returncode == 1, err
@@ -175,7 +162,7 @@ def test_run_json_never_counts_a_row_a_kill_cut(native_fmu, tmp_path, delay):
     path = case_file("case1_normal", native_fmu, tmp_path, flush_interval=10.0)
     out = tmp_path / "out"
     proc = start(path, "--out", out, "--quiet")
-    wait_running(out, proc, rows=1)
+    wait_for_rows(out, proc, rows=1)
     time.sleep(delay)
     proc.send_signal(signal.SIGKILL)
     proc.communicate(timeout=HANG_GUARD)
