@@ -73,7 +73,13 @@ KIND_TUNABLE, KIND_FIXED, KIND_STRING, KIND_OUTPUT, KIND_LOCAL = 0, 1, 2, 3, 4
 
 
 class _Printer(C99CodePrinter):
-    """C99 printer writing x**2 .. x**4 as products and x**-1 as a division."""
+    """C99 printer writing x**2 .. x**4 as products and x**-1 as a division, and constants
+    (pi, E, sqrt(2) ...) as numbers: sympy's M_PI, M_SQRT2 ... are POSIX macros, not C99."""
+
+    math_macros: dict = {}
+
+    def _print_NumberSymbol(self, expr):
+        return self._print(sp.Float(expr.evalf(20), 17))
 
     def _print_Pow(self, expr):
         base, exp = expr.args
