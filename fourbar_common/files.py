@@ -1,13 +1,17 @@
-"""Files replaced atomically: a reader sees the old content or the new, never a mixture."""
+"""Files replaced atomically (a reader sees the old content or the new, never a mixture), and
+files opened for reading only when they are regular files (a FIFO or a device never blocks a reader)."""
 from __future__ import annotations
 
+import errno
 import json
 import os
 import secrets
+import stat
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, BinaryIO, Callable
 
-__all__ = ["output_folder_problem", "replace_atomically", "write_json_atomic"]
+__all__ = ["NotRegularFileError", "file_kind", "open_regular", "output_folder_problem", "replace_atomically",
+           "write_json_atomic"]
 
 #: Mode asked for a new file, as ``open(path, "w")`` does; the process umask removes bits
 #: from it (usually 0o022, giving 0o644: readable by others, like exchange.csv and plots).
@@ -82,3 +86,46 @@ def output_folder_problem(out: str | os.PathLike[str], receives: str) -> str | N
     except OSError as exc:
         return str(exc.strerror or exc)
     return None
+
+
+class NotRegularFileError(OSError):
+    """A path names a FIFO, a device, a socket or a directory where a file was expected."""
+
+    def __str__(self) -> str:
+        return self.strerror or super().__str__()
+
+
+def file_kind(mode: int) -> str:
+    """``is a FIFO``, ``is a directory``, ... for a file mode that is not a regular file's."""
+    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return f"is {name}"
+    return "is not a regular file"
+
+
+def open_regular(path: str | os.PathLike[str]) -> BinaryIO:
+    """Open ``path`` for reading in binary mode, refusing what is not a regular file.
+
+    The file is opened with ``O_NONBLOCK`` (so a FIFO without a writer does not block the
+    reader) and checked with ``fstat`` on the open descriptor (no race between a check and
+    the open); blocking mode is restored for a regular file.  Raises
+    :class:`NotRegularFileError` naming the path and what it is, ``FileNotFoundError`` when
+    there is none, other ``OSError`` as ``open`` does.
+    """
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags)
+    except IsADirectoryError:
+        raise NotRegularFileError(errno.EISDIR, f"{path}: is a directory, not a regular file") from None
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise NotRegularFileError(errno.EINVAL, f"{path}: {file_kind(mode)}, not a regular file")
+        if hasattr(os, "set_blocking"):
+            os.set_blocking(fd, True)
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise

@@ -25,23 +25,20 @@ Standard library only.
 """
 from __future__ import annotations
 
-import errno
 import json
 import math
 import os
-import stat
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, BinaryIO, Iterable, Mapping, NoReturn
+from typing import Any, Iterable, Mapping, NoReturn
 
 from .drawing import Drawing, DrawingError
 from .events import Event, RampEvent, StepEvent, Value
-from .files import write_json_atomic
+from .files import open_regular, write_json_atomic
 
 __all__ = [
     "JsonFileError",
     "MAX_JSON_BYTES",
-    "NotRegularFileError",
     "PARAMETER_SOURCES",
     "ParameterStart",
     "READABLE_SCHEMAS",
@@ -54,8 +51,6 @@ __all__ = [
     "RunRecord",
     "RunRecordError",
     "SCHEMA_VERSION",
-    "file_kind",
-    "open_regular",
     "parse_json",
     "read_json_file",
     "read_run_record",
@@ -315,51 +310,8 @@ MAX_JSON_BYTES = 16 << 20
 _RECORD_FIELDS = ("schema", "status", "run_id", "case", "experiment", "rows_written")
 
 
-class NotRegularFileError(OSError):
-    """A path names a FIFO, a device, a socket or a directory where a file was expected."""
-
-    def __str__(self) -> str:
-        return self.strerror or super().__str__()
-
-
 class JsonFileError(ValueError):
     """A JSON file of a run folder cannot be used: not JSON, nested too deeply, too large."""
-
-
-def file_kind(mode: int) -> str:
-    """``is a FIFO``, ``is a directory``, ... for a file mode that is not a regular file's."""
-    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
-                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
-                       (stat.S_ISSOCK, "a socket")):
-        if test(mode):
-            return f"is {name}"
-    return "is not a regular file"
-
-
-def open_regular(path: str | os.PathLike[str]) -> BinaryIO:
-    """Open ``path`` for reading in binary mode, refusing what is not a regular file.
-
-    The file is opened with ``O_NONBLOCK`` (so a FIFO without a writer does not block the
-    reader) and checked with ``fstat`` on the open descriptor (no race between a check and
-    the open); blocking mode is restored for a regular file.  Raises
-    :class:`NotRegularFileError` naming the path and what it is, ``FileNotFoundError`` when
-    there is none, other ``OSError`` as ``open`` does.
-    """
-    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
-    try:
-        fd = os.open(path, flags)
-    except IsADirectoryError:
-        raise NotRegularFileError(errno.EISDIR, f"{path}: is a directory, not a regular file") from None
-    try:
-        mode = os.fstat(fd).st_mode
-        if not stat.S_ISREG(mode):
-            raise NotRegularFileError(errno.EINVAL, f"{path}: {file_kind(mode)}, not a regular file")
-        if hasattr(os, "set_blocking"):
-            os.set_blocking(fd, True)
-        return os.fdopen(fd, "rb")
-    except BaseException:
-        os.close(fd)
-        raise
 
 
 def read_text_file(path: str | os.PathLike[str], *, max_bytes: int | None = None) -> str:

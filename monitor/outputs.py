@@ -49,7 +49,7 @@ import numpy as np
 
 from fourbar_common import output_folder_problem, write_json_atomic
 from fourbar_common.files import replace_atomically
-from fourbar_common.run_record import NotRegularFileError, file_kind
+from fourbar_common.files import NotRegularFileError, file_kind
 
 from .detector import ALARM_MESSAGE, Event, State
 from .errors import OutputDirError, OutputWriteError

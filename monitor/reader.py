@@ -39,7 +39,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from fourbar_common import Event, RunRecord, RunRecordError, read_run_record
-from fourbar_common.run_record import EXCHANGE_NAME, NotRegularFileError, file_kind, open_regular
+from fourbar_common.files import NotRegularFileError, file_kind, open_regular
+from fourbar_common.run_record import EXCHANGE_NAME
 
 from .errors import ExchangeFormatError, ExchangeMissingError
 

@@ -18,8 +18,11 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+from fourbar_common.files import NotRegularFileError, open_regular
+
 __all__ = [
     "GRID_TOLERANCE",
+    "MAX_TOML_BYTES",
     "ConfigError",
     "ProblemReporter",
     "grid_steps",
@@ -32,6 +35,9 @@ __all__ = [
 #: A time is on the grid ``start + k*step`` when ``(time - start)/step`` is within this of
 #: a whole number ``k``.
 GRID_TOLERANCE = 1e-6
+#: The largest case or sweep file read (bytes): the shipped ones are 1-3 kB; a larger file is
+#: not one a person wrote, and reading it whole would cost memory for nothing.
+MAX_TOML_BYTES = 1 << 20
 _NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
 
@@ -94,17 +100,23 @@ def read_toml(path: Path, what: str, error: type[ConfigError] = ConfigError) -> 
     file when it is missing, unreadable or not TOML."""
     label = str(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        with open_regular(path) as handle:     # a FIFO or a device is refused, never read for ever
+            data = handle.read(MAX_TOML_BYTES + 1)
+        text = data.decode("utf-8")
     except FileNotFoundError:
         raise error(label, [f"{what} not found"]) from None
-    except IsADirectoryError:
-        raise error(label, [f"is a directory; expected a {what} (TOML)"]) from None
+    except NotRegularFileError as exc:
+        raise error(label, [f"{exc.strerror.removeprefix(label + ': ')}; expected a {what} (TOML)"]) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise error(label, [f"cannot read the {what}: {exc}"]) from None
+    if len(data) > MAX_TOML_BYTES:
+        raise error(label, [f"larger than {MAX_TOML_BYTES} bytes; a {what} is a few kilobytes"])
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise error(label, [f"not valid TOML: {exc}"]) from None
+    except (RecursionError, MemoryError):    # tomllib recurses once per level of nested arrays/tables
+        raise error(label, [f"nested too deeply to be a {what}"]) from None
 
 
 class ProblemReporter:

@@ -160,3 +160,25 @@ def test_a_ramp_over_every_point_sets_each_value_once(native_fmu, tmp_path):
     assert values[0] == [("L2", 1.0)] and values[n] == [("L2", 1.1)]
     assert values[100] == [("L2", 1.05), ("L3", 4.05)]          # the case's order: ramp, then step
     assert steps == {100: [("L3", 4.05)]}
+
+
+def test_a_case_file_nested_too_deeply_is_refused(native_fmu, tmp_path):
+    """tomllib recurses once per level of nested arrays: 5000 levels raised RecursionError
+    (a traceback in fourbar-run, found by benchmarks/fuzz_inputs.py)."""
+    path = case_file("case1_normal", native_fmu, tmp_path)
+    path.write_text(path.read_text() + "\ndeep = " + "[" * 5000 + "]" * 5000 + "\n")
+    assert "nested too deeply to be a case file" in refused(path)
+
+
+@pytest.mark.parametrize("kind", ["fifo", "directory", "huge"])
+def test_a_case_path_that_is_no_case_file_is_refused_without_reading_it(kind, native_fmu, tmp_path):
+    """A FIFO would block the reader for ever; a directory or a 2 MB file is no case file."""
+    path = tmp_path / "case.toml"
+    if kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "directory":
+        path.mkdir()
+    else:
+        path.write_text("# " + "x" * (2 << 20) + "\n")
+    message = refused(path)
+    assert {"fifo": "is a FIFO", "directory": "is a directory", "huge": "larger than"}[kind] in message, message

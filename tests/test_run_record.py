@@ -227,7 +227,7 @@ def test_a_huge_run_json_is_refused(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("make, kind", [(os.mkfifo, "a FIFO"), (os.mkdir, "a directory")])
 def test_a_fifo_or_folder_is_not_opened(tmp_path, make, kind):
-    from fourbar_common.run_record import NotRegularFileError, open_regular
+    from fourbar_common.files import NotRegularFileError, open_regular
 
     path = tmp_path / "run.json"
     make(path)                         # a blocking open of a FIFO without a writer would hang here
