@@ -44,7 +44,7 @@ def one(fmu: Path, signum: int, work: Path) -> float:
     out = work / "out"
     path = case_file("case1_normal", fmu, work, flush_interval=0.01)
     proc = subprocess.Popen([sys.executable, "-c", _UNLIMITED_RUN, str(path), "--out", str(out), "--quiet",
-                             "--set", "omega2_start=1e15"], cwd=REPO, stdout=subprocess.DEVNULL,
+                             "--set", "omega2_start=1e15", "--set", "max_evaluations=1e15"], cwd=REPO, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:
