@@ -306,7 +306,9 @@ def test_every_allowed_function_builds_into_both_fmus_and_means_the_same(tmp_pat
     the run (|A - O2|, from the drawing outputs) equals Python's math on the same text, and the
     two FMUs agree."""
     import numpy as np
-    from fmpy import simulate_fmu
+    from fmpy import extract, simulate_fmu
+
+    from orchestrator.pythonfmu_workarounds import forget_other_fmu_modules
 
     path = mechanism_file(tmp_path, EVERY_FUNCTION)
     build = subprocess.run([sys.executable, str(REPO / "build_fmu.py"), "--mechanism", str(path), "--no-validate",
@@ -316,8 +318,14 @@ def test_every_allowed_function_builds_into_both_fmus_and_means_the_same(tmp_pat
     m = math
     crank = 1.0 + 1e-3 * (m.sqrt(3.0) + m.sin(3.0) + m.cos(3.0) + m.tan(3.0 / 8) + m.asin(3.0 / 8)
                           + m.acos(3.0 / 8) + m.atan(3.0) + m.atan2(3.0, 2.5) + m.exp(-3.0) + m.log(3.0) + m.pi)
-    runs = [simulate_fmu(str(tmp_path / name), stop_time=1.0, output_interval=0.01,
-                         output=["A_x", "A_y", "O2_x", "O2_y", "x3", "y3"]) for name in ("M.fmu", "MN.fmu")]
+    runs = []
+    for name in ("M.fmu", "MN.fmu"):
+        unzipped = extract(str(tmp_path / name))
+        # a pythonfmu FMU's slave module is cached by name in this interpreter: another
+        # test's FourBar would answer for this one (PythonFMU #228; the project's workaround)
+        forget_other_fmu_modules(unzipped)
+        runs.append(simulate_fmu(unzipped, stop_time=1.0, output_interval=0.01,
+                                 output=["A_x", "A_y", "O2_x", "O2_y", "x3", "y3"]))
     for r in runs:
         length = np.hypot(r["A_x"] - r["O2_x"], r["A_y"] - r["O2_y"])
         # the constraints hold to round-off at every communication point (projection), so the
