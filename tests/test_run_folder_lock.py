@@ -161,7 +161,9 @@ def test_run_json_never_counts_a_row_a_kill_cut(native_fmu, tmp_path, delay):
     complete line with every column (a torn last line may follow; readers ignore it)."""
     path = case_file("case1_normal", native_fmu, tmp_path, flush_interval=10.0)
     out = tmp_path / "out"
-    proc = start(path, "--out", out, "--quiet")
+    # paced at 20x (5 s of wall time, an append every 0.5 s): unpaced, an idle machine could
+    # finish the 100 s run before the first poll saw it running (a test of the machine's speed)
+    proc = start(path, "--out", out, "--quiet", "--realtime", "20")
     wait_for_rows(out, proc, rows=1)
     time.sleep(delay)
     proc.send_signal(signal.SIGKILL)
