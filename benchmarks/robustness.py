@@ -31,6 +31,11 @@ Usage:
                                   [--limit N] [--quick]
 ``--quick``: one configuration per family, noise-free only, a 30 s healthy run and the length
 step, the harmonic model (a smoke test of the whole chain; its figures mean nothing).
+
+``--mechanisms``: the same runs on the user-style families of benchmarks/mechanism_families.py
+(a quick-return, six-bars, a drag link, an inverted slider-crank: mechanism files, not the
+four-bar's generated geometry), written to their own part of the page ("# User-style
+mechanisms"); a four-bar ``--write`` keeps that part, and a ``--mechanisms --write`` keeps the rest.
 """
 from __future__ import annotations
 
@@ -74,12 +79,15 @@ class Planned:
     key: str                      # cache key (scenario inputs)
     family: str
     config_index: int
-    config: C.Configuration
+    config: C.Configuration | None   # None for a user family (its case is ``text``)
     noise_std: float
     noise_seed: int
     test: str                     # "healthy" | "length" | "mass"
     fault: C.Fault | None
     stop: float
+    signal: str = "x2"            # the monitored column
+    text: str | None = None       # a user family's case file (the four-bar's is written from config)
+    period: float | None = None   # s, a user family's pre-run period (the four-bar's: config.motion)
 
 
 def _hash(payload) -> str:
@@ -87,12 +95,12 @@ def _hash(payload) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def code_fingerprint(fmu: Path) -> str:
-    """SHA-256 (16 hex digits) of the Python sources in CODE and the FMU file: what a row's
+def code_fingerprint(*fmus: Path) -> str:
+    """SHA-256 (16 hex digits) of the Python sources in CODE and the FMU files: what a row's
     figures depend on besides its inputs (the configuration is in the row's key)."""
     h = hashlib.sha256()
     files = sorted(p for d in CODE for p in (REPO / d).rglob("*.py"))
-    for p in [*files, fmu]:
+    for p in [*files, *fmus]:
         h.update(str(p.relative_to(REPO) if p.is_relative_to(REPO) else p).encode())
         h.update(p.read_bytes())
     return h.hexdigest()[:16]
@@ -133,6 +141,74 @@ def plan(per_family: int, healthy: float, model: str, *, noisy: bool = True,
     return out, notes
 
 
+def plan_user(per_family: int, healthy: float, model: str, out: Path, *, noisy: bool = True,
+              tests: tuple[str, ...] = ("healthy", "length", "mass")) -> tuple[list[Planned], list[str]]:
+    """The user-style families' scenarios (benchmarks/mechanism_families.py), in a fixed order;
+    notes on families or configurations that could not be run.  Builds each family's FMU and
+    pre-runs each drawn start (seconds each)."""
+    import numpy as np
+
+    import mechanism_families as F
+
+    out_plan: list[Planned] = []
+    notes: list[str] = []
+    for f_index, family in enumerate(F.FAMILIES):
+        if not family.path.exists():
+            notes.append(f"{family.name}: {family.file} does not exist; not run")
+            continue
+        try:
+            fmu = F.fmu_for(family, out / "fmus")
+            values = F.defaults(fmu)
+        except RuntimeError as exc:
+            notes.append(f"{family.name}: {exc}")
+            continue
+        lengths, masses = F.stepped(family, fmu)
+        print(f"robustness: {family.name}: drawing {per_family} starts ({F.PRE_RUN:g} s pre-run each)",
+              file=sys.stderr, flush=True)
+        for i in range(per_family):
+            rng = np.random.default_rng([SEED, 100 + f_index, i])
+            config = F.draw_configuration(rng, family, i, fmu, values)
+            if config is None:
+                notes.append(f"{family.name} #{i}: no start of {F.ATTEMPTS} drawn gives a steady motion with a "
+                             f"period in {F.PERIOD_RANGE[0]:g}-{F.PERIOD_RANGE[1]:g} s; not run")
+                continue
+            sigma = round(float(rng.uniform(*NOISE)), 6)
+            seed = int(rng.integers(1, 2**31 - 1))
+            faults = {}
+            for test, group, size in (("length", lengths, LENGTH_STEP), ("mass", masses, MASS_STEP)):
+                if group:
+                    variable = str(rng.choice(group))
+                    relative = size * float(rng.choice((1.0, -1.0)))
+                    t = C.on_grid(float(rng.uniform(*FAULT_TIMES)), STEP)
+                    faults[test] = C.Fault(variable=variable, relative=relative, time=t, before=values[variable])
+            for noise_std in ((0.0, sigma) if noisy else (0.0,)):
+                for test in tests:
+                    fault = faults.get(test)
+                    if test != "healthy" and fault is None:
+                        continue
+                    stop = healthy if fault is None else C.on_grid(fault.time + AFTER_FAULT, STEP)
+                    name = f"{family.name}-{i:03d}"
+                    text = _user_case_text(family, config, fmu, name=name, stop=stop)
+                    payload = {"schema": ROW_SCHEMA, "family": family.name, "mechanism": F._digest(family.path),
+                               "start": [config.theta, config.omega], "noise": [noise_std, seed],
+                               "fault": None if fault is None else [fault.variable, fault.value, fault.time],
+                               "stop": stop, "model": model}
+                    out_plan.append(Planned(key=_hash(payload), family=family.name, config_index=i, config=None,
+                                            noise_std=noise_std, noise_seed=seed, test=test, fault=fault, stop=stop,
+                                            signal=family.signal, text=text, period=config.period))
+    return out_plan, notes
+
+
+def _user_case_text(family, config, fmu: Path, *, name: str, stop: float) -> str:
+    import mechanism_families as F
+
+    theta_name, omega_name = family.independent
+    return "\n".join([f"name = {json.dumps(name)}", f"description = {json.dumps(config.describe())}",
+                      f"fmu = {json.dumps(str(fmu))}", "", "[experiment]", f"stop = {stop!r}", f"step = {STEP!r}",
+                      "", "[parameters]", f"{theta_name} = {config.theta!r}", f"{omega_name} = {config.omega!r}",
+                      "", "[outputs]", f"variables = {json.dumps(list(F.outputs(family)))}", ""])
+
+
 def _scenario(p: Planned, model: str):
     from sweep.plan import Scenario
 
@@ -141,7 +217,7 @@ def _scenario(p: Planned, model: str):
                     kind="none" if f is None else "step", relative_change=0.0 if f is None else f.relative,
                     fault_value=None if f is None else f.value, base_value=None if f is None else f.before,
                     fault_time=None if f is None else f.time, ramp_duration=None, noise_std=p.noise_std,
-                    noise_seed=p.noise_seed if p.noise_std > 0 else None, signal="x2", model=model,
+                    noise_seed=p.noise_seed if p.noise_std > 0 else None, signal=p.signal, model=model,
                     threshold="auto", stop=p.stop)
 
 
@@ -150,7 +226,7 @@ def _base_case(p: Planned, cases: Path):
     from orchestrator import apply_overrides, load_case
 
     path = cases / f"{p.family}-{p.config_index:03d}.toml"
-    text = C.case_text(p.config, NATIVE, stop=p.stop, step=STEP, name=path.stem)
+    text = p.text if p.text is not None else C.case_text(p.config, NATIVE, stop=p.stop, step=STEP, name=path.stem)
     if not path.exists() or path.read_text() != text:
         path.write_text(text)
     return apply_overrides(load_case(path), stop=p.stop)
@@ -208,7 +284,8 @@ def run(planned: list[Planned], out: Path, *, model: str, workers: int | None, l
                 except Exception as exc:         # the worker died or the task was cancelled
                     row = failed_row(_scenario(p, model), f"worker: {type(exc).__name__}: {exc}")
                 row.update(code=fingerprint, family=p.family, config_index=p.config_index, test=p.test,
-                           motion_period=p.config.motion.period, grashof=p.config.grashof)
+                           motion_period=p.period if p.config is None else p.config.motion.period,
+                           grashof=None if p.config is None else p.config.grashof)
                 (rows_dir / f"{p.key}.json").write_text(json.dumps(row, default=str))
                 rows[p.key] = row
                 done += 1
@@ -380,6 +457,74 @@ def report(rows: list[dict], *, planned: int, notes: list[str], args, wall: floa
     return "\n".join(lines) + "\n"
 
 
+def report_user(rows: list[dict], *, planned: int, notes: list[str], args, wall: float, fingerprint: str) -> str:
+    """The page's part on the user-style families (from USER_PART on)."""
+    import mechanism_families as F
+
+    def sel(family, noisy, test=None):
+        return [r for r in rows if r["family"] == family and (r["noise_std"] > 0) == noisy
+                and (test is None or r["test"] == test)]
+
+    configs = {(r["family"], r["config_index"]) for r in rows}
+    lines = [
+        USER_PART.strip(), "",
+        f"Generated by `python benchmarks/robustness.py --mechanisms{' --quick' if args.quick else ''} "
+        f"--per-family {args.per_family} --write docs/robustness.md` (do not edit by hand; it replaces only this "
+        f"part): mechanism files users write, not Table 1's four-bar (`benchmarks/mechanism_families.py`: each "
+        f"file, its start ranges and why its motions have no dead point). {len(configs)} configurations, "
+        f"{len(rows)} of {planned} planned runs, native FMU, monitor `--model {args.model}`, `fourbar-diagnose` "
+        f"after every alarm. Each configuration is a start drawn (seed {SEED}) and kept when a "
+        f"{F.PRE_RUN:g} s healthy pre-run repeats with a period of {F.PERIOD_RANGE[0]:g}–{F.PERIOD_RANGE[1]:g} s; "
+        f"then a healthy run of {args.healthy:g} s, a {LENGTH_STEP:.0%} step of one of its lengths and a "
+        f"{MASS_STEP:.0%} step of one of its masses (drawn, either sign, at a grid time in "
+        f"{FAULT_TIMES[0]:g}–{FAULT_TIMES[1]:g} s, running {AFTER_FAULT:g} s past it), each noise-free"
+        f"{'' if args.quick else f' and with σ = {NOISE[0] * 1000:g}–{NOISE[1] * 1000:g} mm'} on the monitored "
+        f"column. Code fingerprint {fingerprint}; {wall / 60:.1f} min wall time this call.", "",
+    ]
+    if args.quick:
+        lines += ["**Quick setting (a smoke test of the chain): these figures mean nothing.**", ""]
+    lines += [
+        "Columns as in the four-bar table above; right parameter: the diagnosis names the stepped parameter and "
+        "calls it explained (an `ambiguous` verdict counts as not right).", "",
+        "| family | mechanism | noise | configs | healthy h | false alarms (per h) | 1 % length step delay "
+        "| 10 % mass step delay | right parameter | value error | time error |",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for family in F.FAMILIES:
+        for noisy in (False, True):
+            g = sel(family.name, noisy)
+            if not g:
+                continue
+            ok = [r for r in g if r["status"] == "ok"]
+            hours = sum(_monitored_seconds(r) for r in ok) / 3600
+            fa = sum(int(r.get("false_alarms") or 0) for r in ok)
+            length, mass = _delays(sel(family.name, noisy, "length")), _delays(sel(family.name, noisy, "mass"))
+            right, detected, verr, terr, _w = _diagnosis([r for r in g if r["test"] != "healthy"])
+            noise = f"σ = {NOISE[0] * 1000:g}–{NOISE[1] * 1000:g} mm" if noisy else "none"
+            lines.append(
+                f"| {family.name} | `{family.file}` | {noise} | {len({r['config_index'] for r in g})} | {hours:.2f} | "
+                f"{fa} ({fa / hours if hours else math.nan:.2g}) | {length.cell()} | {mass.cell()} | "
+                f"{_pct(right, detected)} | {_median_max(verr, pct=True)} | {_median_max(terr)} |")
+    failed = [r for r in rows if r["status"] != "ok"]
+    lines += ["", "### Runs that did not complete", ""]
+    lines += (["| family | test | error |", "|---|---|---|"]
+              + [f"| {r['family']} #{r['config_index']} | {r['test']} | {str(r['error'])[:200]} |" for r in failed]
+              if failed else ["None."])
+    _r, _d, _v, _t, wrong = _diagnosis([r for r in rows if r["test"] != "healthy"])
+    lines += ["", "### Wrong, ambiguous or missing diagnoses", ""]
+    lines += (["| what happened | runs |", "|---|---:|"] + [f"| {k} | {v} |" for k, v in sorted(wrong.items())]
+              if wrong else ["None: every detected fault was named right."])
+    fa_rows = [r for r in rows if r["status"] == "ok" and r.get("false_alarms")]
+    lines += ["", "### False alarms", ""]
+    lines += (["| family | test | noise | first alarm | fault time | period |", "|---|---|---|---:|---:|---:|"]
+              + [f"| {r['family']} #{r['config_index']} | {r['test']} | {r['noise_std'] * 1000:g} mm | "
+                 f"{_fmt_s(r.get('first_alarm_time'))} | {_fmt_s(r.get('fault_time'))} | "
+                 f"{_fmt_s(r.get('motion_period'))} |" for r in fa_rows] if fa_rows else ["None."])
+    if notes:
+        lines += ["", "Not run:", ""] + [f"- {n}" for n in notes]
+    return "\n".join(lines) + "\n"
+
+
 def _median_max(values: list[float], pct: bool = False) -> str:
     if not values:
         return "–"
@@ -395,16 +540,37 @@ def _interrupt(signum, frame):
 #: Where this page's part ends: what follows belongs to benchmarks/fuzz_inputs.py (its own
 #: marked section), which ``--write`` keeps as it is.
 KEPT_FROM = "# Fuzzed input files\n"
+#: The part ``--mechanisms`` writes, between the four-bar part and KEPT_FROM.
+USER_PART = "# User-style mechanisms\n"
+
+
+def _read(page: Path) -> str:
+    try:
+        return page.read_text(encoding="utf-8")
+    except OSError:
+        return ""
+
+
+def _split(text: str) -> tuple[str, str, str]:
+    """``text`` as (four-bar part, user part, what follows): each "" when absent."""
+    fuzz = text.find("\n" + KEPT_FROM)
+    fuzz = len(text) if fuzz < 0 else fuzz + 1
+    user = text.find("\n" + USER_PART, 0, fuzz)
+    user = fuzz if user < 0 else user + 1
+    return text[:user], text[user:fuzz], text[fuzz:]
 
 
 def _kept_part(page: Path) -> str:
-    """What of ``page`` follows this benchmark's part (from KEPT_FROM on; "" when absent)."""
-    try:
-        text = page.read_text(encoding="utf-8")
-    except OSError:
-        return ""
-    at = text.find("\n" + KEPT_FROM)
-    return "" if at < 0 else "\n" + text[at + 1:]
+    """What of ``page`` follows the four-bar part (the user part and KEPT_FROM on; "" when absent)."""
+    _four, user, rest = _split(_read(page))
+    return "" if not (user or rest) else "\n" + user + rest
+
+
+def _page_with_user_part(page: Path, part: str) -> str:
+    """``page`` with its user part replaced by ``part`` (inserted before KEPT_FROM if absent)."""
+    four, _user, rest = _split(_read(page))
+    four = four.rstrip("\n") + "\n\n" if four.strip() else ""
+    return four + part + ("\n" + rest if rest else "")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -418,6 +584,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--limit", type=int, default=None, help="run at most N scenarios now (the rest later)")
     ap.add_argument("--quick", action="store_true",
                     help="smoke test: 1 noise-free configuration per family, 30 s, length step, harmonic")
+    ap.add_argument("--mechanisms", action="store_true",
+                    help="the user-style mechanism families (benchmarks/mechanism_families.py) instead of the "
+                         "four-bar's; --write then replaces only their part of the page")
     args = ap.parse_args(argv)
     if args.quick:
         args.per_family, args.healthy, args.model = 1, 30.0, "harmonic"
@@ -429,9 +598,14 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     t0 = time.perf_counter()
     signal.signal(signal.SIGTERM, _interrupt)          # stopped like Ctrl-C: finished rows are kept
-    planned, notes = plan(args.per_family, args.healthy, args.model, noisy=not args.quick,
-                          tests=("healthy", "length") if args.quick else ("healthy", "length", "mass"))
-    fingerprint = code_fingerprint(NATIVE)
+    tests = ("healthy", "length") if args.quick else ("healthy", "length", "mass")
+    if args.mechanisms:
+        planned, notes = plan_user(args.per_family, args.healthy, args.model, out / "mechanisms",
+                                   noisy=not args.quick, tests=tests)
+        fingerprint = code_fingerprint(*sorted((out / "mechanisms" / "fmus").glob("*.fmu")))
+    else:
+        planned, notes = plan(args.per_family, args.healthy, args.model, noisy=not args.quick, tests=tests)
+        fingerprint = code_fingerprint(NATIVE)
     try:
         rows = run(planned, out, model=args.model, workers=args.workers, limit=args.limit, fingerprint=fingerprint)
     except KeyboardInterrupt:
@@ -439,12 +613,16 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 130
     keys = [p.key for p in planned if p.key in rows]
-    text = report([rows[k] for k in keys], planned=len(planned), notes=notes, args=args,
-                  wall=time.perf_counter() - t0, fingerprint=fingerprint)
+    text = (report_user if args.mechanisms else report)([rows[k] for k in keys], planned=len(planned), notes=notes,
+                                                          args=args, wall=time.perf_counter() - t0,
+                                                          fingerprint=fingerprint)
     if len(keys) < len(planned):
         print(f"robustness: {len(planned) - len(keys)} scenarios still to run (--limit); the page covers "
               f"{len(keys)}", file=sys.stderr)
-    if args.write:
+    if args.write and args.mechanisms:
+        Path(args.write).write_text(_page_with_user_part(Path(args.write), text), encoding="utf-8")
+        print(f"wrote the user-style mechanisms' part of {args.write}", file=sys.stderr)
+    elif args.write:
         Path(args.write).write_text(text + _kept_part(Path(args.write)), encoding="utf-8")
         print(f"wrote {args.write}", file=sys.stderr)
     else:
