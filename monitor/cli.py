@@ -36,7 +36,9 @@ detector 'cusum' (default):
   held-out training data (at least --noise-floor x the amplitude) and fed to a two-sided
   CUSUM per signal. Its limit h is set from --false-alarm-rate (per hour of data). An alarm
   latches and clears after --clear-after s without a new crossing: one episode per fault.
-  Several --signal columns are monitored jointly (one phase, one alarm).
+  Several --signal columns are monitored jointly (one phase, one alarm): each column's model
+  has its own period, a whole fraction of their common period (x2 2.24 s, y2 1.12 s: 2.24 s);
+  columns that share no period are refused (exit 2, naming them and their periods).
 
 detector 'mae' (the paper's rule):
   Every --every s the newest --window s are compared with the forecast (mean absolute
