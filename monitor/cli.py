@@ -36,7 +36,9 @@ detector 'cusum' (default):
   held-out training data (at least --noise-floor x the amplitude) and fed to a two-sided
   CUSUM per signal. Its limit h is set from --false-alarm-rate (per hour of data). An alarm
   latches and clears after --clear-after s without a new crossing: one episode per fault.
-  Several --signal columns are monitored jointly (one phase, one alarm).
+  Several --signal columns are monitored jointly (one phase, one alarm): each column's model
+  has its own period, a whole fraction of their common period (x2 2.24 s, y2 1.12 s: 2.24 s);
+  columns that share no period are refused (exit 2, naming them and their periods).
 
 detector 'mae' (the paper's rule):
   Every --every s the newest --window s are compared with the forecast (mean absolute
@@ -61,7 +63,9 @@ once the step is known (after the training window), before anything is written.
 
 Ctrl-C or SIGTERM: --follow ends as if the run had ended (summary.json, plots and the verdict
 are written); a replay stops at once, keeps the events, evaluations and forecasts written so far
-(no summary.json) and says so in one line.
+(no summary.json) and says so in one line; stopped before it wrote anything, it says so and
+names any files an earlier session left in the output folder, with their times, as that
+session's.
 
 time grid: rows are checked against run.json's grid (start + k*step; without run.json the
 file's dominant step). Missing rows, time jumps, rows off the grid or duplicated are warned
@@ -246,6 +250,7 @@ def _main(argv: Sequence[str] | None, stop: Any) -> int:
     from .errors import MonitorError
 
     out_dir = None
+    earlier: dict[str, tuple[int, int, int]] = {}      # the output folder's files before this session
     try:
         from .options import merged
         from .outputs import checked_default_out_dir, checked_out_dir
@@ -256,6 +261,7 @@ def _main(argv: Sequence[str] | None, stop: Any) -> int:
         options = merged(MonitorOptions(), settings)   # inconsistent options are refused before anything is read
         printer.detector = options.detector_class
         out_dir = checked_out_dir(args.out) if args.out is not None else checked_default_out_dir(exchange)
+        earlier = _output_stamps(out_dir)
 
         if not args.quiet:
             mode = "following" if args.follow else "replaying"
@@ -270,24 +276,24 @@ def _main(argv: Sequence[str] | None, stop: Any) -> int:
             result = replay(exchange, **common)
     except MonitorError as exc:
         if stop.received is not None:       # e.g. Prophet's optimiser killed by the same Ctrl-C
-            return _stopped(stop.received, printer, out_dir, err)
+            return _stopped(stop.received, printer, out_dir, err, earlier)
         print(f"fourbar-monitor: error: {exc}", file=err, flush=True)
         return 2
     except KeyboardInterrupt as exc:
-        return _stopped(signal_of(exc), printer, out_dir, err)
+        return _stopped(signal_of(exc), printer, out_dir, err, earlier)
     except ImportError as exc:            # an optional library missing from this environment
         print(f"fourbar-monitor: error: cannot import {exc.name or exc}: {exc}; install it, or use "
               "--model harmonic", file=err, flush=True)
         return 2
     except OSError as exc:                # e.g. --out not writable
         if stop.received is not None:
-            return _stopped(stop.received, printer, out_dir, err)
+            return _stopped(stop.received, printer, out_dir, err, earlier)
         where = exc.filename or (out_dir if out_dir is not None else args.exchange)
         print(f"fourbar-monitor: error: {where}: {exc.strerror or exc}", file=err, flush=True)
         return 2
     except Exception:
         if stop.received is not None:     # a library that failed because the signal reached it too
-            return _stopped(stop.received, printer, out_dir, err)
+            return _stopped(stop.received, printer, out_dir, err, earlier)
         raise
     print(_verdict(result, out_dir, stop.reason), file=out, flush=True)
     if result.output_error is not None:
@@ -297,19 +303,43 @@ def _main(argv: Sequence[str] | None, stop: Any) -> int:
     return result.exit_code
 
 
-def _stopped(signum: int, printer: "_Printer", out_dir: Path | None, err: TextIO) -> int:
-    """One line for a monitor stopped by a signal before its summary: what is kept where."""
-    from fourbar_common.signals import exit_code, stop_reason
-
+def _output_stamps(out_dir: Path | None) -> dict[str, tuple[int, int, int]]:
+    """The monitor's files in ``out_dir`` now: name → (inode, mtime in ns, size)."""
     from .outputs import OUTPUT_FILES
 
-    kept = [name for name in OUTPUT_FILES if out_dir is not None and (out_dir / name).is_file()]
+    stamps = {}
+    for name in OUTPUT_FILES if out_dir is not None else ():
+        try:
+            st = (out_dir / name).stat()
+        except OSError:
+            continue
+        stamps[name] = (st.st_ino, st.st_mtime_ns, st.st_size)
+    return stamps
+
+
+def _stopped(signum: int, printer: "_Printer", out_dir: Path | None, err: TextIO,
+             earlier: dict[str, tuple[int, int, int]]) -> int:
+    """One line for a monitor stopped by a signal before its summary: what this session kept
+    where, and which files there are an earlier session's (``earlier``: the folder before it)."""
+    import datetime as dt
+
+    from fourbar_common.signals import exit_code, stop_reason
+
+    now = _output_stamps(out_dir)
+    ours = [name for name, stamp in now.items() if earlier.get(name) != stamp]
+    old = [name for name, stamp in now.items() if earlier.get(name) == stamp]
     where = f" at t = {printer.last_time:g} s of data" if printer.last_time is not None else ""
-    if kept:
-        what = (f"kept {', '.join(kept)} in {out_dir}" + ("" if "summary.json" in kept else
-                                                           " (up to then; no summary.json: the replay did not end)"))
+    if ours:
+        what = (f"kept {', '.join(ours)} in {out_dir}" + ("" if "summary.json" in ours else
+                                                          " (up to then; no summary.json: the replay did not end)"))
     else:
-        what = "nothing was written"
+        what = "nothing was written this time"
+    if old:
+        def written(name: str) -> str:
+            when = dt.datetime.fromtimestamp(now[name][1] / 1e9, dt.timezone.utc)
+            return f"{name} {when:%Y-%m-%d %H:%M:%S} UTC"
+        what += (f"; {', '.join(written(n) for n in old)} in {out_dir} "
+                 f"{'are' if len(old) > 1 else 'is'} from an earlier session, not this one")
     print(f"fourbar-monitor: {stop_reason(signum)}{where}; {what}", file=err, flush=True)
     return exit_code(signum)
 

@@ -1,6 +1,7 @@
 """The sequential detector (``detector="cusum"``, the default).
 
-Each signal's forecaster is fitted at one common period (the mechanism's), its noise scale
+Each signal's forecaster is fitted at its own period, a whole fraction of the columns' common
+period (:mod:`monitor.common_period`: the mechanism's fundamental), its noise scale
 learnt from held-out training data, and the residuals against the phase-locked forecast go
 through a two-sided CUSUM per signal (:class:`~monitor.sequential.ResidualCusum`).  Alarms
 latch (:class:`~monitor.sequential.SequentialDetector`).  The method: docs/monitor.md.
@@ -20,8 +21,9 @@ from .forecasters import Forecaster, fit_forecaster
 from .sequential import NoiseScale, ResidualCusum, SequentialDetector, design_cusum, noise_scale
 from .spectrum import PeriodEstimate, dominant_period
 from .tracking import PeriodicTemplate, PhaseTracker, ShapeCorrection
+from .common_period import CommonPeriod, common_period
 
-__all__ = ["CusumDetector", "SignalFit", "common_period"]
+__all__ = ["CusumDetector", "SignalFit"]
 
 
 @dataclass(frozen=True)
@@ -30,23 +32,23 @@ class SignalFit:
 
     name: str
     estimate: PeriodEstimate          # this signal's own period estimate
-    forecaster: Forecaster            # fitted at the common period
+    forecaster: Forecaster            # fitted at the common period / repeats
     scale: NoiseScale
+    repeats: int = 1                  # times this signal repeats within the common period
 
     def as_dict(self) -> dict[str, Any]:
         return {"signal": self.name, "period": self.estimate.as_dict(), "model": self.forecaster.settings(),
-                "noise": self.scale.as_dict()}
+                "noise": self.scale.as_dict(), "model_period_s": self.forecaster.period, "repeats": self.repeats}
 
 
-def common_period(estimates: list[PeriodEstimate]) -> tuple[float, float]:
-    """Inverse-variance mean of the signals' refined periods, and its standard error."""
-    err = np.array([e.period_stderr if math.isfinite(e.period_stderr) and e.period_stderr > 0 else np.inf
-                    for e in estimates])
-    periods = np.array([e.period for e in estimates])
-    if not np.isfinite(err).any():
-        return float(periods[0]), float("nan")
-    w = np.where(np.isfinite(err), 1.0 / np.where(np.isfinite(err), err, 1.0) ** 2, 0.0)
-    return float(w @ periods / w.sum()), float(1.0 / math.sqrt(w.sum()))
+def _validation_periods(common: CommonPeriod, estimates: list[PeriodEstimate]) -> tuple[float, ...]:
+    """The columns' periods from the validation part's own estimates, when they give the same
+    multiples as the whole window (else the whole window's)."""
+    try:
+        val = common_period(common.names, estimates)
+    except TrainingError:
+        return common.periods
+    return val.periods if val.multiples == common.multiples else common.periods
 
 
 class CusumDetector(Detector):
@@ -101,7 +103,11 @@ class CusumDetector(Detector):
         start = time.perf_counter()
         names = o.signals
         estimates = [self._estimate(n, tt, xx[:, j]) for j, n in enumerate(names)]
-        period, period_err = common_period(estimates)
+        try:
+            common = common_period(names, estimates, tt, xx)
+        except TrainingError as exc:
+            raise type(exc)(f"{self.host.source}: training window {tt[0]:g}–{tt[-1]:g} s: {exc}") from None
+        period, period_err = common.period, common.stderr
         split = tt[0] + o.validation_fraction * (tt[-1] - tt[0])
         held = tt > split
         if held.sum() < 16 or (~held).sum() < 16:
@@ -110,19 +116,19 @@ class CusumDetector(Detector):
         try:
             val_estimates = [dominant_period(tt[~held], xx[~held, j], order=o.order, min_cycles=1.0)
                              for j in range(len(names))]
-            val_period = common_period(val_estimates)[0]
+            val_periods = _validation_periods(common, val_estimates)
         except TrainingError:
-            val_period = period
+            val_periods = common.periods
         fits, templates, info = [], [], 0.0
         for j, name in enumerate(names):
-            model = fit_forecaster(o.model, tt, xx[:, j], period, order=o.order, seed=o.seed,
+            model = fit_forecaster(o.model, tt, xx[:, j], common.periods[j], order=o.order, seed=o.seed,
                                    chunk_seconds=o.chunk_seconds)
-            check = fit_forecaster(o.model, tt[~held], xx[~held, j], val_period, order=o.order, seed=o.seed,
+            check = fit_forecaster(o.model, tt[~held], xx[~held, j], val_periods[j], order=o.order, seed=o.seed,
                                    chunk_seconds=o.chunk_seconds)
             scale = noise_scale(xx[held, j] - check.predict(tt[held]), estimates[j].amplitude, o.noise_floor)
             template = PeriodicTemplate(model)
             info += float(np.mean(template.slope(tt) ** 2)) / (dt * scale.sigma ** 2)
-            fits.append(SignalFit(name, estimates[j], model, scale))
+            fits.append(SignalFit(name, estimates[j], model, scale, common.multiples[j]))
             templates.append(template)
         design = design_cusum(o.false_alarm_rate, dt, len(names), o.design_shift)
         rel = period_err / period if math.isfinite(period_err) else 0.0
@@ -137,9 +143,8 @@ class CusumDetector(Detector):
         self.host.add_fit(fit)
         corrections = None
         if o.shape_time > 0:
-            bins = int(np.clip(round(period / (2.0 * dt)), 16, 1024))
-            corrections = [ShapeCorrection(period, tpl.origin, bins=bins, time_constant=o.shape_time,
-                                           sample_step=dt) for tpl in templates]
+            corrections = [ShapeCorrection(tpl.period, tpl.origin, bins=int(np.clip(round(tpl.period / (2.0 * dt)), 16, 1024)),
+                                           time_constant=o.shape_time, sample_step=dt) for tpl in templates]
         self.engine = ResidualCusum(names, templates, [f.scale for f in fits], design, tracker, self.latch,
                                     origin=float(end), guard=o.guard, block=o.tracker_block, every=o.every,
                                     sample_step=dt, on_evaluation=self.host.record, corrections=corrections)
@@ -148,7 +153,8 @@ class CusumDetector(Detector):
                       "fit_seconds": sum(f.forecaster.fit_seconds for f in fits), "train_start": fit.start,
                       "train_end": fit.end, "detector": self.name, "signals": list(names), "cusum_k": design.k,
                       "cusum_h": design.h, "arl0_hours": design.arl0_hours,
-                      "noise_sigma": {f.name: f.scale.sigma for f in fits}}
+                      "noise_sigma": {f.name: f.scale.sigma for f in fits},
+                      "signal_periods_s": {f.name: f.forecaster.period for f in fits}}
         self.latch.trained(float(end), design.h, info_event)
 
     # -- display --------------------------------------------------------------------------------
@@ -157,7 +163,11 @@ class CusumDetector(Detector):
         d = event.data
         if event.kind == "trained":
             sig = ", ".join(f"{k} {v:.3g}" for k, v in d["noise_sigma"].items())
-            return (f"{cls._model_text(event)}; CUSUM k {d['cusum_k']:.3g}, h {d['cusum_h']:.4g} (≥ {d['arl0_hours']:.3g} h between false "
+            own = d.get("signal_periods_s") or {}
+            each = ""
+            if any(abs(p - d["period_s"]) > 1e-9 * d["period_s"] for p in own.values()):
+                each = " (common period; each column's: " + ", ".join(f"{k} {v:.6g} s" for k, v in own.items()) + ")"
+            return (f"{cls._model_text(event)}{each}; CUSUM k {d['cusum_k']:.3g}, h {d['cusum_h']:.4g} (≥ {d['arl0_hours']:.3g} h between false "
                     f"alarms); noise scale {sig}")
         if event.kind == "alarm" and d.get("reason") == "cusum":
             return f" on {d['signal']} ({d['side']}), change began ≈ {d['onset']:.2f} s; episode {d['episode']}"

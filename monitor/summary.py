@@ -282,7 +282,8 @@ class MonitorResult:
     def exit_code(self) -> int:
         """0 no alarm, 1 alarm or failed run, 3 the run was cut off (its writer died),
         4 the verdict was reached but the output files could not be written, 5 indeterminate (no alarm, but the time grid was broken in the training or monitored
-        window: :attr:`Summary.indeterminate`), 130 interrupted."""
+        window: :attr:`Summary.indeterminate`), 130 interrupted (the command returns 143 instead
+        when SIGTERM stopped it: ``fourbar_common.signals.exit_code``)."""
         if self.status == "interrupted":
             return 130
         if self.output_error is not None:
