@@ -17,8 +17,10 @@ Two kinds of figure:
   README's image (``--write`` copies it to docs/img/monitor_case2.png); the text
   ``fourbar-monitor`` prints for Case 2; Case 2 through the ``fmpy.simulate_fmu`` code that
   docs/fmi_hosts.md shows (the block itself is executed) and through
-  ``examples/libcosim_case2.py``.  Printed wall times are masked in the comparison.  About
-  two minutes on 2 cores.
+  ``examples/libcosim_case2.py``; docs/orchestrator.md's size of the longest run
+  ``exchange.max_rows`` allows by default (from Case 1's exchange file) and the refusal
+  ``fourbar-run`` prints for a longer one.  Printed wall times are masked in the comparison.
+  About two minutes on 2 cores.
 - **copied** (``copied_figures``, no run, a second): timings and counts that the README and
   docs/ quote from the files the benchmarks generate (docs/benchmarks.md from ``make
   benchmarks``, docs/detection.md from ``benchmarks/detection.py``) and the scenario counts
@@ -135,6 +137,10 @@ QUOTES = (
             (f"{pre}latency_noisy_min.{model}", f"{pre}latency_noisy_max.{model}", f"{pre}latency_noisy_median.{model}",
              f"{pre}false_alarms_case2_noisy.{model}", f"{pre}alarms_case1_noisy.{model}", f"{pre}ratio_noisy.{model}"))
       for det, pre in (("cusum", "cusum_"), ("mae", "")) for model in ("prophet", "harmonic")),
+    # docs/orchestrator.md: what the default exchange.max_rows allows, and the refusal of a longer run
+    Quote("docs/orchestrator.md", r"\(default 10,000,000: (\d+) hours at a 0\.01 s step, about (\S+) GB of exchange\.csv "
+                                  r"with Case 1's (\d+)\s+outputs", ("max_rows_hours", "max_rows_gb", "case1_outputs")),
+    Quote("docs/orchestrator.md", r"(?s)```\n(fourbar-run: error: invalid case huge\.toml: .*?)\n```", ("huge_text",)),
     # docs/fmi_hosts.md: what examples/libcosim_case2.py prints
     Quote("docs/fmi_hosts.md", r"(?s)```\n(libcosim: \d+ samples.*?\nwrote \S+)\n```", ("libcosim_text",)),
     # README: timings and counts copied from the generated docs and the sweep files
@@ -458,6 +464,8 @@ def measure(data: Path) -> dict[str, str]:
         row = result[int(round(t / 0.01))]
         figures[f"fmpy_row.{t!r}"] = ",".join(repr(float(row[name])) for name in ("x2", "y2", "x3", "y3", "x4", "y4"))
 
+    figures.update(exchange_size(paths["case1"]))
+    figures["huge_text"] = refusal_of_a_huge_run(data, fmu)
     figures["monitor_replay_text"] = monitor_text(paths["case2"])
     figures["demo_block"] = demo_block(data)
     figures["libcosim_text"] = printed(data, [sys.executable, str(REPO / "examples" / "libcosim_case2.py"),
@@ -496,6 +504,32 @@ def printed(cwd: Path, command: list[str]) -> str:
     if proc.returncode != 0:
         raise RuntimeError(f"{' '.join(command)} exited {proc.returncode}:\n{proc.stderr[-2000:]}")
     return proc.stdout
+
+
+def exchange_size(exchange: Path) -> dict[str, str]:
+    """docs/orchestrator.md's size of the longest run allowed by default: the default
+    ``exchange.max_rows`` rows of Case 1's exchange file (its mean bytes per row)."""
+    from fourbar_common import read_run_record
+    from orchestrator.case import DEFAULT_MAX_ROWS
+
+    record = read_run_record(exchange.parent / "run.json")
+    bytes_per_row = exchange.stat().st_size / (record.rows_written + 1)       # the header counted as a row
+    return {"max_rows_hours": f"{DEFAULT_MAX_ROWS * record.experiment.step / 3600:.0f}",
+            "max_rows_gb": f"{DEFAULT_MAX_ROWS * bytes_per_row / 1e9:.1f}",
+            "case1_outputs": str(len(record.outputs))}
+
+
+def refusal_of_a_huge_run(data: Path, fmu: Path) -> str:
+    """What ``fourbar-run huge.toml`` prints (docs/orchestrator.md): Case 1 to 1e15 s, more rows
+    than ``exchange.max_rows``; nothing is run."""
+    text = (REPO / "cases" / "case1_normal.toml").read_text(encoding="utf-8")
+    text = re.sub(r"(?m)^fmu\s*=.*$", f'fmu = "{fmu.as_posix()}"', text)
+    (data / "huge.toml").write_text(re.sub(r"(?m)^stop\s*=.*$", "stop = 1e15", text), encoding="utf-8")
+    proc = subprocess.run([str(Path(sys.executable).parent / "fourbar-run"), "huge.toml"], cwd=data,
+                          capture_output=True, text=True, timeout=300)
+    if proc.returncode != 2:
+        raise RuntimeError(f"fourbar-run huge.toml exited {proc.returncode}, not 2:\n{proc.stderr[-2000:]}")
+    return proc.stderr.strip()
 
 
 def monitor_text(exchange: Path) -> str:

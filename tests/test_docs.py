@@ -565,3 +565,51 @@ def test_readme_commands_write_into_out_not_the_repository():
     assert written, "README.md shows no command that writes a file"
     outside = [path for path in written if not path.startswith(("out/", "DIR", "PATH", "FILE", "FMU", "<"))]
     assert not outside, f"README.md's commands write outside out/: {outside}"
+
+
+# --- run.json: docs/orchestrator.md's table and docs/contracts.md's block against RunRecord ------
+
+def _record_keys() -> tuple[set[str], dict[str, set[str]]]:
+    """run.json's top-level keys and the keys of its nested objects, from fourbar_common/run_record.py."""
+    import dataclasses
+
+    from fourbar_common import run_record as rr
+
+    top = {f.name for f in dataclasses.fields(rr.RunRecord)}
+    nested = {name: {f.name for f in dataclasses.fields(kind)}
+              for name, kind in (("fmu", rr.RecordedFmu), ("experiment", rr.RecordedExperiment),
+                                 ("noise", rr.RecordedNoise), ("exchange", rr.RecordedExchange),
+                                 ("writer", rr.RecordedWriter))}
+    record = rr.RunRecord(status="running", run_id="0" * 32, case="c", fmu=None, experiment=None)
+    assert set(record.to_json()) == top      # the dataclass's fields are what to_json writes
+    return top, nested
+
+
+def test_orchestrator_doc_lists_every_run_json_field():
+    from fourbar_common.run_record import SCHEMA_VERSION
+
+    text = (REPO / "docs" / "orchestrator.md").read_text(encoding="utf-8")
+    start = text.index("| field | meaning |", text.index("`DIR/run.json`"))
+    rows = re.findall(r"(?m)^\| ([^|]+) \| ([^\n]+) \|$", text[start:text.index("\n\n", start)])
+    documented = {key: meaning for keys, meaning in rows[1:] for key in re.findall(r"`(\w+)`", keys)}
+    top, nested = _record_keys()
+    assert set(documented) == top, f"docs/orchestrator.md's run.json table: missing {top - set(documented)}, " \
+                                   f"not written {set(documented) - top}"
+    assert documented["schema"].startswith(f"`{SCHEMA_VERSION}`")
+    for name, keys in nested.items():
+        shown = re.search(r"`\{([^}]*)\}`", documented[name])
+        assert shown and set(re.split(r",\s*", shown.group(1))) == keys, (name, documented[name], keys)
+
+
+def test_contracts_block_lists_every_run_json_field():
+    from fourbar_common.run_record import SCHEMA_VERSION
+
+    text = (REPO / "docs" / "contracts.md").read_text(encoding="utf-8")
+    block = re.search(r'(?s)```\n\s*(\{"schema": (\d+), "status".*?)\n\s*```', text)
+    assert block and int(block.group(2)) == SCHEMA_VERSION
+    top, nested = _record_keys()
+    shown = set(re.findall(r'"(\w+)":', block.group(1)))
+    assert top <= shown, f"docs/contracts.md's run.json block lacks {top - shown}"
+    for name, keys in nested.items():
+        inner = re.search(rf'"{name}": \{{([^}}]*)\}}', block.group(1))
+        assert inner and keys == set(re.findall(r'(?<!: )(?<!\| )"(\w+)"', inner.group(1)))  # keys, not values, (name, inner and inner.group(1), keys)
