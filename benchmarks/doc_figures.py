@@ -191,6 +191,9 @@ QUOTES = (
     Quote("README.md", r"\(248 scenarios, Prophet and harmonic\) \| — \| (\d+) s on the pythonfmu FMU, (\d+) s on the native FMU \|",
           ("sweep_pythonfmu_s", "sweep_native_s")),
     Quote("README.md", r"The pythonfmu FMU is (\S+)× slower than a trivial pythonfmu FMU", ("speed_ratio_range",)),
+    Quote("README.md", r"over its\s+~(\S+) DOP853 evaluations per 100 s", ("rhs_fivebar",)),
+    Quote("README.md", r"following an hour of the four-bar at 100 Hz it\s+went from (\d+) to (\d+) MB",
+          ("view_memory_first", "view_memory_last")),
     Quote("README.md", r"scipy's own stepping alone already costs (\S+)×", ("replay_ratio_range",)),
     Quote("README.md", r"beyond Table 1: (\d+) generated configurations .*? false alarms per healthy hour: (\S+) clean, "
           r"(\S+) noisy \((\S+) h in all\); median delay of a 1 % length step (\S+) s clean, (\S+) s noisy, of a "
@@ -241,6 +244,8 @@ SOURCES = (
                                        r"\| Case 1 \| rtol = atol = 1e-12 \| ([\de.+-]+) \| ([\de.+-]+) \| ([\de.+-]+) \|\n"
                                        r"\| Case 2 \| Table 1: rtol 1e-9, atol 1e-6 \| ([\de.+-]+) \| ([\de.+-]+) \| ([\de.+-]+) \|\n"
                                        r"\| Case 2 \| rtol = atol = 1e-12 \| ([\de.+-]+) \| ([\de.+-]+) \| ([\de.+-]+) \|"),
+    ("rhs5", "docs/benchmarks.md", r"\| fivebar \| 1e-10, 1e-10 \(default\) \|(?: [^|]+ \|){5} ([\d,]+) \|"),
+    ("viewmem", "docs/benchmarks.md", r"\| server resident memory \(MB\) \| (\d+) \| (\d+) \| \d+ \|"),
     ("overhead", "docs/benchmarks.md", r"ratio of medians \(orchestrator / FMPy\): \*\*([\d.]+)\*\*"),
     ("monitor", "docs/benchmarks.md", r"\| prophet \|(?: [^|]+ \|){5} \*\*(\d+)×\*\* \| [\d.]+ / (\d+)× \|[^\n]*\n"
                                       r"\| harmonic \|(?: [^|]+ \|){5} \*\*(\d+)×\*\* \| [\d.]+ / (\d+)× \|"),
@@ -335,6 +340,9 @@ def copied_figures(root: Path = REPO) -> dict[str, str]:
     for mechanism in SPEED_MECHANISMS:
         put(f"vdp_default.{mechanism}", (f"vdp_{mechanism}.1",), f2)
         put(f"vdp_table1.{mechanism}", (f"vdp_{mechanism}.2",), f2)
+    put("rhs_fivebar", ("rhs5.1",), lambda v: f"{round(int(v.replace(',', '')), -3):,}")
+    put("view_memory_first", ("viewmem.1",), str)
+    put("view_memory_last", ("viewmem.2",), str)
     put("monitor_prophet", ("monitor.1",), str)
     put("monitor_prophet_outputs", ("monitor.2",), str)
     put("monitor_harmonic", ("monitor.3",), str)
