@@ -192,6 +192,16 @@ QUOTES = (
           ("sweep_pythonfmu_s", "sweep_native_s")),
     Quote("README.md", r"The pythonfmu FMU is (\S+)× slower than a trivial pythonfmu FMU", ("speed_ratio_range",)),
     Quote("README.md", r"over its\s+~(\S+) DOP853 evaluations per 100 s", ("rhs_fivebar",)),
+    # README: the detection rows copied from docs/detection.md (benchmarks/detection.py)
+    Quote("README.md", r"links: slowest (\S+) s \(target 2 s\); masses: slowest (\S+) s \(target 5 s\)",
+          ("slowest_links", "slowest_masses")),
+    Quote("README.md", r"median latency (\S+) s on x2 alone, (\S+) s on all six columns \((\S+)× faster\)",
+          ("several_x2", "several_all", "several_gain")),
+    Quote("README.md", r"mean latency (\S+) s after 10 s, (\S+) s after 500 s, (\S+) s after 3600 s \(within (\d+) %",
+          ("late_mean_10", "late_mean_500", "late_mean_3600", "late_within")),
+    Quote("README.md", r"default 0\.01/h \| — \| \*\*(\d+)\*\* in (\S+) h before the late faults; at a design of 10/h: "
+                       r"(\d+) alarms? in (\S+) fault-free h \((\S+) expected",
+          ("late_false", "late_hours", "calib10_alarms", "calib_hours", "calib10_expected")),
     Quote("README.md", r"following an hour of the four-bar at 100 Hz it\s+went from (\d+) to (\d+) MB",
           ("view_memory_first", "view_memory_last")),
     Quote("README.md", r"scipy's own stepping alone already costs (\S+)×", ("replay_ratio_range",)),
@@ -244,6 +254,17 @@ SOURCES = (
                                        r"\| Case 1 \| rtol = atol = 1e-12 \| ([\de.+-]+) \| ([\de.+-]+) \| ([\de.+-]+) \|\n"
                                        r"\| Case 2 \| Table 1: rtol 1e-9, atol 1e-6 \| ([\de.+-]+) \| ([\de.+-]+) \| ([\de.+-]+) \|\n"
                                        r"\| Case 2 \| rtol = atol = 1e-12 \| ([\de.+-]+) \| ([\de.+-]+) \| ([\de.+-]+) \|"),
+    ("slowest", "docs/detection.md", r"- L1 \+1 %, σ = 3 mm: slowest ([\d.]+) s[^\n]*\n- L2 \+1 %, σ = 3 mm: slowest ([\d.]+) s"
+                                     r"[^\n]*\n- L3 \+1 %, σ = 3 mm: slowest ([\d.]+) s[^\n]*\n- L4 \+1 %, σ = 3 mm: slowest "
+                                     r"([\d.]+) s[^\n]*\n- m2 \+10 %, σ = 3 mm: slowest ([\d.]+) s[^\n]*\n- m3 \+10 %, σ = 3 mm: "
+                                     r"slowest ([\d.]+) s[^\n]*\n- m4 \+10 %, σ = 3 mm: slowest ([\d.]+) s"),
+    ("several", "docs/detection.md", r"\| L1 \| ([\d.]+) s \(median[^|]*\| ([\d.]+) s \(median[^|]*\| ([\d.]+)× \|\n"
+                                     r"\| L3 \| ([\d.]+) s \(median[^|]*\| ([\d.]+) s \(median[^|]*\| ([\d.]+)× \|\n"
+                                     r"\| L4 \| ([\d.]+) s \(median[^|]*\| ([\d.]+) s \(median[^|]*\| ([\d.]+)× \|"),
+    ("late", "docs/detection.md", r"\| 10 s \| [^|]+ \| ([\d.]+) s \| [\d.]+ \| \d+ \| ([\d.]+) \| (\d+) \|\n"
+                                  r"\| 500 s \| [^|]+ \| ([\d.]+) s \| ([\d.]+) \| \d+ \| ([\d.]+) \| (\d+) \|\n"
+                                  r"\| 3600 s \| [^|]+ \| ([\d.]+) s \| ([\d.]+) \| \d+ \| ([\d.]+) \| (\d+) \|"),
+    ("calib", "docs/detection.md", r"\| 10 /h \| ([\d.]+) \| (\d+) \| ([\d.]+) \|"),
     ("rhs5", "docs/benchmarks.md", r"\| fivebar \| 1e-10, 1e-10 \(default\) \|(?: [^|]+ \|){5} ([\d,]+) \|"),
     ("viewmem", "docs/benchmarks.md", r"\| server resident memory \(MB\) \| (\d+) \| (\d+) \| \d+ \|"),
     ("overhead", "docs/benchmarks.md", r"ratio of medians \(orchestrator / FMPy\): \*\*([\d.]+)\*\*"),
@@ -340,6 +361,21 @@ def copied_figures(root: Path = REPO) -> dict[str, str]:
     for mechanism in SPEED_MECHANISMS:
         put(f"vdp_default.{mechanism}", (f"vdp_{mechanism}.1",), f2)
         put(f"vdp_table1.{mechanism}", (f"vdp_{mechanism}.2",), f2)
+    between = lambda *v: f"{min(v, key=float)}–{max(v, key=float)}"          # noqa: E731
+    put("slowest_links", tuple(f"slowest.{i}" for i in (1, 2, 3, 4)), between)
+    put("slowest_masses", tuple(f"slowest.{i}" for i in (5, 6, 7)), between)
+    put("several_x2", ("several.1", "several.4", "several.7"), between)
+    put("several_all", ("several.2", "several.5", "several.8"), between)
+    put("several_gain", ("several.3", "several.6", "several.9"), between)
+    put("late_mean_10", ("late.1",), str)
+    put("late_mean_500", ("late.4",), str)
+    put("late_mean_3600", ("late.8",), str)
+    put("late_within", ("late.5", "late.9"), lambda a, b: f"{max(abs(float(a) - 1), abs(float(b) - 1)) * 100:.0f}")
+    put("late_false", ("late.3", "late.7", "late.11"), lambda *v: str(sum(int(x) for x in v)))
+    put("late_hours", ("late.2", "late.6", "late.10"), lambda *v: f"{sum(float(x) for x in v):.1f}")
+    put("calib_hours", ("calib.1",), str)
+    put("calib10_alarms", ("calib.2",), str)
+    put("calib10_expected", ("calib.3",), lambda v: f"{float(v):.0f}")
     put("rhs_fivebar", ("rhs5.1",), lambda v: f"{round(int(v.replace(',', '')), -3):,}")
     put("view_memory_first", ("viewmem.1",), str)
     put("view_memory_last", ("viewmem.2",), str)
