@@ -192,6 +192,11 @@ QUOTES = (
           ("sweep_pythonfmu_s", "sweep_native_s")),
     Quote("README.md", r"The pythonfmu FMU is (\S+)× slower than a trivial pythonfmu FMU", ("speed_ratio_range",)),
     Quote("README.md", r"over its\s+~(\S+) DOP853 evaluations per 100 s", ("rhs_fivebar",)),
+    # README: the diagnosis targets copied from docs/diagnosis.md (benchmarks/classification.py)
+    Quote("README.md", r"\| right parameter in ≥ 95 % of diagnosed faults \| (\d+) / (\d+) \(", ("diag_right", "diag_detected")),
+    Quote("README.md", r"\| value within 0\.1 % noise-free \| largest error (\S+) %", ("diag_error_clean",)),
+    Quote("README.md", r"\| value within 1 % with 5 mm noise \| largest error (\S+) %", ("diag_error_noisy",)),
+    Quote("README.md", r"\| ≤ 10 s per diagnosis on 2 cores \| slowest (\S+) s", ("diag_slowest",)),
     # README: the detection rows copied from docs/detection.md (benchmarks/detection.py)
     Quote("README.md", r"links: slowest (\S+) s \(target 2 s\); masses: slowest (\S+) s \(target 5 s\)",
           ("slowest_links", "slowest_masses")),
@@ -265,6 +270,10 @@ SOURCES = (
                                   r"\| 500 s \| [^|]+ \| ([\d.]+) s \| ([\d.]+) \| \d+ \| ([\d.]+) \| (\d+) \|\n"
                                   r"\| 3600 s \| [^|]+ \| ([\d.]+) s \| ([\d.]+) \| \d+ \| ([\d.]+) \| (\d+) \|"),
     ("calib", "docs/detection.md", r"\| 10 /h \| ([\d.]+) \| (\d+) \| ([\d.]+) \|"),
+    ("diag", "docs/diagnosis.md", r"\| right parameter >= 95 % of the diagnosed faults \| (\d+) / (\d+) = [^\n]*\n[^\n]*\n"
+                                  r"\| value within 0\.1 % noise-free \| largest error ([\d.e+-]+) % \|[^\n]*\n"
+                                  r"\| value within 1 % with 5 mm noise \| largest error ([\d.]+) % \|[^\n]*\n[^\n]*\n"
+                                  r"\| <= 10 s per diagnosis[^|]*\| slowest ([\d.]+) s \|"),
     ("rhs5", "docs/benchmarks.md", r"\| fivebar \| 1e-10, 1e-10 \(default\) \|(?: [^|]+ \|){5} ([\d,]+) \|"),
     ("viewmem", "docs/benchmarks.md", r"\| server resident memory \(MB\) \| (\d+) \| (\d+) \| \d+ \|"),
     ("overhead", "docs/benchmarks.md", r"ratio of medians \(orchestrator / FMPy\): \*\*([\d.]+)\*\*"),
@@ -362,6 +371,11 @@ def copied_figures(root: Path = REPO) -> dict[str, str]:
         put(f"vdp_default.{mechanism}", (f"vdp_{mechanism}.1",), f2)
         put(f"vdp_table1.{mechanism}", (f"vdp_{mechanism}.2",), f2)
     between = lambda *v: f"{min(v, key=float)}–{max(v, key=float)}"          # noqa: E731
+    put("diag_right", ("diag.1",), str)
+    put("diag_detected", ("diag.2",), str)
+    put("diag_error_clean", ("diag.3",), lambda v: sig(float(v), 1))
+    put("diag_error_noisy", ("diag.4",), lambda v: f"{float(v):.2f}")
+    put("diag_slowest", ("diag.5",), str)
     put("slowest_links", tuple(f"slowest.{i}" for i in (1, 2, 3, 4)), between)
     put("slowest_masses", tuple(f"slowest.{i}" for i in (5, 6, 7)), between)
     put("several_x2", ("several.1", "several.4", "several.7"), between)
