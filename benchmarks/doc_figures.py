@@ -197,6 +197,8 @@ QUOTES = (
     Quote("README.md", r"\| value within 0\.1 % noise-free \| largest error (\S+) %", ("diag_error_clean",)),
     Quote("README.md", r"\| value within 1 % with 5 mm noise \| largest error (\S+) %", ("diag_error_noisy",)),
     Quote("README.md", r"\| ≤ 10 s per diagnosis on 2 cores \| slowest (\S+) s", ("diag_slowest",)),
+    Quote("README.md", r"fitted again on the 10 s after the alarm: (\S+)–(\S+), (\S+)–(\S+) and (\S+)–(\S+) s at (\S+), "
+                       r"(\S+) and (\S+) mm/s", tuple(f"diag_ramp.{i}" for i in range(1, 10))),
     # README: the detection rows copied from docs/detection.md (benchmarks/detection.py)
     Quote("README.md", r"links: slowest (\S+) s \(target 2 s\); masses: slowest (\S+) s \(target 5 s\)",
           ("slowest_links", "slowest_masses")),
@@ -274,6 +276,9 @@ SOURCES = (
                                   r"\| value within 0\.1 % noise-free \| largest error ([\d.e+-]+) % \|[^\n]*\n"
                                   r"\| value within 1 % with 5 mm noise \| largest error ([\d.]+) % \|[^\n]*\n[^\n]*\n"
                                   r"\| <= 10 s per diagnosis[^|]*\| slowest ([\d.]+) s \|"),
+    ("ramps", "docs/diagnosis.md", r"\| 1 \| [\d.]+ s \| L2 \| ramp \| ([\d.]+) s \| ([\d.]+) s \| ([\d.]+) mm/s \|[^\n]*\n"
+                                   r"\| 2 \| [\d.]+ s \| L2 \| ramp \| ([\d.]+) s \| ([\d.]+) s \| ([\d.]+) mm/s \|[^\n]*\n"
+                                   r"\| 3 \| [\d.]+ s \| L2 \| ramp \| ([\d.]+) s \| ([\d.]+) s \| ([\d.]+) mm/s \|"),
     ("rhs5", "docs/benchmarks.md", r"\| fivebar \| 1e-10, 1e-10 \(default\) \|(?: [^|]+ \|){5} ([\d,]+) \|"),
     ("viewmem", "docs/benchmarks.md", r"\| server resident memory \(MB\) \| (\d+) \| (\d+) \| \d+ \|"),
     ("overhead", "docs/benchmarks.md", r"ratio of medians \(orchestrator / FMPy\): \*\*([\d.]+)\*\*"),
@@ -376,6 +381,8 @@ def copied_figures(root: Path = REPO) -> dict[str, str]:
     put("diag_error_clean", ("diag.3",), lambda v: sig(float(v), 1))
     put("diag_error_noisy", ("diag.4",), lambda v: f"{float(v):.2f}")
     put("diag_slowest", ("diag.5",), str)
+    for i, raw_i in enumerate((1, 2, 4, 5, 7, 8, 3, 6, 9), start=1):      # the starts and ends, then the rates
+        put(f"diag_ramp.{i}", (f"ramps.{raw_i}",), str)
     put("slowest_links", tuple(f"slowest.{i}" for i in (1, 2, 3, 4)), between)
     put("slowest_masses", tuple(f"slowest.{i}" for i in (5, 6, 7)), between)
     put("several_x2", ("several.1", "several.4", "several.7"), between)
