@@ -17,8 +17,10 @@ Two kinds of figure:
   README's image (``--write`` copies it to docs/img/monitor_case2.png); the text
   ``fourbar-monitor`` prints for Case 2; Case 2 through the ``fmpy.simulate_fmu`` code that
   docs/fmi_hosts.md shows (the block itself is executed) and through
-  ``examples/libcosim_case2.py``.  Printed wall times are masked in the comparison.  About
-  two minutes on 2 cores.
+  ``examples/libcosim_case2.py``; docs/orchestrator.md's size of the longest run
+  ``exchange.max_rows`` allows by default (from Case 1's exchange file) and the refusal
+  ``fourbar-run`` prints for a longer one.  Printed wall times are masked in the comparison.
+  About two minutes on 2 cores.
 - **copied** (``copied_figures``, no run, a second): timings and counts that the README and
   docs/ quote from the files the benchmarks generate (docs/benchmarks.md from ``make
   benchmarks``, docs/detection.md from ``benchmarks/detection.py``) and the scenario counts
@@ -135,10 +137,13 @@ QUOTES = (
             (f"{pre}latency_noisy_min.{model}", f"{pre}latency_noisy_max.{model}", f"{pre}latency_noisy_median.{model}",
              f"{pre}false_alarms_case2_noisy.{model}", f"{pre}alarms_case1_noisy.{model}", f"{pre}ratio_noisy.{model}"))
       for det, pre in (("cusum", "cusum_"), ("mae", "")) for model in ("prophet", "harmonic")),
+    # docs/orchestrator.md: what the default exchange.max_rows allows, and the refusal of a longer run
+    Quote("docs/orchestrator.md", r"\(default 10,000,000: (\d+) hours at a 0\.01 s step, about (\S+) GB of exchange\.csv "
+                                  r"with Case 1's (\d+)\s+outputs", ("max_rows_hours", "max_rows_gb", "case1_outputs")),
+    Quote("docs/orchestrator.md", r"(?s)```\n(fourbar-run: error: invalid case huge\.toml: .*?)\n```", ("huge_text",)),
     # docs/fmi_hosts.md: what examples/libcosim_case2.py prints
     Quote("docs/fmi_hosts.md", r"(?s)```\n(libcosim: \d+ samples.*?\nwrote \S+)\n```", ("libcosim_text",)),
     # README: timings and counts copied from the generated docs and the sweep files
-    Quote("README.md", r"the same variables, (\S+)× faster through FMPy", ("native_faster_range",)),
     Quote("README.md", r"\| Case 2 through FMPy \| (\S+) s \| (\S+) s, (\S+)× FMPy's own floor",
           ("pythonfmu_s_case2_short", "native_s_case2_short", "native_floor_case2_short")),
     Quote("README.md", r"sweeps/l2_step\.toml`: (\d+) scenarios of 30 s, [^;]*; (\d+) s on 2 cores on the pythonfmu FMU, "
@@ -160,11 +165,12 @@ QUOTES = (
                                           "acc_pos_table1_case2")),
     Quote("README.md", r"\| (\S+) J at 1e-12; (\S+) J at Table 1's tolerances", ("acc_energy_tight", "acc_energy_table1")),
     Quote("README.md", r"constraint residual at every output \| — \| ≤ (\S+) \|", ("acc_constraint",)),
+    # (the native FMU's speed-up over the pythonfmu FMU is quoted in docs/benchmarks.md only;
+    # tests/test_docs.py refuses a copy of it anywhere else)
     Quote("README.md", r"native (\S+) s / (\S+) s \(Case 1 / 2\) = \*\*(\S+)× / (\S+)× the floor\*\* \(target ≤ 1\.5×\); "
-                       r"pythonfmu (\S+) s / (\S+) s: native \*\*(\S+)× / (\S+)× faster\*\*[^|]*is 1/(\S+) of the "
-                       r"pythonfmu time",
+                       r"pythonfmu (\S+) s / (\S+) s \(the speed-up[^|]*is 1/(\S+) of the pythonfmu time",
           ("native_s_case1", "native_s_case2", "native_floor_case1", "native_floor_case2", "pythonfmu_s_case1",
-           "pythonfmu_s_case2", "native_faster_case1", "native_faster_case2", "floor_share_case2")),
+           "pythonfmu_s_case2", "floor_share_case2")),
     Quote("README.md", r"\| (\S+) ms, (\S+) RHS evaluations \(Case 1\), (\S+) µs per evaluation all work included; "
                        r"pythonfmu's model in-process (\S+) s \|", ("cmodel_ms", "cmodel_rhs", "cmodel_us", "replay_model_s")),
     Quote("README.md", r"\| native (\S+) s \(rtol = atol = (\S+); \*\*(\S+)×\*\* faster than 38 s\), pythonfmu (\S+) s \|",
@@ -185,6 +191,26 @@ QUOTES = (
     Quote("README.md", r"\(248 scenarios, Prophet and harmonic\) \| — \| (\d+) s on the pythonfmu FMU, (\d+) s on the native FMU \|",
           ("sweep_pythonfmu_s", "sweep_native_s")),
     Quote("README.md", r"The pythonfmu FMU is (\S+)× slower than a trivial pythonfmu FMU", ("speed_ratio_range",)),
+    Quote("README.md", r"over its\s+~(\S+) DOP853 evaluations per 100 s", ("rhs_fivebar",)),
+    # README: the diagnosis targets copied from docs/diagnosis.md (benchmarks/classification.py)
+    Quote("README.md", r"\| right parameter in ≥ 95 % of diagnosed faults \| (\d+) / (\d+) \(", ("diag_right", "diag_detected")),
+    Quote("README.md", r"\| value within 0\.1 % noise-free \| largest error (\S+) %", ("diag_error_clean",)),
+    Quote("README.md", r"\| value within 1 % with 5 mm noise \| largest error (\S+) %", ("diag_error_noisy",)),
+    Quote("README.md", r"\| ≤ 10 s per diagnosis on 2 cores \| slowest (\S+) s", ("diag_slowest",)),
+    Quote("README.md", r"fitted again on the 10 s after the alarm: (\S+)–(\S+), (\S+)–(\S+) and (\S+)–(\S+) s at (\S+), "
+                       r"(\S+) and (\S+) mm/s", tuple(f"diag_ramp.{i}" for i in range(1, 10))),
+    # README: the detection rows copied from docs/detection.md (benchmarks/detection.py)
+    Quote("README.md", r"links: slowest (\S+) s \(target 2 s\); masses: slowest (\S+) s \(target 5 s\)",
+          ("slowest_links", "slowest_masses")),
+    Quote("README.md", r"median latency (\S+) s on x2 alone, (\S+) s on all six columns \((\S+)× faster\)",
+          ("several_x2", "several_all", "several_gain")),
+    Quote("README.md", r"mean latency (\S+) s after 10 s, (\S+) s after 500 s, (\S+) s after 3600 s \(within (\d+) %",
+          ("late_mean_10", "late_mean_500", "late_mean_3600", "late_within")),
+    Quote("README.md", r"default 0\.01/h \| — \| \*\*(\d+)\*\* in (\S+) h before the late faults; at a design of 10/h: "
+                       r"(\d+) alarms? in (\S+) fault-free h \((\S+) expected",
+          ("late_false", "late_hours", "calib10_alarms", "calib_hours", "calib10_expected")),
+    Quote("README.md", r"following an hour of the four-bar at 100 Hz it\s+went from (\d+) to (\d+) MB",
+          ("view_memory_first", "view_memory_last")),
     Quote("README.md", r"scipy's own stepping alone already costs (\S+)×", ("replay_ratio_range",)),
     Quote("README.md", r"beyond Table 1: (\d+) generated configurations .*? false alarms per healthy hour: (\S+) clean, "
           r"(\S+) noisy \((\S+) h in all\); median delay of a 1 % length step (\S+) s clean, (\S+) s noisy, of a "
@@ -235,6 +261,26 @@ SOURCES = (
                                        r"\| Case 1 \| rtol = atol = 1e-12 \| ([\de.+-]+) \| ([\de.+-]+) \| ([\de.+-]+) \|\n"
                                        r"\| Case 2 \| Table 1: rtol 1e-9, atol 1e-6 \| ([\de.+-]+) \| ([\de.+-]+) \| ([\de.+-]+) \|\n"
                                        r"\| Case 2 \| rtol = atol = 1e-12 \| ([\de.+-]+) \| ([\de.+-]+) \| ([\de.+-]+) \|"),
+    ("slowest", "docs/detection.md", r"- L1 \+1 %, σ = 3 mm: slowest ([\d.]+) s[^\n]*\n- L2 \+1 %, σ = 3 mm: slowest ([\d.]+) s"
+                                     r"[^\n]*\n- L3 \+1 %, σ = 3 mm: slowest ([\d.]+) s[^\n]*\n- L4 \+1 %, σ = 3 mm: slowest "
+                                     r"([\d.]+) s[^\n]*\n- m2 \+10 %, σ = 3 mm: slowest ([\d.]+) s[^\n]*\n- m3 \+10 %, σ = 3 mm: "
+                                     r"slowest ([\d.]+) s[^\n]*\n- m4 \+10 %, σ = 3 mm: slowest ([\d.]+) s"),
+    ("several", "docs/detection.md", r"\| L1 \| ([\d.]+) s \(median[^|]*\| ([\d.]+) s \(median[^|]*\| ([\d.]+)× \|\n"
+                                     r"\| L3 \| ([\d.]+) s \(median[^|]*\| ([\d.]+) s \(median[^|]*\| ([\d.]+)× \|\n"
+                                     r"\| L4 \| ([\d.]+) s \(median[^|]*\| ([\d.]+) s \(median[^|]*\| ([\d.]+)× \|"),
+    ("late", "docs/detection.md", r"\| 10 s \| [^|]+ \| ([\d.]+) s \| [\d.]+ \| \d+ \| ([\d.]+) \| (\d+) \|\n"
+                                  r"\| 500 s \| [^|]+ \| ([\d.]+) s \| ([\d.]+) \| \d+ \| ([\d.]+) \| (\d+) \|\n"
+                                  r"\| 3600 s \| [^|]+ \| ([\d.]+) s \| ([\d.]+) \| \d+ \| ([\d.]+) \| (\d+) \|"),
+    ("calib", "docs/detection.md", r"\| 10 /h \| ([\d.]+) \| (\d+) \| ([\d.]+) \|"),
+    ("diag", "docs/diagnosis.md", r"\| right parameter >= 95 % of the diagnosed faults \| (\d+) / (\d+) = [^\n]*\n[^\n]*\n"
+                                  r"\| value within 0\.1 % noise-free \| largest error ([\d.e+-]+) % \|[^\n]*\n"
+                                  r"\| value within 1 % with 5 mm noise \| largest error ([\d.]+) % \|[^\n]*\n[^\n]*\n"
+                                  r"\| <= 10 s per diagnosis[^|]*\| slowest ([\d.]+) s \|"),
+    ("ramps", "docs/diagnosis.md", r"\| 1 \| [\d.]+ s \| L2 \| ramp \| ([\d.]+) s \| ([\d.]+) s \| ([\d.]+) mm/s \|[^\n]*\n"
+                                   r"\| 2 \| [\d.]+ s \| L2 \| ramp \| ([\d.]+) s \| ([\d.]+) s \| ([\d.]+) mm/s \|[^\n]*\n"
+                                   r"\| 3 \| [\d.]+ s \| L2 \| ramp \| ([\d.]+) s \| ([\d.]+) s \| ([\d.]+) mm/s \|"),
+    ("rhs5", "docs/benchmarks.md", r"\| fivebar \| 1e-10, 1e-10 \(default\) \|(?: [^|]+ \|){5} ([\d,]+) \|"),
+    ("viewmem", "docs/benchmarks.md", r"\| server resident memory \(MB\) \| (\d+) \| (\d+) \| \d+ \|"),
     ("overhead", "docs/benchmarks.md", r"ratio of medians \(orchestrator / FMPy\): \*\*([\d.]+)\*\*"),
     ("monitor", "docs/benchmarks.md", r"\| prophet \|(?: [^|]+ \|){5} \*\*(\d+)×\*\* \| [\d.]+ / (\d+)× \|[^\n]*\n"
                                       r"\| harmonic \|(?: [^|]+ \|){5} \*\*(\d+)×\*\* \| [\d.]+ / (\d+)× \|"),
@@ -289,11 +335,7 @@ def copied_figures(root: Path = REPO) -> dict[str, str]:
     put("native_floor_case2", ("fmpy.9",), f2)
     put("pythonfmu_s_case1", ("fmpy.2",), f2)
     put("pythonfmu_s_case2", ("fmpy.7",), f2)
-    put("native_faster_case1", ("fmpy.5",), f1)
-    put("native_faster_case2", ("fmpy.10",), f1)
     put("floor_share_case2", ("fmpy.7", "fmpy.8"), lambda a, b: f"{ratio(a, b):.1f}")
-    put("native_faster_range", ("fmpy.5", "fmpy.10"),
-        lambda a, b: f"{min(float(a), float(b)):.0f}–{max(float(a), float(b)):.0f}")
     put("pythonfmu_s_case2_short", ("fmpy.7",), f1)
     put("native_s_case2_short", ("fmpy.6",), f2)
     put("native_floor_case2_short", ("fmpy.9",), f1)
@@ -333,6 +375,31 @@ def copied_figures(root: Path = REPO) -> dict[str, str]:
     for mechanism in SPEED_MECHANISMS:
         put(f"vdp_default.{mechanism}", (f"vdp_{mechanism}.1",), f2)
         put(f"vdp_table1.{mechanism}", (f"vdp_{mechanism}.2",), f2)
+    between = lambda *v: f"{min(v, key=float)}–{max(v, key=float)}"          # noqa: E731
+    put("diag_right", ("diag.1",), str)
+    put("diag_detected", ("diag.2",), str)
+    put("diag_error_clean", ("diag.3",), lambda v: sig(float(v), 1))
+    put("diag_error_noisy", ("diag.4",), lambda v: f"{float(v):.2f}")
+    put("diag_slowest", ("diag.5",), str)
+    for i, raw_i in enumerate((1, 2, 4, 5, 7, 8, 3, 6, 9), start=1):      # the starts and ends, then the rates
+        put(f"diag_ramp.{i}", (f"ramps.{raw_i}",), str)
+    put("slowest_links", tuple(f"slowest.{i}" for i in (1, 2, 3, 4)), between)
+    put("slowest_masses", tuple(f"slowest.{i}" for i in (5, 6, 7)), between)
+    put("several_x2", ("several.1", "several.4", "several.7"), between)
+    put("several_all", ("several.2", "several.5", "several.8"), between)
+    put("several_gain", ("several.3", "several.6", "several.9"), between)
+    put("late_mean_10", ("late.1",), str)
+    put("late_mean_500", ("late.4",), str)
+    put("late_mean_3600", ("late.8",), str)
+    put("late_within", ("late.5", "late.9"), lambda a, b: f"{max(abs(float(a) - 1), abs(float(b) - 1)) * 100:.0f}")
+    put("late_false", ("late.3", "late.7", "late.11"), lambda *v: str(sum(int(x) for x in v)))
+    put("late_hours", ("late.2", "late.6", "late.10"), lambda *v: f"{sum(float(x) for x in v):.1f}")
+    put("calib_hours", ("calib.1",), str)
+    put("calib10_alarms", ("calib.2",), str)
+    put("calib10_expected", ("calib.3",), lambda v: f"{float(v):.0f}")
+    put("rhs_fivebar", ("rhs5.1",), lambda v: f"{round(int(v.replace(',', '')), -3):,}")
+    put("view_memory_first", ("viewmem.1",), str)
+    put("view_memory_last", ("viewmem.2",), str)
     put("monitor_prophet", ("monitor.1",), str)
     put("monitor_prophet_outputs", ("monitor.2",), str)
     put("monitor_harmonic", ("monitor.3",), str)
@@ -462,6 +529,8 @@ def measure(data: Path) -> dict[str, str]:
         row = result[int(round(t / 0.01))]
         figures[f"fmpy_row.{t!r}"] = ",".join(repr(float(row[name])) for name in ("x2", "y2", "x3", "y3", "x4", "y4"))
 
+    figures.update(exchange_size(paths["case1"]))
+    figures["huge_text"] = refusal_of_a_huge_run(data, fmu)
     figures["monitor_replay_text"] = monitor_text(paths["case2"])
     figures["demo_block"] = demo_block(data)
     figures["libcosim_text"] = printed(data, [sys.executable, str(REPO / "examples" / "libcosim_case2.py"),
@@ -500,6 +569,32 @@ def printed(cwd: Path, command: list[str]) -> str:
     if proc.returncode != 0:
         raise RuntimeError(f"{' '.join(command)} exited {proc.returncode}:\n{proc.stderr[-2000:]}")
     return proc.stdout
+
+
+def exchange_size(exchange: Path) -> dict[str, str]:
+    """docs/orchestrator.md's size of the longest run allowed by default: the default
+    ``exchange.max_rows`` rows of Case 1's exchange file (its mean bytes per row)."""
+    from fourbar_common import read_run_record
+    from orchestrator.case import DEFAULT_MAX_ROWS
+
+    record = read_run_record(exchange.parent / "run.json")
+    bytes_per_row = exchange.stat().st_size / (record.rows_written + 1)       # the header counted as a row
+    return {"max_rows_hours": f"{DEFAULT_MAX_ROWS * record.experiment.step / 3600:.0f}",
+            "max_rows_gb": f"{DEFAULT_MAX_ROWS * bytes_per_row / 1e9:.1f}",
+            "case1_outputs": str(len(record.outputs))}
+
+
+def refusal_of_a_huge_run(data: Path, fmu: Path) -> str:
+    """What ``fourbar-run huge.toml`` prints (docs/orchestrator.md): Case 1 to 1e15 s, more rows
+    than ``exchange.max_rows``; nothing is run."""
+    text = (REPO / "cases" / "case1_normal.toml").read_text(encoding="utf-8")
+    text = re.sub(r"(?m)^fmu\s*=.*$", f'fmu = "{fmu.as_posix()}"', text)
+    (data / "huge.toml").write_text(re.sub(r"(?m)^stop\s*=.*$", "stop = 1e15", text), encoding="utf-8")
+    proc = subprocess.run([str(Path(sys.executable).parent / "fourbar-run"), "huge.toml"], cwd=data,
+                          capture_output=True, text=True, timeout=300)
+    if proc.returncode != 2:
+        raise RuntimeError(f"fourbar-run huge.toml exited {proc.returncode}, not 2:\n{proc.stderr[-2000:]}")
+    return proc.stderr.strip()
 
 
 def monitor_text(exchange: Path) -> str:

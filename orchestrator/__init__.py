@@ -1,4 +1,4 @@
-"""orchestrator: drive an FMI 2.0 co-simulation FMU (FMPy) through a case file.
+"""orchestrator: drive an FMI 2.0 or 3.0 FMU (co-simulation or model exchange, FMPy) through a case file.
 
 ``load_case`` reads and validates a case file (TOML) into a frozen :class:`Case`;
 ``run_case`` runs it and writes ``exchange.csv`` and ``run.json``; ``fourbar-run`` is the

@@ -17,7 +17,8 @@ from fourbar_common import package_version
 __all__ = ["main"]
 
 _DESCRIPTION = """\
-Run a co-simulation case: drive the case's FMI 2.0 co-simulation FMU with FMPy over the
+Run a co-simulation case: drive the case's FMU (FMI 2.0 or 3.0; co-simulation, or model
+exchange integrated by FMPy's CVode: the case's fmi_type) with FMPy over the
 communication grid start + k*step, apply the case's faults (step and ramp events) exactly
 on their grid points, and stream the outputs to DIR/exchange.csv (CSV, appended every
 flush interval of simulated time) with DIR/run.json (status, parameters, injected faults).
@@ -51,7 +52,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", metavar="DIR", help="output directory (default: out/<case name>)")
     parser.add_argument("--fmu", metavar="FMU",
                         help="run this FMU instead of the case file's, e.g. build/FourBarNative.fmu (the native "
-                             "FMU: no Python in the FMU, ~10x faster); it must have the case's variables")
+                             "FMU: no Python in the FMU, faster: docs/benchmarks.md measures how much) or "
+                             "build/FourBarNative3.fmu (FMI 3.0); it must have the case's variables")
     parser.add_argument("--stop", metavar="SECONDS", type=float,
                         help="end time in s, replacing experiment.stop (must stay on the grid)")
     parser.add_argument("--realtime", metavar="FACTOR", type=float,

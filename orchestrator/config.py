@@ -27,7 +27,7 @@ from fourbar_common import Drawing
 from .case import (DEFAULT_OUTPUTS, Case, Event, ExchangeSettings, Experiment, FmuDescription, Noise,
                    RampEvent, StepEvent, Value, describe_fmu)
 from .limits import MAX_STEP, MIN_REALTIME_FACTOR, UNIT_LIMITS
-from .validation import ConfigError, ProblemReporter, kind_of, read_toml
+from .validation import ConfigError, ProblemReporter, kind_of, name_from_file, read_toml
 
 __all__ = ["apply_overrides", "load_case"]
 
@@ -50,36 +50,47 @@ _BYTES_PER_VALUE = 20
 
 def load_case(path: str | Path, *, overrides: Mapping[str, Value] | None = None,
               stop: float | None = None, realtime: float | None = None, fmu: str | Path | None = None,
-              max_rows: int | None = None) -> Case:
+              max_rows: int | None = None, out_dir_given: bool = False) -> Case:
     """Read and validate a case file; raise :class:`ConfigError` listing every problem.
 
     ``overrides`` (parameter start values), ``stop`` (s), ``realtime`` (factor), ``fmu``
     (a path, relative to the working directory) and ``max_rows`` replace the file's values
     before validation, as the CLI's ``--set``, ``--stop``, ``--realtime``, ``--fmu`` and
     ``--max-rows``.
+
+    The case's ``name`` labels the run and, by default, names its folder ``out/<name>``, so
+    it must be letters, digits, '_', '-', '.'.  A file without ``name`` is named after its
+    file name made such a name (:func:`~orchestrator.validation.name_from_file`:
+    ``my case.toml`` -> ``my_case``).  ``out_dir_given`` (``--out``): the name only labels
+    the run, so a file name with no Latin letter or digit (``案例.toml``) is then the name as
+    it is, where without ``--out`` it is refused (a ``name`` written in the file is always
+    checked as a folder name).
     """
     path = Path(path)
     label = str(path)
     raw = read_toml(path, "case file")
-    raw.setdefault("name", path.stem)
     raw, origins = _merge_overrides(raw, overrides, stop, realtime, fmu, max_rows)
-    return _Validator(raw, label, path.resolve().parent, origins, source=path.resolve()).case()
+    return _Validator(raw, label, path.resolve().parent, origins, source=path.resolve(),
+                      name_only_labels=out_dir_given).case()
 
 
 def apply_overrides(case: Case, *, overrides: Mapping[str, Value] | None = None,
                     stop: float | None = None, realtime: float | None = None,
-                    fmu: str | Path | None = None, max_rows: int | None = None) -> Case:
+                    fmu: str | Path | None = None, max_rows: int | None = None,
+                    out_dir_given: bool = False) -> Case:
     """A new :class:`Case` with the overrides applied, validated again in full.
 
     Also the way to check a :class:`Case` built or modified in code (all arguments None).
     The case's FMU description is reused while the FMU file is unchanged.
+    ``out_dir_given``: as for :func:`load_case`.
     """
     raw, origins = _merge_overrides(case.as_dict(), overrides, stop, realtime, fmu, max_rows)
     for name in case.overridden:           # still an override: run.json records its source as "set"
         origins.setdefault(f"parameters.{name}", f"--set {name}")
     label = str(case.source) if case.source is not None else f"case {case.name!r}"
     base = case.source.parent if case.source is not None else Path.cwd()
-    return _Validator(raw, label, base, origins, source=case.source, known=case.fmu_description).case()
+    return _Validator(raw, label, base, origins, source=case.source, known=case.fmu_description,
+                      name_only_labels=out_dir_given).case()
 
 
 def _merge_overrides(raw: dict, overrides, stop, realtime, fmu=None, max_rows=None) -> tuple[dict, dict[str, str]]:
@@ -130,8 +141,9 @@ class _Validator(ProblemReporter):
     """Collects every problem of one raw case dict, then builds the Case or raises."""
 
     def __init__(self, raw: dict, label: str, base_dir: Path, origins: dict[str, str], source: Path | None,
-                 known: FmuDescription | None = None):
+                 known: FmuDescription | None = None, name_only_labels: bool = False):
         self.raw = raw
+        self.name_only_labels = name_only_labels   # --out given: the name names no folder
         self.known = known      # an FMU description to reuse if it is still current
         self.label = label
         self.base_dir = base_dir
@@ -181,7 +193,23 @@ class _Validator(ProblemReporter):
                     overridden=frozenset(n for n in parameters if f"parameters.{n}" in self.origins))
 
     def name(self) -> str:
-        return self.identifier("name", self.raw.get("name"), "the output directory out/<name>") or "invalid"
+        """``name``, or the case file's name made a folder name when the file has none."""
+        value = self.raw.get("name")
+        stem = self.source.stem if self.source is not None else None
+        if value is None and stem is not None:
+            value = name_from_file(self.source)
+            if value is None and self.name_only_labels:
+                return stem         # --out: the name names no folder, it only labels the run
+            if value is None:
+                self.problems.append(
+                    f"the file name {self.source.name!r} gives no case name: a case file without a `name` key is "
+                    f"named after its file, and {stem!r} has no letter or digit of A-Z, a-z, 0-9 to make the folder "
+                    f"name out/<name> from; add a line name = \"...\" (letters, digits, '_', '-', '.') at the top "
+                    f"of the file, rename the file, or give --out DIR")
+                return "invalid"
+        elif self.name_only_labels and value == stem:
+            return value            # a Case loaded with --out, checked again (apply_overrides)
+        return self.identifier("name", value, "the run and its default folder out/<name>") or "invalid"
 
     def fmu(self) -> Path:
         value = self.raw.get("fmu")

@@ -158,9 +158,11 @@ def run_case(case: Case | str | Path, out_dir: str | Path | None = None, *, stop
     """
     wall0 = time.monotonic()
     if isinstance(case, Case):
-        case = apply_overrides(case, overrides=overrides, stop=stop, realtime=realtime, fmu=fmu, max_rows=max_rows)
+        case = apply_overrides(case, overrides=overrides, stop=stop, realtime=realtime, fmu=fmu, max_rows=max_rows,
+                               out_dir_given=out_dir is not None)
     else:
-        case = load_case(case, overrides=overrides, stop=stop, realtime=realtime, fmu=fmu, max_rows=max_rows)
+        case = load_case(case, overrides=overrides, stop=stop, realtime=realtime, fmu=fmu, max_rows=max_rows,
+                         out_dir_given=out_dir is not None)
     out = Path(out_dir) if out_dir is not None else Path("out") / case.name
     return _Run(case, out, progress, wall0).execute()
 

@@ -15,6 +15,7 @@ import json
 import math
 import re
 import tomllib
+import unicodedata
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,7 @@ __all__ = [
     "grid_steps",
     "is_number",
     "kind_of",
+    "name_from_file",
     "read_toml",
     "show_value",
 ]
@@ -93,6 +95,22 @@ def grid_steps(span: float, step: float) -> int | None:
         return None
     k = round(count)
     return k if abs(count - k) <= GRID_TOLERANCE else None
+
+
+def name_from_file(path: Path) -> str | None:
+    """The name a file without a ``name`` key gets: its file name without the extension, made
+    a folder name of letters, digits, '_', '-', '.' (see :meth:`ProblemReporter.identifier`).
+
+    Accents are dropped (``casé.toml`` -> ``case``) and each run of other characters (spaces,
+    ``#``, ...) becomes one '_' (``my case.toml`` -> ``my_case``); None when nothing usable is
+    left (a name with no Latin letter or digit, e.g. ``案例.toml``).  A file name that is
+    already such a name is kept as it is.
+    """
+    if _NAME_PATTERN.match(path.stem):
+        return path.stem
+    plain = "".join(c for c in unicodedata.normalize("NFKD", path.stem) if not unicodedata.combining(c))
+    name = re.sub(r"[^A-Za-z0-9_.-]+", "_", plain).strip("_.-")
+    return name if _NAME_PATTERN.match(name) else None
 
 
 def read_toml(path: Path, what: str, error: type[ConfigError] = ConfigError) -> dict:

@@ -12,6 +12,11 @@
   run (the slow tests below); a new block without a runner fails
   ``test_every_python_example_has_a_runner``.
 
+- The native FMU's speed-up over the pythonfmu FMU is quoted in docs/benchmarks.md only (the
+  table ``benchmarks/native_fmu.py`` writes): no other doc, the tutorial or a ``--help`` repeats
+  a number for it. README and docs/mechanisms.md name the FMI 3.0 ``<Name>Native3.fmu``;
+  ``fourbar-run --help`` names the FMI versions and interfaces the orchestrator accepts.
+
 Figures quoted in the docs are checked by benchmarks/doc_figures.py (tests/test_doc_figures.py).
 """
 from __future__ import annotations
@@ -471,3 +476,140 @@ def test_a_regenerated_benchmark_makes_its_copies_stale(tmp_path):
     assert stale == {"sweep_pythonfmu_s"}
     doc_figures.rewrite(figures, tmp_path)
     assert all(f.ok for f in doc_figures.compare(figures, tmp_path, partial=True))
+
+
+# --- the native FMU's speed-up: one place, docs/benchmarks.md ----------------------------------
+
+#: Where the native FMU's speed-up over the pythonfmu FMU is quoted: the "pythonfmu / native"
+#: column of the table benchmarks/native_fmu.py writes (``make benchmarks``).
+SPEED_UP_HOME = "docs/benchmarks.md"
+_NUM = r"\d+(?:\.\d+)?"
+_TIMES = rf"(?:~\s*|about\s+|up\s+to\s+)?{_NUM}(?:\s*[–-]\s*{_NUM})?\s*(?:×|x(?!\w))\**"
+#: "19–30× faster", "about 10x faster", "~10x faster", "a speed-up of 7–10×"; not "694× faster
+#: than 38 s" (another comparison, with its own reference).
+SPEED_UP = re.compile(rf"{_TIMES}\s*(?:faster(?!\s+than)|speed-?up)|(?:speed-?up|faster)\s+(?:of\s+|by\s+)?{_TIMES}",
+                      re.IGNORECASE)
+
+
+def passages(text: str) -> list[str]:
+    """Paragraphs, each table row and each option of a --help on its own."""
+    return [p for p in re.split(r"\n\s*\n|\n(?=\s*\|)|\n(?=  -)", text) if p.strip()]
+
+
+def native_speed_up_quotes(text: str) -> list[str]:
+    """The speed-up figures in the passages of ``text`` that speak of the native FMU."""
+    return [m.group(0) for p in passages(text) if re.search(r"native", p, re.IGNORECASE)
+            for m in SPEED_UP.finditer(p)]
+
+
+def _notebook_text(path: Path) -> str:
+    import json
+
+    cells = json.loads(path.read_text(encoding="utf-8"))["cells"]
+    return "\n\n".join("".join(c["source"]) for c in cells)
+
+
+def test_the_speed_up_check_sees_each_way_it_was_quoted():
+    for quoted in ("`build/FourBarNative.fmu`: no\n  Python inside, the same variables, 19–30× faster through FMPy",
+                   "The native FMU for other FMI tools, for speed (about 10x faster through",
+                   "this notebook uses the native one\n(sympy's C printer, no Python inside; 7–10× faster)",
+                   "(the native FMU: no Python in the FMU, ~10x faster)",
+                   "| pythonfmu 1.58 s / 1.76 s: native **29.6× / 18.6× faster** (target ≥ 10×: met |",
+                   "the native FMU gives a speed-up of 20x"):
+        assert native_speed_up_quotes(quoted), quoted
+    for other in ("| native 0.055 s (rtol = atol = 2e-9; **694×** faster than 38 s) |",
+                  "the native FMU\n\n20 = 20x faster",
+                  "  --fmu FMU  e.g. build/FourBarNative.fmu\n  --realtime FACTOR  1 = real time, 20 = 20x faster"):
+        assert not native_speed_up_quotes(other), other
+
+
+def test_the_native_speed_up_is_quoted_only_in_benchmarks_md():
+    texts = {rel(path): path.read_text(encoding="utf-8") for path in DOCS if rel(path) != SPEED_UP_HOME}
+    texts["examples/tutorial.ipynb"] = _notebook_text(REPO / "examples" / "tutorial.ipynb")
+    texts.update({f"{tool} --help": help_text(tool) for tool in TOOLS})
+    found = {where: quotes for where, text in texts.items() if (quotes := native_speed_up_quotes(text))}
+    assert not found, (f"the native FMU's speed-up is measured and quoted in {SPEED_UP_HOME} only; "
+                       f"refer to it there without the number: {found}")
+    home = (REPO / SPEED_UP_HOME).read_text(encoding="utf-8")
+    assert re.search(r"\| native s \| pythonfmu s \| floor s \| native / floor \| pythonfmu / native \|\n"
+                     r"\|[-|]+\|\n\| Case 1 \|(?: [\d.]+x? \|){5}", home), \
+        f"{SPEED_UP_HOME} lost the table benchmarks/native_fmu.py writes (pythonfmu / native)"
+
+
+def test_readme_and_mechanisms_doc_name_the_fmi3_native_fmu():
+    assert "<Name>Native3.fmu" in help_text("build_fmu.py")      # what build_fmu.py builds, by its own --help
+    for doc in ("README.md", "docs/mechanisms.md"):
+        text = (REPO / doc).read_text(encoding="utf-8")
+        # every passage that says what build_fmu.py builds lists the FMI 3.0 native FMU too
+        lists = [p for p in passages(text) if "build_fmu.py" in p and "Native.fmu" in p]
+        assert lists, f"{doc} no longer says what build_fmu.py builds"
+        missing = [p for p in lists if "Native3.fmu" not in p]
+        assert not missing, f"{doc}: names the FMI 2.0 native FMU but not *Native3.fmu in: {missing}"
+
+
+def test_fourbar_run_help_names_what_the_orchestrator_accepts():
+    from orchestrator.config import FMI_TYPES
+
+    text = " ".join(help_text("fourbar-run").split())
+    assert "FMI 2.0 co-simulation FMU" not in text
+    assert "FMI 2.0 or 3.0" in text
+    assert set(FMI_TYPES) == {"CoSimulation", "ModelExchange"}    # the two interfaces a case may choose
+    assert "co-simulation" in text and "model exchange" in text
+
+
+def test_readme_commands_write_into_out_not_the_repository():
+    """A command copied from the README must leave the clone clean: what it writes goes under out/
+    (git-ignored), never into the repository's root."""
+    text = (REPO / "README.md").read_text(encoding="utf-8")
+    written = re.findall(r"--(?:animate|out)\s+(\S+?)`?(?=\s|$)", text)
+    assert written, "README.md shows no command that writes a file"
+    outside = [path for path in written if not path.startswith(("out/", "DIR", "PATH", "FILE", "FMU", "<"))]
+    assert not outside, f"README.md's commands write outside out/: {outside}"
+
+
+# --- run.json: docs/orchestrator.md's table and docs/contracts.md's block against RunRecord ------
+
+def _record_keys() -> tuple[set[str], dict[str, set[str]]]:
+    """run.json's top-level keys and the keys of its nested objects, from fourbar_common/run_record.py."""
+    import dataclasses
+
+    from fourbar_common import run_record as rr
+
+    top = {f.name for f in dataclasses.fields(rr.RunRecord)}
+    nested = {name: {f.name for f in dataclasses.fields(kind)}
+              for name, kind in (("fmu", rr.RecordedFmu), ("experiment", rr.RecordedExperiment),
+                                 ("noise", rr.RecordedNoise), ("exchange", rr.RecordedExchange),
+                                 ("writer", rr.RecordedWriter))}
+    record = rr.RunRecord(status="running", run_id="0" * 32, case="c", fmu=None, experiment=None)
+    assert set(record.to_json()) == top      # the dataclass's fields are what to_json writes
+    return top, nested
+
+
+def test_orchestrator_doc_lists_every_run_json_field():
+    from fourbar_common.run_record import SCHEMA_VERSION
+
+    text = (REPO / "docs" / "orchestrator.md").read_text(encoding="utf-8")
+    start = text.index("| field | meaning |", text.index("`DIR/run.json`"))
+    rows = re.findall(r"(?m)^\| ([^|]+) \| ([^\n]+) \|$", text[start:text.index("\n\n", start)])
+    documented = {key: meaning for keys, meaning in rows[1:] for key in re.findall(r"`(\w+)`", keys)}
+    top, nested = _record_keys()
+    assert set(documented) == top, f"docs/orchestrator.md's run.json table: missing {top - set(documented)}, " \
+                                   f"not written {set(documented) - top}"
+    assert documented["schema"].startswith(f"`{SCHEMA_VERSION}`")
+    for name, keys in nested.items():
+        shown = re.search(r"`\{([^}]*)\}`", documented[name])
+        assert shown and set(re.split(r",\s*", shown.group(1))) == keys, (name, documented[name], keys)
+
+
+def test_contracts_block_lists_every_run_json_field():
+    from fourbar_common.run_record import SCHEMA_VERSION
+
+    text = (REPO / "docs" / "contracts.md").read_text(encoding="utf-8")
+    block = re.search(r'(?s)```\n\s*(\{"schema": (\d+), "status".*?)\n\s*```', text)
+    assert block and int(block.group(2)) == SCHEMA_VERSION
+    top, nested = _record_keys()
+    shown = set(re.findall(r'"(\w+)":', block.group(1)))
+    assert top <= shown, f"docs/contracts.md's run.json block lacks {top - shown}"
+    for name, keys in nested.items():
+        inner = re.search(rf'"{name}": \{{([^}}]*)\}}', block.group(1))
+        assert inner and keys == set(re.findall(r'(?<!: )(?<!\| )"(\w+)"', inner.group(1)))  # keys, not values, (name, inner and inner.group(1), keys)

@@ -124,6 +124,24 @@ def test_figures_and_live_view_rendered(executed):
     assert alarm and f"page clock at t = 40.00 s of 40.00 s; banner: ALARM since t = {alarm[0]} s" in text
 
 
+#: The figures the notebook saves into <output folder>/figures/, one per paper figure it draws.
+SAVED_FIGURES = ("fig06_12_x2", "fig08_file_reads", "fig03_linkage", "fig09_spectrum", "fig09_forecast",
+                 "fig10_11_forecast_zoom", "fig13_statistic")
+
+
+def test_figures_are_saved_for_a_headless_run(executed):
+    """`jupyter execute` keeps no output: every figure must also land in the output folder."""
+    folder = executed["out"] / "figures"
+    saved = sorted(p.stem for p in folder.glob("*.png")) if folder.is_dir() else []
+    assert saved == sorted(SAVED_FIGURES)
+    for name in SAVED_FIGURES:
+        head = (folder / f"{name}.png").read_bytes()[:24]
+        assert head[:8] == b"\x89PNG\r\n\x1a\n", name
+        width, height = int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+        assert width > 300 and height > 150, (name, width, height)   # a drawn figure, not an empty canvas
+        assert f"figure saved: {folder.resolve() / (name + '.png')}" in _stdout(executed["nb"])
+
+
 def test_writes_only_into_its_folder(executed):
     text = _stdout(executed["nb"])
     assert f"output folder : {executed['out'].resolve()}" in text
