@@ -33,8 +33,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping, Union
 
-from orchestrator.validation import (GRID_TOLERANCE, ConfigError, ProblemReporter, is_number, kind_of, read_toml,
-                                     show_value)
+from orchestrator.validation import (GRID_TOLERANCE, ConfigError, ProblemReporter, is_number, kind_of,
+                                     name_from_file, read_toml, show_value)
 
 __all__ = [
     "FaultSpec",
@@ -268,10 +268,25 @@ class _Validator(ProblemReporter):
         return Range(float(lo), float(hi), scale, integer)
 
     # -- the sweep ----------------------------------------------------------------------
+    def sweep_name(self, raw: Mapping[str, Any]) -> str | None:
+        """The sweep's name: its ``name`` key, else its file name made a folder name
+        (``name_from_file``: ``my sweep.toml`` -> ``my_sweep``); a file name with nothing usable
+        is refused naming the file and what to do."""
+        if "name" in raw:
+            return self.identifier("name", raw["name"], "the output directory out/sweeps/<name>")
+        name = name_from_file(self.path)
+        if name is None:
+            self.problems.append(
+                f"the file name {self.path.name!r} gives no sweep name: a sweep file without a `name` key is named "
+                f"after its file, and {self.path.stem!r} has no letter or digit of A-Z, a-z, 0-9 to make the folder "
+                f"name out/sweeps/<name> from; add a line name = \"...\" (letters, digits, '_', '-', '.') at the "
+                f"top of the file, or rename the file")
+        return name
+
     def sweep(self) -> Sweep:
         raw = self.raw
         self.unknown_keys(raw, _TOP_KEYS, "")
-        name = self.identifier("name", raw.get("name", self.path.stem), "the output directory out/sweeps/<name>")
+        name = self.sweep_name(raw)
         description = self.text("description", raw.get("description", "")) or ""
 
         case = self.base_case()

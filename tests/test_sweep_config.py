@@ -416,3 +416,26 @@ def test_a_deeply_nested_sweep_file_is_refused(tmp_path, fourbar_fmu):
     path = write_sweep(tmp_path, fourbar_fmu, FAULT + "[report]\nx = " + "[" * 5000 + "]" * 5000 + "\n")
     with pytest.raises(SweepError, match="nested too deeply to be a sweep file"):
         load_sweep(path)
+
+
+GOOD = """
+[fault]
+variable = "L2"
+kind = ["step"]
+relative = [0.01]
+time = [10.0]
+"""
+
+
+@pytest.mark.parametrize("file_name, name", [("my sweep.toml", "my_sweep"), ("swéep.toml", "sweep")])
+def test_a_sweep_without_name_is_named_after_its_file_made_a_folder_name(tmp_path, fourbar_fmu, file_name, name):
+    # A file name with a space or an accent used to be refused with a message about a `name` key
+    # the user never wrote (issue 37); the orchestrator names cases the same way.
+    assert load_sweep(write_sweep(tmp_path, fourbar_fmu, GOOD, name=file_name)).name == name
+
+
+def test_a_sweep_file_name_with_no_latin_letter_is_refused_naming_the_file(tmp_path, fourbar_fmu, capsys):
+    path = write_sweep(tmp_path, fourbar_fmu, GOOD, name="案例.toml")
+    assert main([str(path), "--dry-run", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "案例.toml" in err and 'name = "..."' in err and "rename the file" in err
