@@ -37,7 +37,7 @@ from .timeline import Timeline
 
 __all__ = ["PageSettings", "RunPage", "SharedRun"]
 
-#: s of run between two recomputations of the guides and ground marks while a run is written.
+#: s of run between two recomputations of the guides' spans and the extent while a run is written.
 SCENE_EVERY_S = 5.0
 COLOURS = {"body": "#1f4e79", "faulted": "#c0392b", "joint": "#222222", "ground": "#7f7f7f",
            "signal": "#1f77b4", "forecast": "#d62728", "statistic": "#2ca02c", "limit": "#d62728"}
@@ -64,7 +64,7 @@ class SharedRun:
     :meth:`refresh` polls the folder when ``poll_s`` has passed since the last poll (the first
     session's tick after that does it; the others read what it read), so the folder is read
     once per period whatever the number of sessions, and the rows are kept once.  The
-    mechanism's scene (guides and ground marks, from a sample of every row) is made once per
+    mechanism's scene (the extent and the guides' spans, from a sample of every row) is made once per
     ``SCENE_EVERY_S`` of run for all sessions too."""
 
     def __init__(self, folder: str | Path, poll_s: float = 0.25):
@@ -409,15 +409,13 @@ class RunPage:
         i = tl.rows.index_at(t)
         if i < 0:
             return
-        # guides and ground marks span what the joints reach (the shared scene: SharedRun.scene)
-        scene = self.shared.scene(self.geometry)
-        if scene is not self.scene:
-            self.scene = scene
-            self.src["guides"].data = {"xs": [list(g[0]) for g in self.scene.guides],
-                                       "ys": [list(g[1]) for g in self.scene.guides]}
-            self.src["ground"].data = {"x": [g[0] for g in self.scene.ground], "y": [g[1] for g in self.scene.ground]}
+        # guides span what the sliders reach (the shared scene: SharedRun.scene); each is drawn
+        # where this row puts it (a guide on a moving body turns with it), as are the ground marks
+        self.scene = self.shared.scene(self.geometry)
         row = {c: tl.rows.column(c)[i] for c in tl.rows.columns}
-        frame = self.geometry.frame(row, self.scene.block_size)
+        frame = self.geometry.frame(row, self.scene)
+        self.src["guides"].data = {"xs": [list(g[0]) for g in frame.guides], "ys": [list(g[1]) for g in frame.guides]}
+        self.src["ground"].data = {"x": [g[0] for g in frame.ground], "y": [g[1] for g in frame.ground]}
         faulted = set()
         if tl.record is not None:
             faulted = faulted_bodies(self.geometry.drawing, [e.variable for e in tl.record.events if e.first_time <= t])
