@@ -166,6 +166,7 @@ def serve(folder: Path, *, port: int = 0, address: str = "127.0.0.1", allow_host
     websocket accepts only those origins, and BOKEH_* environment variables are dropped first
     (:mod:`view.served`)."""
     import logging
+    import signal
 
     from .served import Bind, ignore_bokeh_environment, refuse_other_hosts
 
@@ -192,6 +193,10 @@ def serve(folder: Path, *, port: int = 0, address: str = "127.0.0.1", allow_host
     warning = bind.warning("fourbar-view")
     if warning:
         print(f"fourbar-view: {warning}", file=sys.stderr, flush=True)
+    # Panel's serve() replaces the SIGINT handler by one that stops the loop quietly (the
+    # command then ended 0 with nothing said); the StopSignals handler of main() is put back,
+    # so Ctrl-C ends the server as SIGTERM does: the "stopped" line and 130
+    keep_sigint = signal.getsignal(signal.SIGINT)
     try:
         server = pn.serve({"/": page}, port=port, address=address, show=False, start=False, threaded=False,
                           title=f"fourbar-view: {folder.name}",
@@ -203,6 +208,12 @@ def serve(folder: Path, *, port: int = 0, address: str = "127.0.0.1", allow_host
         print(f"fourbar-view: error: port {port} on {address}: {exc.strerror}; choose another with --port",
               file=sys.stderr)
         return 2
+    finally:
+        if keep_sigint is not None:
+            try:
+                signal.signal(signal.SIGINT, keep_sigint)
+            except ValueError:         # not the main thread: Panel could not replace it either
+                pass
     refuse_other_hosts(server._tornado, hosts)     # Bokeh's Server keeps its Tornado application there
     url = bind.url
     if quiet:
