@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 import os
+import secrets
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -122,13 +123,34 @@ def frame_times(start: float, stop: float, fps: float, speed: float) -> np.ndarr
     return start + np.arange(n) * (speed / fps)
 
 
+def _check_writable(out: Path) -> None:
+    """:class:`AnimationError` naming ``out`` when the animation could not be written there: its
+    folder is missing or not a folder, ``out`` is a folder, or the folder refuses a new file
+    (tried with a probe file, removed at once).  Checked before any frame is drawn: a few hundred
+    frames take tens of seconds, and the file is written only after the last."""
+    folder = out.parent
+    if not folder.exists():
+        raise AnimationError(f"{out}: the folder {folder} does not exist; create it first")
+    if not folder.is_dir():
+        raise AnimationError(f"{out}: {folder} is not a folder; name the animation inside a folder")
+    if out.is_dir():
+        raise AnimationError(f"{out}: is a folder; name the animation file, e.g. {out / 'run.gif'}")
+    probe = folder / f".{out.stem}.probe-{secrets.token_hex(6)}{out.suffix}"
+    try:
+        fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except OSError as exc:
+        raise AnimationError(f"{out}: cannot write in {folder} ({exc.strerror or exc}); choose a writable "
+                             f"folder") from None
+    os.close(fd)
+    probe.unlink(missing_ok=True)
+
+
 def _check_options(out: Path, fps: float, speed: float, width_px: int) -> str:
     suffix = out.suffix.lower()
     if suffix not in SUFFIXES:
         raise AnimationError(f"{out}: cannot write a {suffix or 'suffix-less'} file; the animation is written as "
                              f".gif (Pillow) or .mp4 (ffmpeg): name the output e.g. {out.with_suffix('.gif').name}")
-    if not out.parent.is_dir():
-        raise AnimationError(f"{out}: the folder {out.parent} does not exist; create it first")
+    _check_writable(out)
     writer = SUFFIXES[suffix]
     from matplotlib import animation
 
