@@ -1,7 +1,8 @@
 """``fourbar-view``: a run folder in the browser, live or replayed; or an animation for a report.
 
-Exit codes: 0 the animation written, 1 the animation file could not be written, 2 usage
-error (an animation option too), not a run folder, or a port in use, 130 / 143 the server
+Exit codes: 0 the animation written, 1 the animation file could not be written after all, 2
+usage error (an animation option or an unwritable animation output too), not a run folder, or a
+port in use, 130 / 143 the server
 stopped by Ctrl-C / SIGTERM (the view writes nothing, so a signal loses nothing).  Heavy imports (Panel, Bokeh, matplotlib)
 happen after the arguments are checked, so ``--help`` answers at once.
 """
@@ -39,9 +40,10 @@ examples:
 
 The page and its controls: docs/view.md.  Stop the server with Ctrl-C (the view writes
 nothing, so stopping it loses nothing).
-exit status: 0 animation written, 1 the animation file could not be written, 2 usage error,
-not a run folder, or the port in use, 130 server stopped by Ctrl-C, 143 server stopped by
-SIGTERM.
+exit status: 0 animation written, 1 the animation file could not be written after all,
+2 usage error (an --animate output that cannot be written too, checked before any frame is
+drawn), not a run folder, or the port in use, 130 server stopped by Ctrl-C, 143 server stopped
+by SIGTERM.
 """
 
 
