@@ -106,3 +106,24 @@ def test_rows_the_monitor_writes_late_are_all_sent(tmp_path):
         assert gaps.max() < 1.5 * STEP, (name, float(gaps.max()))
     # the whole-run plot's last bin holds the monitor's last row, written after the run ended
     assert src["signal_overview"].data["time"][-1] > STOP - 1.0
+
+
+def test_a_monitor_a_window_behind_still_shows_its_newest_rows(tmp_path):
+    """The monitor's newest row more than a window behind the clock (trained late on a loaded
+    machine): the recent plots show its newest rows, not an empty window, and the rest when
+    they come."""
+    from view.page import PageSettings, RunPage, SharedRun
+
+    writers = Writers(tmp_path)
+    page = RunPage(SharedRun(tmp_path, poll_s=0.0), PageSettings(window_s=5.0))
+    writers.exchange(STOP)
+    page.tick()                                     # the exchange's x2 column: no monitor yet
+    writers.monitor(6.0)                            # 9 s behind the clock, the window is 5 s
+    page.tick()
+    assert page.clock == pytest.approx(STOP - STEP, abs=1e-9)
+    shown = np.asarray(page.src["signal_recent"].data["time"])
+    assert len(shown) and shown[-1] == pytest.approx(6.0 - STEP, abs=1e-9) and shown[0] > 1.0 - 1e-9
+    writers.monitor(STOP)
+    page.tick()
+    shown = np.asarray(page.src["signal_recent"].data["time"])
+    assert shown[-1] == pytest.approx(STOP - STEP, abs=1e-9) and np.diff(shown).max() < 1.5 * STEP

@@ -347,15 +347,19 @@ class RunPage:
 
     def _unsent(self, name: str, series, t: float, columns) -> tuple[dict, bool]:
         """The rows of ``series`` that source ``name`` lacks up to the clock ``t``, and whether
-        they replace what it holds (after a jump, or when another series feeds it: the window
-        ``(t - window_s, t]``).  What a source holds is tracked by the time of the last row sent
+        they replace what it holds (after a jump, or when another series feeds it: the
+        ``window_s`` up to the series' newest row at or before ``t``).  What a source holds is tracked by the time of the last row sent
         to it, per source: the monitor's files are written after the exchange file (late by its
         training or a refit, seconds at 1x), so its rows at times the clock has passed still
         come, and are sent when they do.  (Taking every source's rows after the clock's last
         value dropped those, for good: the live page's straight-line gaps of issue 37.)"""
         feed, sent = self._sent.get(name, (None, None))
         replace = feed != id(series)
-        t0 = t - self.settings.window_s if replace else sent
+        if replace:        # the window up to the series' newest row (the monitor may lag more than a window)
+            newest = series.last_time if series.last_time is not None else t
+            t0 = min(t, newest) - self.settings.window_s
+        else:
+            t0 = sent
         part = series.between(t0, t, columns)
         self._sent[name] = (id(series), float(part["time"][-1]) if len(part["time"]) else t0)
         return part, replace
