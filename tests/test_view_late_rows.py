@@ -25,8 +25,8 @@ REFIT = (8.0, 10.5)  # s, rows the monitor holds back (a refit) until the exchan
 LAG = 0.5            # s, how far the monitor's files trail the exchange file otherwise
 
 
-def _record(status: str) -> dict:
-    return {"schema": 2, "status": status, "run_id": "c" * 32, "case": "late", "case_file": None, "description": "",
+def _record(status: str, run_id: str = "c" * 32) -> dict:
+    return {"schema": 2, "status": status, "run_id": run_id, "case": "late", "case_file": None, "description": "",
             "fmu": {"path": "F.fmu", "guid": "g", "model_name": "M"},
             "experiment": {"start": 0.0, "stop": STOP, "step": STEP, "tolerance": None},
             "parameters": {}, "events": [], "fault_time": None, "outputs": ["x2"], "units": {}, "noise": None,
@@ -127,3 +127,22 @@ def test_a_monitor_a_window_behind_still_shows_its_newest_rows(tmp_path):
     page.tick()
     shown = np.asarray(page.src["signal_recent"].data["time"])
     assert shown[-1] == pytest.approx(STOP - STEP, abs=1e-9) and np.diff(shown).max() < 1.5 * STEP
+
+
+def test_a_new_run_in_a_replayed_folder_is_followed(tmp_path):
+    """A page replaying a finished run, when a new run starts in the folder: the page starts
+    again as if opened now, following the new run's newest row (not replaying it at 1x)."""
+    from view.page import PageSettings, RunPage, SharedRun
+
+    writers = Writers(tmp_path)
+    writers.exchange(1.0)
+    (tmp_path / "run.json").write_text(json.dumps(_record("finished", "a" * 32)))
+    page = RunPage(SharedRun(tmp_path, poll_s=0.0), PageSettings())
+    page.tick()
+    assert not page.live and page.clock == 0.0                     # a finished run: replayed from its start
+    (tmp_path / "exchange.csv").write_text("time,x2\n")            # fourbar-run replaces both files
+    (tmp_path / "run.json").write_text(json.dumps(_record("running", "b" * 32)))
+    writers.exchange_to = 0.0
+    writers.exchange(3.0)
+    page.tick()
+    assert page.live and page.follow.value and page.clock == pytest.approx(3.0 - STEP, abs=1e-9)

@@ -299,6 +299,10 @@ class RunPage:
         for name in ("signal_recent", "forecast_recent", "statistic", "signal_overview", "bodies", "joints"):
             self.src[name].data = {k: [] for k in self.src[name].data}
         self.shown_t, self.clock, self.geometry, self.scene, self._overview_key = None, None, None, None, None
+        # a new run starts the page as if it were opened now: following it while it is written
+        if self.settings.at is None and not self.live:
+            self.live = True
+            self.follow.value = True
         self._rollover.clear()
         self._sent.clear()
 
