@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 import os
+import secrets
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -40,7 +41,8 @@ from fourbar_common import Drawing, RampEvent, RunRecord, StepEvent
 from .geometry import Geometry, faulted_bodies
 from .sources import MonitorEvent, RunFolder
 
-__all__ = ["AnimationError", "AnimationResult", "FAULT_COLOUR", "animate", "default_window", "frame_times"]
+__all__ = ["AnimationError", "AnimationResult", "FAULT_COLOUR", "animate", "default_window", "frame_times",
+           "mechanism_axes"]
 
 #: Seconds of the run shown before and after the fault by default.
 BEFORE_FAULT_S = 5.0
@@ -66,6 +68,13 @@ WHITE = "#ffffff"
 BLENDS = 5
 
 SUFFIXES = {".gif": "pillow", ".mp4": "ffmpeg"}
+
+
+def mechanism_axes() -> tuple[float, float, float, float]:
+    """The mechanism panel's (left, bottom, width, height) as fractions of the figure: a square
+    (its limits are the scene's square extent, so a metre is as many pixels across as up)."""
+    side = 0.90 * FIGURE_INCHES[1] / FIGURE_INCHES[0]
+    return (0.01, 0.02, side, 0.90)
 
 
 class AnimationError(ValueError):
@@ -114,13 +123,34 @@ def frame_times(start: float, stop: float, fps: float, speed: float) -> np.ndarr
     return start + np.arange(n) * (speed / fps)
 
 
+def _check_writable(out: Path) -> None:
+    """:class:`AnimationError` naming ``out`` when the animation could not be written there: its
+    folder is missing or not a folder, ``out`` is a folder, or the folder refuses a new file
+    (tried with a probe file, removed at once).  Checked before any frame is drawn: a few hundred
+    frames take tens of seconds, and the file is written only after the last."""
+    folder = out.parent
+    if not folder.exists():
+        raise AnimationError(f"{out}: the folder {folder} does not exist; create it first")
+    if not folder.is_dir():
+        raise AnimationError(f"{out}: {folder} is not a folder; name the animation inside a folder")
+    if out.is_dir():
+        raise AnimationError(f"{out}: is a folder; name the animation file, e.g. {out / 'run.gif'}")
+    probe = folder / f".{out.stem}.probe-{secrets.token_hex(6)}{out.suffix}"
+    try:
+        fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except OSError as exc:
+        raise AnimationError(f"{out}: cannot write in {folder} ({exc.strerror or exc}); choose a writable "
+                             f"folder") from None
+    os.close(fd)
+    probe.unlink(missing_ok=True)
+
+
 def _check_options(out: Path, fps: float, speed: float, width_px: int) -> str:
     suffix = out.suffix.lower()
     if suffix not in SUFFIXES:
         raise AnimationError(f"{out}: cannot write a {suffix or 'suffix-less'} file; the animation is written as "
                              f".gif (Pillow) or .mp4 (ffmpeg): name the output e.g. {out.with_suffix('.gif').name}")
-    if not out.parent.is_dir():
-        raise AnimationError(f"{out}: the folder {out.parent} does not exist; create it first")
+    _check_writable(out)
     writer = SUFFIXES[suffix]
     from matplotlib import animation
 
@@ -276,8 +306,8 @@ class _Picture:
         case = run.record.case or Path(str(run.record.case_file or "run")).stem
         self.case = case
         self.title = self.fig.text(0.015, 0.965, "", ha="left", va="top", fontsize=10, color=INK)
-        side = 0.90 * FIGURE_INCHES[1] / FIGURE_INCHES[0]      # the mechanism panel: a square
-        self.ax_m = self.fig.add_axes((0.01, 0.02, side, 0.90))
+        side = mechanism_axes()[2]
+        self.ax_m = self.fig.add_axes(mechanism_axes())
         self.ax_s = self.fig.add_axes((side + 0.10, 0.14, 0.97 - side - 0.10, 0.72))
         self.ax_m.set_axis_off()
         self.ax_m.set_aspect("equal")
@@ -289,18 +319,19 @@ class _Picture:
         self.fault_note = None
         if not_drawn is None:
             self.geometry = Geometry(run.record.drawing)
-            scene = self.geometry.scene(window_rows)
-            self.block = scene.block_size
-            self.ax_m.set_xlim(*scene.x_range)
-            self.ax_m.set_ylim(*scene.y_range)
-            for (x0, x1), (y0, y1) in scene.guides:
-                self.ax_m.add_line(Line2D((x0, x1), (y0, y1), lw=1.0, color=GROUND_COLOUR, zorder=1))
-            b = scene.block_size
-            # scene.ground: the revolute joints to the ground (a prismatic one's ground is its guide)
-            for gx, gy in scene.ground:
-                self.ax_m.add_patch(Polygon(((gx, gy), (gx - 0.6 * b, gy - b), (gx + 0.6 * b, gy - b)),
-                                            closed=True, facecolor=GROUND_COLOUR, edgecolor=GROUND_COLOUR,
-                                            lw=0.8, zorder=1))
+            self.scene = self.geometry.scene(window_rows)
+            self.ax_m.set_xlim(*self.scene.x_range)
+            self.ax_m.set_ylim(*self.scene.y_range)
+            # the guides and the ground marks are placed at each frame (Geometry.frame): a guide
+            # on a moving body turns with it, and a fault may move a ground point
+            self.guides = [Line2D((), (), lw=1.0, color=GROUND_COLOUR, zorder=1) for _ in self.scene.guide_spans]
+            for line in self.guides:
+                self.ax_m.add_line(line)
+            self.ground = [Polygon(np.zeros((3, 2)), closed=True, facecolor=GROUND_COLOUR, edgecolor=GROUND_COLOUR,
+                                   lw=0.8, zorder=1)
+                           for j in run.record.drawing.joints if j.ground and j.type == "revolute"]
+            for patch in self.ground:
+                self.ax_m.add_patch(patch)
             for body in run.record.drawing.bodies:
                 if body.kind == "rod":
                     artist = Line2D((), (), lw=5, color=BODY_COLOUR, solid_capstyle="round", zorder=2)
@@ -367,7 +398,12 @@ class _Picture:
         """Update every artist to the run at ``time`` (s), ``row`` the exchange row shown."""
         self.title.set_text(f"{self.case}    t = {time:7.2f} s")
         if self.geometry is not None:
-            frame = self.geometry.frame(row, self.block)
+            frame = self.geometry.frame(row, self.scene)
+            for line, ((x0, x1), (y0, y1)) in zip(self.guides, frame.guides):
+                line.set_data((x0, x1), (y0, y1))
+            b = self.scene.block_size
+            for patch, (gx, gy) in zip(self.ground, frame.ground):
+                patch.set_xy(((gx, gy), (gx - 0.6 * b, gy - b), (gx + 0.6 * b, gy - b)))
             for shape in frame.bodies:
                 artist = self.bodies[shape.name]
                 faulted = time > self.fault_after.get(shape.name, math.inf)

@@ -1,7 +1,8 @@
 """``fourbar-view``: a run folder in the browser, live or replayed; or an animation for a report.
 
-Exit codes: 0 the animation written, 1 the animation file could not be written, 2 usage
-error (an animation option too), not a run folder, or a port in use, 130 / 143 the server
+Exit codes: 0 the animation written, 1 the animation file could not be written after all, 2
+usage error (an animation option or an unwritable animation output too), not a run folder, or a
+port in use, 130 / 143 the server
 stopped by Ctrl-C / SIGTERM (the view writes nothing, so a signal loses nothing).  Heavy imports (Panel, Bokeh, matplotlib)
 happen after the arguments are checked, so ``--help`` answers at once.
 """
@@ -39,9 +40,10 @@ examples:
 
 The page and its controls: docs/view.md.  Stop the server with Ctrl-C (the view writes
 nothing, so stopping it loses nothing).
-exit status: 0 animation written, 1 the animation file could not be written, 2 usage error,
-not a run folder, or the port in use, 130 server stopped by Ctrl-C, 143 server stopped by
-SIGTERM.
+exit status: 0 animation written, 1 the animation file could not be written after all,
+2 usage error (an --animate output that cannot be written too, checked before any frame is
+drawn), not a run folder, or the port in use, 130 server stopped by Ctrl-C, 143 server stopped
+by SIGTERM.
 """
 
 
@@ -166,6 +168,7 @@ def serve(folder: Path, *, port: int = 0, address: str = "127.0.0.1", allow_host
     websocket accepts only those origins, and BOKEH_* environment variables are dropped first
     (:mod:`view.served`)."""
     import logging
+    import signal
 
     from .served import Bind, ignore_bokeh_environment, refuse_other_hosts
 
@@ -192,6 +195,10 @@ def serve(folder: Path, *, port: int = 0, address: str = "127.0.0.1", allow_host
     warning = bind.warning("fourbar-view")
     if warning:
         print(f"fourbar-view: {warning}", file=sys.stderr, flush=True)
+    # Panel's serve() replaces the SIGINT handler by one that stops the loop quietly (the
+    # command then ended 0 with nothing said); the StopSignals handler of main() is put back,
+    # so Ctrl-C ends the server as SIGTERM does: the "stopped" line and 130
+    keep_sigint = signal.getsignal(signal.SIGINT)
     try:
         server = pn.serve({"/": page}, port=port, address=address, show=False, start=False, threaded=False,
                           title=f"fourbar-view: {folder.name}",
@@ -203,6 +210,12 @@ def serve(folder: Path, *, port: int = 0, address: str = "127.0.0.1", allow_host
         print(f"fourbar-view: error: port {port} on {address}: {exc.strerror}; choose another with --port",
               file=sys.stderr)
         return 2
+    finally:
+        if keep_sigint is not None:
+            try:
+                signal.signal(signal.SIGINT, keep_sigint)
+            except ValueError:         # not the main thread: Panel could not replace it either
+                pass
     refuse_other_hosts(server._tornado, hosts)     # Bokeh's Server keeps its Tornado application there
     url = bind.url
     if quiet:

@@ -37,7 +37,7 @@ from .timeline import Timeline
 
 __all__ = ["PageSettings", "RunPage", "SharedRun"]
 
-#: s of run between two recomputations of the guides and ground marks while a run is written.
+#: s of run between two recomputations of the guides' spans and the extent while a run is written.
 SCENE_EVERY_S = 5.0
 COLOURS = {"body": "#1f4e79", "faulted": "#c0392b", "joint": "#222222", "ground": "#7f7f7f",
            "signal": "#1f77b4", "forecast": "#d62728", "statistic": "#2ca02c", "limit": "#d62728"}
@@ -64,7 +64,7 @@ class SharedRun:
     :meth:`refresh` polls the folder when ``poll_s`` has passed since the last poll (the first
     session's tick after that does it; the others read what it read), so the folder is read
     once per period whatever the number of sessions, and the rows are kept once.  The
-    mechanism's scene (guides and ground marks, from a sample of every row) is made once per
+    mechanism's scene (the extent and the guides' spans, from a sample of every row) is made once per
     ``SCENE_EVERY_S`` of run for all sessions too."""
 
     def __init__(self, folder: str | Path, poll_s: float = 0.25):
@@ -128,9 +128,10 @@ class RunPage:
         self.playing = settings.at is None
         self.live = settings.at is None
         self._wall = _time.monotonic()
-        self._overview_bin = -1
         self._signal: str | None = None
         self._rollover: dict[int, int] = {}       # per timeline series: its recent plot's rollover
+        self._sent: dict[str, tuple[int, float]] = {}   # per recent source: (id of its series, time of its last row)
+        self._overview_key: tuple | None = None
 
         self.src = {
             "signal_recent": ColumnDataSource({"time": [], "value": []}, name="signal_recent"),
@@ -297,8 +298,13 @@ class RunPage:
         self.generation = self.timeline.generation
         for name in ("signal_recent", "forecast_recent", "statistic", "signal_overview", "bodies", "joints"):
             self.src[name].data = {k: [] for k in self.src[name].data}
-        self.shown_t, self.clock, self.geometry, self.scene, self._overview_bin = None, None, None, None, -1
+        self.shown_t, self.clock, self.geometry, self.scene, self._overview_key = None, None, None, None, None
+        # a new run starts the page as if it were opened now: following it while it is written
+        if self.settings.at is None and not self.live:
+            self.live = True
+            self.follow.value = True
         self._rollover.clear()
+        self._sent.clear()
 
     # -- what the browser gets ---------------------------------------------------------
     def _window_rows(self, series) -> int:
@@ -321,26 +327,46 @@ class RunPage:
             self.signal_plot.title.text = f"{signal}: signal and forecast, last {self.settings.window_s:g} s"
             self.shown_t = None
         jump = self.shown_t is None or t < self.shown_t or t - self.shown_t > self.settings.window_s
-        t0 = max(t - self.settings.window_s, -math.inf) if jump else self.shown_t
+        if jump:
+            self._sent.clear()
         if signal is not None:
             if signal in tl.forecasts:
                 fc = tl.forecasts[signal]
-                part = fc.between(t0, t, ("value", "forecast"))
-                self._send("signal_recent", {"time": part["time"], "value": part["value"]}, jump,
+                part, replace = self._unsent("signal_recent", fc, t, ("value", "forecast"))
+                self._send("signal_recent", {"time": part["time"], "value": part["value"]}, replace,
                            self._window_rows(fc))
                 keep = np.isfinite(part["forecast"])
                 self._send("forecast_recent", {"time": part["time"][keep], "forecast": part["forecast"][keep]},
-                           jump, self._window_rows(fc))
+                           replace, self._window_rows(fc))
             elif tl.rows is not None and signal in tl.rows.columns:
-                part = tl.rows.between(t0, t, (signal,))
-                self._send("signal_recent", {"time": part["time"], "value": part[signal]}, jump,
+                part, replace = self._unsent("signal_recent", tl.rows, t, (signal,))
+                self._send("signal_recent", {"time": part["time"], "value": part[signal]}, replace,
                            self._window_rows(tl.rows))
-        ev = tl.evaluations.between(t0, t, ("statistic", "threshold"))
-        self._send("statistic", ev, jump, self._window_rows(tl.evaluations))
+        ev, replace = self._unsent("statistic", tl.evaluations, t, ("statistic", "threshold"))
+        self._send("statistic", ev, replace, self._window_rows(tl.evaluations))
         self._overview(signal, t)
         self._marks(t)
         self._mechanism(t)
         self.shown_t = t
+
+    def _unsent(self, name: str, series, t: float, columns) -> tuple[dict, bool]:
+        """The rows of ``series`` that source ``name`` lacks up to the clock ``t``, and whether
+        they replace what it holds (after a jump, or when another series feeds it: the
+        ``window_s`` up to the series' newest row at or before ``t``).  What a source holds is tracked by the time of the last row sent
+        to it, per source: the monitor's files are written after the exchange file (late by its
+        training or a refit, seconds at 1x), so its rows at times the clock has passed still
+        come, and are sent when they do.  (Taking every source's rows after the clock's last
+        value dropped those, for good: the live page's straight-line gaps of issue 37.)"""
+        feed, sent = self._sent.get(name, (None, None))
+        replace = feed != id(series)
+        if replace:        # the window up to the series' newest row (the monitor may lag more than a window)
+            newest = series.last_time if series.last_time is not None else t
+            t0 = min(t, newest) - self.settings.window_s
+        else:
+            t0 = sent
+        part = series.between(t0, t, columns)
+        self._sent[name] = (id(series), float(part["time"][-1]) if len(part["time"]) else t0)
+        return part, replace
 
     def _send(self, name: str, data: dict, replace: bool, rollover: int) -> None:
         source = self.src[name]
@@ -361,9 +387,12 @@ class RunPage:
         if series is None or column not in series.columns:
             return
         bin_s = self._bin_s()
-        current = int(t // bin_s)
-        if current != self._overview_bin:
-            self._overview_bin = current
+        # again when the clock or the series' newest row (up to the clock) reaches another bin:
+        # the monitor's rows come late, also after the run's last row
+        newest = min(t, series.last_time) if series.last_time is not None else -math.inf
+        key = (id(series), int(t // bin_s), math.floor(newest / bin_s) if math.isfinite(newest) else None)
+        if key != self._overview_key:
+            self._overview_key = key
             self.src["signal_overview"].data = series.envelope(column, t, bin_s)
 
     def _bin_s(self) -> float:
@@ -409,15 +438,13 @@ class RunPage:
         i = tl.rows.index_at(t)
         if i < 0:
             return
-        # guides and ground marks span what the joints reach (the shared scene: SharedRun.scene)
-        scene = self.shared.scene(self.geometry)
-        if scene is not self.scene:
-            self.scene = scene
-            self.src["guides"].data = {"xs": [list(g[0]) for g in self.scene.guides],
-                                       "ys": [list(g[1]) for g in self.scene.guides]}
-            self.src["ground"].data = {"x": [g[0] for g in self.scene.ground], "y": [g[1] for g in self.scene.ground]}
+        # guides span what the sliders reach (the shared scene: SharedRun.scene); each is drawn
+        # where this row puts it (a guide on a moving body turns with it), as are the ground marks
+        self.scene = self.shared.scene(self.geometry)
         row = {c: tl.rows.column(c)[i] for c in tl.rows.columns}
-        frame = self.geometry.frame(row, self.scene.block_size)
+        frame = self.geometry.frame(row, self.scene)
+        self.src["guides"].data = {"xs": [list(g[0]) for g in frame.guides], "ys": [list(g[1]) for g in frame.guides]}
+        self.src["ground"].data = {"x": [g[0] for g in frame.ground], "y": [g[1] for g in frame.ground]}
         faulted = set()
         if tl.record is not None:
             faulted = faulted_bodies(self.geometry.drawing, [e.variable for e in tl.record.events if e.first_time <= t])
