@@ -322,3 +322,23 @@ def test_an_uncertainty_is_never_printed_as_zero():
     assert "+0.15 m/s, exact to round-off: ± < 3.3e-12 m/s" in fit_text(fit("ramp", 0.0, end=12.0), "m")
     assert "+0.15 m/s, ± 4e-05 m/s" in fit_text(fit("ramp", 4e-5, end=12.0), "m")
     assert "(uncertainty unknown)" in fit_text(fit("step", float("inf")), "m")
+
+
+def test_another_mechanisms_fmu_is_named_as_such(tmp_path, native_fmu, mechanism_fmus):
+    """`--fmu SliderCrankNative.fmu` on a four-bar run said "the FMU was rebuilt after the run",
+    which is not what happened: the message names both mechanisms and GUIDs as recorded."""
+    path = case_file("case1_normal", native_fmu, tmp_path / "run.toml", name="fb")
+    subprocess.run([FOURBAR_RUN, str(path), "--out", str(tmp_path / "fb"), "--stop", "2", "--quiet"],
+                   check=True, timeout=300)
+    info = json.loads((tmp_path / "fb" / "run.json").read_text())
+    # the diagnosis refuses the FMU before it reads the alarm's rows: a summary naming one is enough
+    summary = tmp_path / "summary.json"
+    summary.write_text(json.dumps({"run_id": info["run_id"], "first_alarm_time": 1.0, "signal": "x2"}))
+    slider = mechanism_fmus.get("slider_crank", "native")
+    proc = subprocess.run([FOURBAR_DIAGNOSE, str(tmp_path / "fb"), "--summary", str(summary), "--fmu", str(slider),
+                           "--no-plot"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    assert "rebuilt" not in proc.stderr, proc.stderr
+    assert "another mechanism's FMU" in proc.stderr, proc.stderr
+    for shown in ("SliderCrankNative", info["fmu"]["model_name"], info["fmu"]["guid"]):
+        assert shown in proc.stderr, (shown, proc.stderr)
