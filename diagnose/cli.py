@@ -15,10 +15,12 @@ from pathlib import Path
 
 from fourbar_common import package_version
 
-__all__ = ["OUTPUTS_NOT_WRITTEN", "build_parser", "main"]
+__all__ = ["AMBIGUOUS", "OUTPUTS_NOT_WRITTEN", "build_parser", "main"]
 
 #: Exit status when the diagnosis was computed (and printed) but its files could not be written.
 OUTPUTS_NOT_WRITTEN = 4
+#: Exit status of the verdict ``ambiguous``: two parameters explain the change about equally well.
+AMBIGUOUS = 3
 
 _EPILOG = """\
 what it does:
@@ -193,7 +195,7 @@ def _main(argv: list[str] | None) -> int:
         return exit_code(signum)
     if not args.quiet:
         print(f"  wrote {', '.join(str(p) for p in written)}")
-    return d.exit_code
+    return 0 if d.explained else AMBIGUOUS if d.ambiguous else 1
 
 
 if __name__ == "__main__":

@@ -46,7 +46,7 @@ from .fit import RESOLUTION, Fit, Problem, StepSearch, change_scales, correlatio
 from .inputs import RunInputs, read_inputs
 from .simulator import BranchFailed, Simulator
 
-__all__ = ["AMBIGUOUS_EXIT", "Diagnosis", "DiagnoseOptions", "Separation", "change_text", "diagnose",
+__all__ = ["Diagnosis", "DiagnoseOptions", "Separation", "change_text", "diagnose",
            "diagnose_inputs", "fit_text"]
 
 #: The smallest noise level assumed for a column, in the column's unit.  Exact (noise-free)
@@ -91,8 +91,6 @@ class DiagnoseOptions:
     sharpen_span: float = 0.5      # s either side of the last change-time estimate scored when sharpening
 
 
-#: fourbar-diagnose's exit status for the verdict ``ambiguous`` (0 explained, 1 unexplained or no change).
-AMBIGUOUS_EXIT = 3
 #: Columns named as the ones that would tell two ambiguous explanations apart.
 SEPARATING_COLUMNS = 3
 #: A column whose healthy swing is below this share of its size (at least 1 unit) does not
@@ -166,11 +164,6 @@ class Diagnosis:
     @property
     def ambiguous(self) -> bool:
         return self.verdict == "ambiguous"
-
-    @property
-    def exit_code(self) -> int:
-        """fourbar-diagnose's exit status: 0 explained, :data:`AMBIGUOUS_EXIT` ambiguous, 1 otherwise."""
-        return 0 if self.explained else AMBIGUOUS_EXIT if self.ambiguous else 1
 
     @property
     def runner_up(self) -> Fit | None:

@@ -347,6 +347,9 @@ class _Solved:
     at_bound: bool
 
 
+#: Reduced chi-square above which a step fit is tried again from other starting values
+#: (StepSearch.fit): a fit at the noise level is near 1.
+_MISFIT = 1.5
 #: Secant steps that polish a least-squares answer (``_StepObjective._polish``).
 _POLISH = 6
 #: Times a fit that ends on a bound is tried again with that bound widened (``_widen``).
@@ -506,6 +509,12 @@ class StepSearch:
                 and all(p.start != also for p in candidates):
             candidates.append(self._points.get(also) or ScanPoint(also, candidates[0].change, math.inf, _PROBE))
         fit = min((self.solve(p.start, p.change, max_nfev) for p in candidates), key=lambda f: f.chi2)
+        if fit.chi2 > _MISFIT * max(fit.rows * self.problem.sigma.size - 2, 1):
+            # not at the noise level: the scan's estimate may have led least squares into a
+            # wrong basin of the value; try it from other starts at the same time
+            c, u = self.problem.sim.grid.index(fit.change_time), change_of(fit.before, self._objective.scale, fit.value)
+            starts = (0.5 * u, 2.0 * u, -u) if abs(u) >= _PROBE else (-_PROBE * 10, _PROBE * 10)
+            fit = min([fit, *(self.solve(c, u0, max_nfev) for u0 in starts)], key=lambda f: f.chi2)
         return replace(fit, stderr=math.hypot(fit.stderr, self._spread(fit)))
 
     def _spread(self, fit: Fit) -> float:
