@@ -254,8 +254,9 @@ def fit_text(fit: Fit, unit: str) -> str:
         return (f"{fit.parameter} ramped {_fmt(fit.before)} → {_fmt(fit.value)}{u} over t = {fit.change_time:.2f}.."
                 f"{fit.end_time:.2f} s (a ramp, {fit.rate:+.3g}{u}/s, "
                 f"{_uncertainty(fit.stderr, max(abs(fit.value), abs(fit.before)), f'{u}/s')}{still})")
+    edge = ", at the edge of the search: it may lie further out" if fit.at_bound else ""
     return (f"{fit.parameter} changed {_fmt(fit.before, fit.stderr)} → {_fmt(fit.value, fit.stderr)}{u}"
-            f" ({_uncertainty(fit.stderr, max(abs(fit.value), abs(fit.before)), u)}) at t = {fit.change_time:.2f} s")
+            f" ({_uncertainty(fit.stderr, max(abs(fit.value), abs(fit.before)), u)}{edge}) at t = {fit.change_time:.2f} s")
 
 
 def _message(verdict: str, best: Fit, runner: Fit | None, units: dict[str, str], healthy: float,

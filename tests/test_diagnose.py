@@ -345,3 +345,37 @@ def test_another_mechanisms_fmu_is_named_as_such(tmp_path, native_fmu, mechanism
     assert "another mechanism's FMU" in proc.stderr, proc.stderr
     for shown in ("SliderCrankNative", info["fmu"]["model_name"], info["fmu"]["guid"]):
         assert shown in proc.stderr, (shown, proc.stderr)
+
+
+def test_a_value_on_the_edge_of_the_search_says_so():
+    """A step fit that still ends on a bound after widening (``Fit.at_bound``) is said to be
+    at the edge of the search, not stated as a found value."""
+    from diagnose.diagnosis import fit_text
+    from diagnose.fit import Fit
+
+    fit = Fit(parameter="m2", kind="step", before=1.0, value=1000.0, stderr=1.0, change_time=10.0, end_time=10.0,
+              chi2=1e4, rows=800, rms=0.1, evaluations=50, at_bound=True)
+    assert "at the edge of the search" in fit_text(fit, "kg")
+    assert "edge" not in fit_text(Fit(**{**fit.__dict__, "at_bound": False}), "kg")
+
+
+def test_a_bound_the_fit_ends_on_is_widened():
+    """The bounds of a step's change widen ten times out (a relative lower bound towards -1,
+    keeping the value's sign) and an answer on one is seen as such."""
+    from diagnose.fit import _at_bound, _widen
+
+    assert _widen(9.0, True) == 90.0 and _widen(-0.9, True) == pytest.approx(-0.99)
+    assert _widen(-10.0, False) == -100.0
+    assert _at_bound(-0.9, -0.9, 9.0) == -1 and _at_bound(9.0, -0.9, 9.0) == 1 and _at_bound(0.1, -0.9, 9.0) is None
+
+
+def test_correlation_time_is_one_for_noise_and_large_for_a_smooth_misfit():
+    """The factor that widens a standard error and the ambiguity test's variance: rows per
+    independent residual.  White noise (2000 rows, two columns): 1 within 0.2 (its estimate's
+    spread is about 0.05 at this size); a slow sine over the rows: above 50."""
+    from diagnose.fit import correlation_time
+
+    rng = np.random.default_rng(1)
+    assert correlation_time(rng.standard_normal((2000, 2))) == pytest.approx(1.0, abs=0.2)
+    t = np.linspace(0.0, 1.0, 2000)
+    assert correlation_time(np.column_stack((np.sin(2 * np.pi * t), np.cos(2 * np.pi * t)))) > 50
