@@ -281,7 +281,7 @@ def _message(verdict: str, best: Fit, runner: Fit | None, units: dict[str, str],
         columns = ", ".join(f"{c.column} ({c.difference:.2g}{' ' + c.unit if c.unit else ''} RMS apart)"
                             for c in separating)
         return (f"ambiguous: {text}, or {fit_text(runner, units.get(runner.parameter, ''))} "
-                f"(residual {ratio:.4g}x the best's): the data cannot tell these two apart (chi-square "
+                f"(residual {ratio:.4f}x the best's): the data cannot tell these two apart (chi-square "
                 f"{gap:.2g} apart per independent residual, under {distinct_gain:g})"
                 + (f"; the columns that would separate them: {columns}" if columns else ""))
     if runner is not None:

@@ -66,6 +66,7 @@ def _run(where: Path, fmu: Path, parameter: str, value: float, sigma: float = 0.
 
 def _check_exact(d, parameter: str, value: float) -> None:
     best = d.best
+    print(f"{parameter}: error {best.value - value:.2g}, stated ± {best.stderr:.2g}: {d.message}")   # pytest -s
     assert d.verdict == "explained", d.message
     assert best.parameter == parameter and best.kind == "step", d.message
     assert best.change_time == pytest.approx(FAULT, abs=0.005), d.message      # the grid point itself
@@ -99,6 +100,7 @@ def test_every_drag_link_parameter_under_noise_is_named_or_ambiguous(tmp_path, d
     value = PARAMETERS[parameter] * 1.1
     run = _run(tmp_path, drag_link_fmu, parameter, value, sigma=0.005, columns=CENTRES)
     d = diagnose(run, summary=run / "summary.json")
+    print(f"{parameter} under noise: {d.message}")      # pytest -s shows the figures docs/diagnose.md quotes
     if d.verdict == "no_change":
         assert d.healthy_chi2 - d.ranking[0].chi2 < 25.0, d.message
         pytest.xfail(f"{parameter} +10 % does not show through 5 mm of noise in 3 s: {d.message}")
