@@ -1,6 +1,7 @@
 """``fourbar-diagnose``: after an alarm, name the parameter that changed, its new value and when.
 
-Exit codes: 0 explained by one parameter, 1 not explained (or no change found), 2 bad input
+Exit codes: 0 explained by one parameter, 1 not explained (or no change found), 3 ambiguous (two
+parameters explain it about equally well), 2 bad input
 (no alarm in the run, a missing or stale summary, an FMU that is not the run's, an --out
 that cannot be written, ...; nothing written), 4 the verdict was printed but its files could
 not be written, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).
@@ -14,10 +15,12 @@ from pathlib import Path
 
 from fourbar_common import package_version
 
-__all__ = ["OUTPUTS_NOT_WRITTEN", "build_parser", "main"]
+__all__ = ["AMBIGUOUS", "OUTPUTS_NOT_WRITTEN", "build_parser", "main"]
 
 #: Exit status when the diagnosis was computed (and printed) but its files could not be written.
 OUTPUTS_NOT_WRITTEN = 4
+#: Exit status of the verdict ``ambiguous``: two parameters explain the change about equally well.
+AMBIGUOUS = 3
 
 _EPILOG = """\
 what it does:
@@ -33,6 +36,8 @@ verdicts:
   unexplained    the best single parameter leaves residuals well above the noise: two
                  faults at once, or a change the model does not have (exit 1)
   no_change      the data after the alarm follow the healthy model: a false alarm (exit 1)
+  ambiguous      two parameters explain it about equally well (chi-square under 9 apart per
+                 independent residual): both named, and the outputs that would separate them (exit 3)
 
 outputs (in --out, default RUN_DIR/diagnosis): diagnosis.json, diagnosis.png
 
@@ -50,7 +55,7 @@ signal during the writing of the files lets them finish first.
 A FIFO, device or folder in place of exchange.csv, run.json or summary.json, and JSON that
 is empty, nested too deeply or too large, are refused with the file named (exit 2).
 
-exit status: 0 explained, 1 unexplained or no change, 2 bad input or unusable --out (nothing
+exit status: 0 explained, 1 unexplained or no change, 3 ambiguous, 2 bad input or unusable --out (nothing
 written), 4 verdict printed but its files not (all) written, 130 interrupted (Ctrl-C),
 143 terminated (SIGTERM)
 """
@@ -190,7 +195,7 @@ def _main(argv: list[str] | None) -> int:
         return exit_code(signum)
     if not args.quiet:
         print(f"  wrote {', '.join(str(p) for p in written)}")
-    return 0 if d.explained else 1
+    return 0 if d.explained else AMBIGUOUS if d.ambiguous else 1
 
 
 if __name__ == "__main__":

@@ -42,11 +42,12 @@ import numpy as np
 
 from .changepoint import noise_levels, onset
 from .errors import DiagnoseError
-from .fit import Fit, Problem, StepSearch, change_scales, fit_ramp
+from .fit import RESOLUTION, Fit, Problem, StepSearch, change_scales, correlation_time, fit_ramp
 from .inputs import RunInputs, read_inputs
 from .simulator import BranchFailed, Simulator
 
-__all__ = ["Diagnosis", "DiagnoseOptions", "change_text", "diagnose", "diagnose_inputs", "fit_text"]
+__all__ = ["Diagnosis", "DiagnoseOptions", "Separation", "change_text", "diagnose",
+           "diagnose_inputs", "fit_text"]
 
 #: The smallest noise level assumed for a column, in the column's unit.  Exact (noise-free)
 #: data still differ from a replay by the integrator's own error, below Table 1's absolute
@@ -54,10 +55,11 @@ __all__ = ["Diagnosis", "DiagnoseOptions", "change_text", "diagnose", "diagnose_
 NOISE_FLOOR = 1e-6
 
 
-#: Relative size (of the fitted value) below which a standard error is round-off, printed as
-#: "exact to round-off": about 4500 units in the last place of a double (2.2e-16).  Noise-free
-#: data replayed by the FMU that made them can be fitted exactly (residual 0, standard error 0).
-ROUND_OFF = 1e-12
+#: Relative size (of the fitted value) at or below which a standard error is round-off, printed
+#: as "exact to round-off": the fit's resolution (:data:`diagnose.fit.RESOLUTION`, about 45000
+#: units in the last place of a double), the floor of every step's standard error.  Noise-free
+#: data replayed by the FMU that made them are fitted that closely.
+ROUND_OFF = RESOLUTION
 
 #: Share of the change's effect (RMS of data minus healthy model after the alarm) below which
 #: the first change-time estimate ignores a residual (see diagnose_inputs).
@@ -87,6 +89,28 @@ class DiagnoseOptions:
     precision: float = 0.0025      # a step's value whose standard error is above this share of it is sharpened ...
     max_horizon: float = 12.0      # ... on up to this many s of data after the first alarm (horizon doubled each time)
     sharpen_span: float = 0.5      # s either side of the last change-time estimate scored when sharpening
+
+
+#: Columns named as the ones that would tell two ambiguous explanations apart.
+SEPARATING_COLUMNS = 3
+#: A column whose healthy swing is below this share of its size (at least 1 unit) does not
+#: move (a ground joint's position): its differences are round-off, never named as separating.
+_STILL = 1e-9
+#: Outputs never named as separating: not a measurement of the motion.
+_NOT_MEASURED = ("constraint_residual",)
+
+
+@dataclass(frozen=True)
+class Separation:
+    """An output column and how differently the two best explanations move it over the window:
+    the RMS of the difference of their simulations (``difference``, in ``unit``) and that as a
+    share of the column's own swing in the healthy replay (``share``, how far the two are apart
+    in the column's terms: the ranking key)."""
+
+    column: str
+    difference: float
+    unit: str
+    share: float
 
 
 @dataclass(frozen=True)
@@ -126,6 +150,8 @@ class Diagnosis:
     curves: Curves | None = None      # for the plot (not in JSON)
     value_window: tuple[float, float] | None = None   # rows that fitted best's value, when sharpened (module docstring, 5)
     first_fit: Fit | None = None      # best as fitted on ``window``, when sharpened
+    separating: tuple[Separation, ...] = ()   # ambiguous: the columns where the best two differ most
+    distinct_gap: float | None = None          # runner-up's chi-square excess over best's, per independent residual's variance
 
     @property
     def sharpened(self) -> bool:
@@ -134,6 +160,10 @@ class Diagnosis:
     @property
     def explained(self) -> bool:
         return self.verdict == "explained"
+
+    @property
+    def ambiguous(self) -> bool:
+        return self.verdict == "ambiguous"
 
     @property
     def runner_up(self) -> Fit | None:
@@ -158,6 +188,7 @@ class Diagnosis:
             "columns": list(self.columns), "units": self.units, "noise": self.noise,
             "value_window": None if self.value_window is None else list(self.value_window),
             "first_fit": fit(self.first_fit),
+            "separating": [asdict(c) for c in self.separating], "distinct_gap": self.distinct_gap,
             "healthy_chi2": self.healthy_chi2, "reduced_chi2": self.reduced_chi2, "simulator": self.simulator,
             "branches": self.branches, "seconds": self.seconds,
         })
@@ -223,13 +254,14 @@ def fit_text(fit: Fit, unit: str) -> str:
         return (f"{fit.parameter} ramped {_fmt(fit.before)} → {_fmt(fit.value)}{u} over t = {fit.change_time:.2f}.."
                 f"{fit.end_time:.2f} s (a ramp, {fit.rate:+.3g}{u}/s, "
                 f"{_uncertainty(fit.stderr, max(abs(fit.value), abs(fit.before)), f'{u}/s')}{still})")
+    edge = ", at the edge of the search: it may lie further out" if fit.at_bound else ""
     return (f"{fit.parameter} changed {_fmt(fit.before, fit.stderr)} → {_fmt(fit.value, fit.stderr)}{u}"
-            f" ({_uncertainty(fit.stderr, max(abs(fit.value), abs(fit.before)), u)}) at t = {fit.change_time:.2f} s")
+            f" ({_uncertainty(fit.stderr, max(abs(fit.value), abs(fit.before)), u)}{edge}) at t = {fit.change_time:.2f} s")
 
 
 def _message(verdict: str, best: Fit, runner: Fit | None, units: dict[str, str], healthy: float,
              reduced: float, floor_chi2: float, distinct_gain: float, ranked: Fit | None = None,
-             horizon: float | None = None) -> str:
+             horizon: float | None = None, gap: float = math.inf, separating: tuple[Separation, ...] = ()) -> str:
     """The verdict in one line.  ``ranked`` is ``best`` as fitted on the ranking's rows, which the
     runner-up is compared with, when ``best`` was sharpened on ``horizon`` s after the alarm."""
     unit = units.get(best.parameter, "")
@@ -244,13 +276,18 @@ def _message(verdict: str, best: Fit, runner: Fit | None, units: dict[str, str],
     if verdict == "unexplained":
         return (f"not explained by one parameter: the best single change, {text}, leaves residuals "
                 f"{math.sqrt(reduced):.1f}x the noise (RMS {best.rms:.2g})")
+    if verdict == "ambiguous" and runner is not None:
+        ratio = math.sqrt(max(runner.chi2, floor_chi2) / max(ranked.chi2, floor_chi2))
+        columns = ", ".join(f"{c.column} ({c.difference:.2g}{' ' + c.unit if c.unit else ''} RMS apart)"
+                            for c in separating)
+        return (f"ambiguous: {text}, or {fit_text(runner, units.get(runner.parameter, ''))} "
+                f"(residual {ratio:.4f}x the best's): the data cannot tell these two apart (chi-square "
+                f"{gap:.2g} apart per independent residual, under {distinct_gain:g})"
+                + (f"; the columns that would separate them: {columns}" if columns else ""))
     if runner is not None:
         ratio = math.sqrt(max(runner.chi2, floor_chi2) / max(ranked.chi2, floor_chi2))
         text += (f"; next best explanation: {runner.parameter} {change_text(runner, units.get(runner.parameter, ''))} "
                  f"(residual {ratio:.3g}x larger)")
-        gap = (runner.chi2 - ranked.chi2) / max(reduced, 1.0)
-        if gap < distinct_gain:
-            text += f"; the data cannot tell these two apart (chi-square {gap:.2g} apart, under {distinct_gain:g})"
     return text
 
 
@@ -281,6 +318,55 @@ def _step_fits(problem: Problem, hypotheses, c0: int, options: DiagnoseOptions) 
         if point is not None:
             fits.append(searches[name].solve(point.start, point.change, 8))
     return sorted(fits, key=lambda f: f.chi2)
+
+
+def _distinct_gap(problem: Problem, step: Fit, best: Fit, runner: Fit) -> float:
+    """How far the runner-up's chi-square is above the best's, in units of the variance of one
+    independent residual (module docstring, 6).
+
+    Each chi-square is a sum over ``n`` residuals; two one-parameter fits on the same rows are
+    told apart at 3 sigma when their difference is above 9 times one residual's variance: 1
+    for noise, the best's reduced chi-square when it is above 1 (a misfit the noise does not
+    explain), times its residual's :func:`~diagnose.fit.correlation_time` (a misfit is smooth:
+    its rows are not independent, so one row carries less than one residual's worth of
+    evidence).  ``step`` is the best step, whose residual gives that time.
+    """
+    try:
+        r = problem.scaled(problem.model_of(step))
+    except BranchFailed:
+        return math.inf
+    dof = max(problem.rows * problem.sigma.size - 2, 1)
+    reduced = best.chi2 / dof
+    variance = max(reduced * correlation_time(r.reshape(problem.rows, -1)), 1.0) if reduced > 1.0 else 1.0
+    return (runner.chi2 - best.chi2) / variance
+
+
+def _separating(inputs: RunInputs, w: "_Window", best: Fit, runner: Fit, scales: dict,
+                options: DiagnoseOptions) -> tuple[tuple[Separation, ...], int]:
+    """The output columns where the two explanations' simulations differ most over the window,
+    as a share of each column's swing in the healthy replay, with the branches it took.
+
+    Every real output of the FMU is simulated (not only the monitored columns: the point is
+    which sensor to add), but for :data:`_NOT_MEASURED`."""
+    fmu = inputs.simulator_fmu
+    outputs = [v.name for v in fmu.model.modelVariables
+               if v.causality == "output" and v.type == "Real" and v.name not in _NOT_MEASURED]
+    try:
+        with Simulator(fmu, inputs.parameters, outputs, inputs.grid, inputs.tolerance, w.first, w.last,
+                       method=options.method) as sim:
+            problem = Problem(sim=sim, data=np.zeros_like(sim.healthy), sigma=np.ones(len(outputs)),
+                              fit_from=w.fit_from, latest=w.last - 1, base=inputs.parameters, scales=scales)
+            a, b = problem.model_of(best), problem.model_of(runner)
+            healthy = sim.healthy[w.fit_from - w.first + 1:]
+            branches = sim.branches
+    except BranchFailed:
+        return (), 0
+    difference = np.sqrt(np.mean(np.square(a - b), axis=0))
+    swing = np.sqrt(np.mean(np.square(healthy - healthy.mean(axis=0)), axis=0))
+    found = [Separation(column=c, difference=float(d), unit=fmu.variables[c].unit or "", share=float(d / s))
+             for c, d, s, m in zip(outputs, difference, swing, np.abs(healthy).max(axis=0))
+             if s > _STILL * max(1.0, m) and math.isfinite(d)]
+    return tuple(sorted(found, key=lambda c: -c.share)[:SEPARATING_COLUMNS]), branches
 
 
 @dataclass(frozen=True)
@@ -452,11 +538,22 @@ def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOption
             verdict = "unexplained"
         else:
             verdict = "explained"
+        runner = _runner_up(fits, best)
+        gap = None
+        if verdict == "explained" and runner is not None:
+            gap = _distinct_gap(problem, fits[0], best, runner)
+            if gap < options.distinct_gain:
+                verdict = "ambiguous"
         curves = _curves(grid, w, sim, problem, best)
         branches, method = sim.branches, sim.method
     ranking = tuple(fits)
-    message = _message(verdict, best, _runner_up(ranking, best), units, healthy_chi2, reduced, floor_chi2=residuals,
-                       distinct_gain=options.distinct_gain)
+    separating: tuple[Separation, ...] = ()
+    if verdict == "ambiguous":
+        separating, more = _separating(inputs, w, best, runner, problem.scales, options)
+        branches += more
+    message = _message(verdict, best, runner, units, healthy_chi2, reduced, floor_chi2=residuals,
+                       distinct_gain=options.distinct_gain, gap=gap if gap is not None else math.inf,
+                       separating=separating)
     first_fit = value_window = sharp = None
     if verdict == "explained" and best.kind == "ramp":
         step = next(f for f in ranking if f.parameter == best.parameter)
@@ -476,7 +573,8 @@ def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOption
                      noise=dict(zip(inputs.columns, map(float, sigma))), healthy_chi2=healthy_chi2,
                      reduced_chi2=reduced, simulator=f"{Path(fmu.path).name} ({method})", branches=branches,
                      seconds=time.perf_counter() - wall0, case=inputs.case, run_id=inputs.run_id,
-                     units={**units, **inputs.units}, curves=curves, value_window=value_window, first_fit=first_fit)
+                     units={**units, **inputs.units}, curves=curves, value_window=value_window, first_fit=first_fit,
+                     separating=separating, distinct_gap=gap)
 
 
 def diagnose(run_dir: str | Path, *, summary: str | Path | None = None, fmu: str | Path | None = None,

@@ -106,6 +106,31 @@ def _describe(path: Path, what: str):
         raise DiagnoseError(f"{path}: {what} is not a readable FMU ({' '.join(str(exc).split())})") from None
 
 
+def _mechanism_of(model_name: str) -> str:
+    """The mechanism an FMU's model name belongs to: ``FourBarNative3`` and ``FourBarNative`` are
+    builds of ``FourBar`` (build_fmu.py names the native FMUs ``<Name>Native`` and ``<Name>Native3``)."""
+    for suffix in ("Native3", "Native"):
+        if model_name.endswith(suffix) and len(model_name) > len(suffix):
+            return model_name[:-len(suffix)]
+    return model_name
+
+
+def _guid_mismatch(fmu: Path, description, recorded, run_json: Path) -> str:
+    """Why an FMU whose GUID is not run.json's cannot explain the run: another mechanism's FMU,
+    another build (pythonfmu or native) of the run's mechanism, or the run's FMU rebuilt since."""
+    name, was = description.model.modelName, recorded.model_name
+    given = f"{fmu}: model {name} (GUID {description.guid})"
+    ran = f"{run_json} records that the run used {was} (GUID {recorded.guid}, {recorded.path})"
+    if _mechanism_of(name) != _mechanism_of(was):
+        return (f"{given} is another mechanism's FMU ({_mechanism_of(name)}), but {ran}, a {_mechanism_of(was)}: "
+                f"pass --fmu with the run's own FMU")
+    if name != was:
+        return (f"{given} is another build of {_mechanism_of(was)} than the run's: {ran}; pass --fmu with that "
+                f"FMU (the native FMU beside it then replays the run)")
+    return (f"{given}: GUID does not match run.json's {recorded.guid}: the FMU was rebuilt after the run, so it may "
+            f"not be the model that made the data; run the case again (or pass --fmu with the FMU the run used)")
+
+
 def _tunable(description) -> set[str]:
     return {v.name for v in description.model.modelVariables
             if v.type == "Real" and v.causality == "parameter" and v.variability == "tunable"}
@@ -187,9 +212,7 @@ def read_inputs(run_dir: str | Path, *, summary: str | Path | None = None, fmu: 
                             f"case again, or pass --fmu PATH if it moved")
     run_description = _describe(run_fmu, "the run's FMU")
     if run_description.guid != guid:
-        raise DiagnoseError(f"{run_fmu}: GUID {run_description.guid} does not match run.json's {guid}: the FMU was "
-                            f"rebuilt after the run, so it may not be the model that made the data; run the case "
-                            f"again (or pass --fmu with the FMU the run used)")
+        raise DiagnoseError(_guid_mismatch(run_fmu, run_description, record.fmu, run_json))
 
     if record.experiment is None:
         raise DiagnoseError(f"{run_json}: no experiment (start, stop, step); expected run.json written by fourbar-run")

@@ -178,7 +178,7 @@ def diagnosis_figure(d: Diagnosis) -> Any:
     legend.set_gid("legend")
     axes[-1].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     title = {"explained": "Diagnosis", "unexplained": "Not explained by one parameter",
-             "no_change": "No change found"}[d.verdict]
+             "no_change": "No change found", "ambiguous": "Ambiguous: two explanations fit"}[d.verdict]
     fig.suptitle(f"{title} — {d.case}\n{_wrap(d.message)}", fontsize=9)
     fig.tight_layout(rect=(0, 0, 1, 0.97))
     return fig
