@@ -88,7 +88,7 @@ class MonitorEvent:
 class Diagnosis:
     """What diagnosis.json says, as a view shows it."""
 
-    verdict: str                   # explained | unexplained | no_change
+    verdict: str                   # explained | ambiguous | unexplained | no_change
     message: str
     parameter: str | None = None
     before: float | None = None
