@@ -108,6 +108,12 @@ def _braced(items) -> str:
     return "{" + ", ".join(items) + "}"
 
 
+def _centres(coordinates) -> list[tuple[int, int]]:
+    """The bodies' centres as (index of x<label>, index of y<label>) pairs (dae.py's length_scale)."""
+    names = list(coordinates)
+    return [(i, names.index("y" + n[1:])) for i, n in enumerate(names) if n.startswith("x") and "y" + n[1:] in names]
+
+
 def _padded(items: list[str], filler: str) -> list[str]:
     """C99 has no empty arrays: an empty table gets one unused element."""
     return items if items else [filler]
@@ -606,19 +612,7 @@ def _dependent_lu_code(sym: "_Symbols", eqs: MechanismEquations, lu: _StaticLU) 
                   "void eq_dep_forward_t(const double *w, const double *c, double *y, double *g);",
                   "void eq_dep_backward_t(const double *w, double *y);"]
     ints = lambda values: _braced(str(int(v)) for v in values)   # noqa: E731
-    m, n = eqs.m, eqs.n
-    dependent = [i for i in range(n) if i not in eqs.independent]
-    nonzero = [(i, j) for i in range(m) for j in range(m) if eqs.jacobian[i, dependent[j]] != 0]
-    masks = [sum(1 << j for (r, j) in nonzero if r == i) for i in range(m)] if m <= 64 else []
     header = [
-        "/* The declared block's structure: per row, the columns that may be nonzero (a bit each, for the",
-        "   partition's review: linalg.h, lu_pivot_ratio_sparse; 0 entries when the block exceeds 64), and",
-        "   where its nonzero entries sit in the block (row-major) and in Phi_q. */",
-        f"#define MECH_DEP_PATTERN {_braced(_padded([f'0x{v:x}ULL' for v in masks], '0ULL'))}",
-        f"#define MECH_DEP_HAS_PATTERN {int(bool(masks))}",
-        f"#define MECH_DEP_NONZEROS {len(nonzero)}",
-        f"#define MECH_DEP_NONZERO_AT {ints(_padded([str(i * m + j) for i, j in nonzero], '-1'))}",
-        f"#define MECH_DEP_NONZERO_J {ints(_padded([str(i * n + dependent[j]) for i, j in nonzero], '-1'))}",
         "/* The declared partition's dependent block (columns: the coordinates not in MECH_INDEPENDENT, in",
         f"   increasing order), factorised on its {len(lu.pivots)} constant pivots at build time (eq_dep_*): the",
         "   workspace's size, the Schur complement's size, place, rows and columns in the block, and the sign",
@@ -825,6 +819,9 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
         "/* The angle coordinates (indices in q), in the order of their (cos, sin) pairs in eq_trig's tr. */",
         f"#define MECH_ANGLES {ints(_padded([str(i) for i in sym.angles], '-1'))}",
         f"#define MECH_N_ANGLES {len(sym.angles)}",
+        "/* The bodies' centres, (index of x, index of y) pairs in q: the mechanism's size (dae.c, length_scale). */",
+        f"#define MECH_CENTRES {ints(_padded([str(v) for pair in _centres(eqs.coordinates) for v in pair], '-1'))}",
+        f"#define MECH_N_CENTRES {len(_centres(eqs.coordinates))}",
         "/* Per row of S = Phi_q M^-1 Phi_q^T, the first column that is not identically zero (eq_range_matrix's",
         "   envelope: its Cholesky factor has the same). */",
         f"#define MECH_RANGE_ENVELOPE {ints(envelope)}",

@@ -20,10 +20,11 @@ Newton-Raphson, started from the last accepted state moved along its velocity (s
 branch is kept by continuity), and their rates from ``Phi_q qd = nu``.  Every reported state
 satisfies both to round-off.  Newton-Raphson starts from the second-order Taylor predictor of the
 last accepted Runge-Kutta state: it converges in one to three iterations, and on the branch the
-motion is on (a stage of a rejected step never becomes a base).  When the dependent block of ``Phi_q``
-becomes ill-conditioned (reviewed after every accepted Runge-Kutta step, at its end) the
-independent coordinates are chosen again, from a column-pivoted QR factorization of ``Phi_q``, and
-the integrator restarts.  A driven mechanism with no degree of freedom integrates only
+motion is on (a stage of a rejected step never becomes a base).  When the independent coordinates
+near a dead point (their velocity ratio, reviewed after every accepted Runge-Kutta step at its end,
+passes REPARTITION_AWAY) others are chosen, from a column-pivoted QR factorization of ``Phi_q``, and
+the integrator restarts; it returns to the declared ones below REPARTITION_RETURN.  A parameter
+change keeps the declared coordinates and rates whatever the integrator uses (change_parameters).  A driven mechanism with no degree of freedom integrates only
 its drivers' work: its positions come from the constraints alone.
 """
 from __future__ import annotations
@@ -52,14 +53,28 @@ _TICKS = 1e9    # 1 / TIME_RESOLUTION, exactly: t * _TICKS is the arithmetic the
 #: quadratic, so the error left is of the order of its square, far below round-off.
 NEWTON_STEP = 1e-8
 NEWTON_ITERATIONS = 25
-#: The partition is reviewed when the dependent block's smallest pivot falls below this fraction
-#: of its largest (|U_ii| of its LU factorization; >= 0.25 throughout the shipped mechanisms'
-#: motions with their declared independent coordinates).  A block on its way to singular can
-#: drop from 0.02 to 0.003 within one 0.01 s step (seen on the five-bar), so the review starts early.
-REPARTITION_REVIEW = 0.1
-#: ... and the independent coordinates change when the column-pivoted QR's choice has a dependent
-#: block at least this many times better conditioned (hysteresis: no flip-flop between two
-#: choices of similar quality; 4 let a five-bar reach a second dead point before switching).
+#: The partition review measures how near the independent coordinates are to a dead point by
+#: their *velocity ratio*: the largest rate of a dependent coordinate per unit rate of the
+#: independent ones, ||diag(1/s_dep) Phi_d^-1 Phi_i diag(s_ind)||_inf, with s = 1 for an angle and
+#: s = the mechanism's size (length_scale: the largest distance between two bodies' centres at
+#: assembly) for a position, so that a position's rate counts as the angular rate that moves a
+#: point at that distance as fast.  A kinematic quantity, independent of how the constraint rows
+#: are scaled (unlike the LU pivot ratio reviewed before, which a mere change of size moved below
+#: its threshold on a quick-return with no dead point at all): infinite exactly at a dead point
+#: (the independent coordinates no longer fix the others); for a crank driving a rocker through a
+#: coupler, about (crank / rocker) / sin(transmission angle).  Away from dead points it stays
+#: near 1 (the shipped mechanisms' and tests/mechanisms' motions: at most about 1.1;
+#: ``python benchmarks/fault_phase.py`` prints it).
+#: The integrator leaves the declared ([start]) coordinates when their ratio exceeds
+#: REPARTITION_AWAY: a dependent coordinate moving 20 times faster than the crank, a transmission
+#: angle of about 3 degrees for a crank-rocker whose crank and rocker are equally long ...
+REPARTITION_AWAY = 20.0
+#: ... and takes them back once it is below REPARTITION_RETURN (about 7 degrees there): hysteresis,
+#: so a motion that lingers near the threshold does not flip back and forth.  Other coordinates
+#: in use are left for the column-pivoted QR's choice when their own ratio exceeds REPARTITION_AWAY.
+REPARTITION_RETURN = 8.0
+#: A new choice is taken only when its velocity ratio is at least this many times smaller than
+#: that of the coordinates in use (no change between two choices of similar quality).
 REPARTITION_GAIN = 2.0
 #: Sub-steps tried, in turn, to follow the branch from the last accepted state to a trial stage
 #: the Taylor predictor does not reach (Newton-Raphson diverging from it).
@@ -87,16 +102,35 @@ class IntegrationError(RuntimeError):
     """The Runge-Kutta integration failed (step size collapse, singular system...)."""
 
 
-def _pivot_ratio(lu: np.ndarray) -> float:
-    """min |U_ii| / max |U_ii| of an LU factorization (1 for an empty one)."""
-    d = np.abs(np.diag(lu))
-    return float(d.min() / d.max()) if d.size and d.max() > 0.0 else (1.0 if not d.size else 0.0)
-
-
 def _det_sign(lu: np.ndarray, piv: np.ndarray) -> int:
     """The sign of the determinant of an LU-factorized matrix (LAPACK's lu and 0-based piv)."""
     flips = int(np.count_nonzero(lu.diagonal() < 0.0)) + int(np.count_nonzero(piv != _RANGE[:piv.size]))
     return -1 if flips % 2 else 1
+
+
+def _velocity_ratio(Jp: np.ndarray, m: int, scale: np.ndarray) -> float:
+    """||diag(1/s_d) Phi_d^-1 Phi_i diag(s_i)||_inf for Phi_q with its dependent columns first
+    (Jp, m x n) and each column's scale s (1 for an angle, the length scale for a position):
+    the largest dependent rate per unit independent rate; inf where Phi_d is singular."""
+    if Jp.shape[1] == m:
+        return 0.0
+    lu, piv, info = lapack.dgetrf(Jp[:, :m])
+    if info != 0:
+        return math.inf
+    x, info = lapack.dgetrs(lu, piv, Jp[:, m:])
+    ratio = float(np.max(np.sum(np.abs(x) * scale[m:], axis=1) / scale[:m]))
+    return ratio if math.isfinite(ratio) else math.inf
+
+
+def length_scale(coordinates, q) -> float:
+    """The mechanism's size at q: the largest distance between two bodies' centres (x<label>,
+    y<label>), 1 m for a mechanism with fewer than two moving centres (or all at one point)."""
+    names = list(coordinates)
+    centres = [(q[i], q[names.index("y" + name[1:])]) for i, name in enumerate(names)
+               if name.startswith("x") and "y" + name[1:] in names]
+    span = max((math.hypot(a[0] - b[0], a[1] - b[1]) for k, a in enumerate(centres) for b in centres[k + 1:]),
+               default=0.0)
+    return span if span > 0.0 else 1.0
 
 
 _RANGE = np.arange(256)
@@ -150,9 +184,21 @@ class MechanismDAE:
         self._Jp = np.zeros((self.m, self.n), order="F")
         self._Jp_flat = self._Jp.reshape(-1, order="F")        # a view: entry (i, k) at i + m k
         self._minv = None
+        self._angle = np.array([c.startswith("theta") for c in eq.COORDINATES], dtype=bool)
+        self._set_length_scale(1.0)
         self._set_partition(tuple(eq.INDEPENDENT))
 
+    def __setstate__(self, state) -> None:
+        """A copy (copy.deepcopy with the equations module in its memo) writes its own _Jp."""
+        self.__dict__.update(state)
+        self._Jp_flat = self._Jp.reshape(-1, order="F")
+
     # -- set-up -----------------------------------------------------------------------
+    def _set_length_scale(self, length: float) -> None:
+        """The velocity ratio's length (m): positions count in units of it (REPARTITION_AWAY)."""
+        self.length_scale = float(length)
+        self._scale = np.where(self._angle, 1.0, self.length_scale)
+
     def _set_partition(self, independent: tuple[int, ...]) -> None:
         self.independent = tuple(independent)
         self.dependent = tuple(i for i in range(self.n) if i not in self.independent)
@@ -215,6 +261,7 @@ class MechanismDAE:
             q = self.positions(guess, t)      # the guesses themselves (raises with the reason)
         qd = self.velocities([rates[i] for i in self.independent], t)
         self.t, self.q, self.qd = float(t), q, qd
+        self._set_length_scale(length_scale(self.eq.COORDINATES, q))
 
     def _follow(self, q0, p0, p1, end, t: float, sign: int, anchor_drivers: bool = True) -> list | None:
         """q at parameters p1 and independent coordinates ``end`` by following the branch from
@@ -518,19 +565,37 @@ class MechanismDAE:
         return True
 
     def _better_partition(self, q) -> tuple[int, ...] | None:
-        """The QR's independent coordinates at q when the dependent block (_Jp, at q) has
-        degraded below REPARTITION_REVIEW and they are REPARTITION_GAIN times better
-        conditioned; None to keep the current ones."""
-        lu, piv, info = lapack.dgetrf(self._Jp[:, :self.m])
-        if info == 0 and _pivot_ratio(lu) >= REPARTITION_REVIEW:
-            return None
-        J = self.eq.jacobian(q, self.p)
+        """Other independent coordinates at q (_Jp holds Phi_q at q), or None to keep the current
+        ones.  The declared ([start]) coordinates are kept while their velocity ratio is at most
+        REPARTITION_AWAY; other coordinates in use give way to the declared ones as soon as those
+        are below REPARTITION_RETURN again (hysteresis), and to the column-pivoted QR's choice when
+        their own ratio exceeds REPARTITION_AWAY and that choice's is REPARTITION_GAIN times smaller."""
+        declared = tuple(self.eq.INDEPENDENT)
+        J = None
+        if set(self.independent) == set(declared):
+            ratio = _velocity_ratio(self._Jp, self.m, self._scale[list(self._order)])
+            if ratio <= REPARTITION_AWAY:
+                return None
+        else:
+            J = self.eq.jacobian(q, self.p)
+            if self.velocity_ratio(J, declared) < REPARTITION_RETURN:
+                return declared
+            ratio = _velocity_ratio(self._Jp, self.m, self._scale[list(self._order)])
+            if ratio <= REPARTITION_AWAY:
+                return None
+        if J is None:
+            J = self.eq.jacobian(q, self.p)
         independent = choose_partition(J, len(self.independent))
         if independent == self.independent:
             return None
-        now = np.linalg.cond(J[:, list(self.dependent)])
-        new = np.linalg.cond(J[:, [i for i in range(self.n) if i not in independent]])
-        return independent if new * REPARTITION_GAIN < now else None
+        return independent if self.velocity_ratio(J, independent) * REPARTITION_GAIN < ratio else None
+
+    def velocity_ratio(self, J: np.ndarray, independent) -> float:
+        """The velocity ratio (REPARTITION_AWAY) of these independent coordinates where Phi_q is J:
+        the largest rate of a dependent coordinate per unit rate of the independent ones, positions
+        counted in units of length_scale; inf at their dead points."""
+        order = [i for i in range(self.n) if i not in independent] + list(independent)
+        return _velocity_ratio(np.asfortranarray(J[:, order]), self.m, self._scale[order])
 
     def _repartition(self) -> bool:
         """Restart at the last reported state with the QR's independent coordinates, when they
@@ -571,41 +636,67 @@ class MechanismDAE:
         return dense(t_end).tolist() if y is None else y
 
     def change_parameters(self, p) -> None:
-        """Apply new parameters at the current time: re-assembly keeping the independent
-        coordinates and their rates; a driver's speed change continues from where it is.
+        """Apply new parameters at the current time: re-assembly keeping the declared ([start])
+        coordinates and their rates, whatever coordinates the integrator uses at that time; a
+        driver's speed change continues from where it is.  The integrator then goes on with the
+        coordinates it used (its review returns to the declared ones where they are clear of dead
+        points).  Only where the declared coordinates cannot carry the re-assembly (their
+        dependent block is singular, or the loop does not close with them held: at or right next
+        to one of their dead points) does it keep the coordinates the integrator uses instead.
 
         Raises AssemblyError (state unchanged) when the new parameters cannot be assembled.
         """
         old = (self.p, self.d, self.q, self.qd, self.t)
+        used = self.independent
+        declared = tuple(self.eq.INDEPENDENT)
         new_p = tuple(float(v) for v in p)
         d = []
         for k, (_, _, speed, _) in enumerate(self.eq.DRIVERS):
             s_ref, t_ref, v = self.d[3 * k:3 * k + 3]
             d += [s_ref + v * (self.t - t_ref), self.t, new_p[speed]]
-        self.p, self.d, self._minv = new_p, d, None
         try:
-            lu, piv, info = lapack.dgetrf(self.eq.jacobian(self.q, old[0])[:, list(self.dependent)])
-            sign = _det_sign(lu, piv) if self.dependent else 1
             try:
-                q = self.positions(self.q, self.t)
-                if self.dependent and self._sign != sign:
-                    raise AssemblyError("the other assembly branch")
+                if used != declared:
+                    self._set_partition(declared)
+                q, qd = self._reassembled(old[0], new_p, d)
             except AssemblyError:
-                # A large change: follow the branch from the old parameters to the new ones.
-                self.d = d
-                q = self._follow(self.q, old[0], new_p, [self.q[i] for i in self.independent], self.t, sign,
-                                 anchor_drivers=False)
-                if q is None:
-                    self.positions(self.q, self.t)      # raises with Newton-Raphson's reason
-                    raise AssemblyError("the loop cannot be closed on the way to the new parameters")
-                q = self.positions(q, self.t)
-            qd = self.velocities([self.qd[i] for i in self.independent], self.t)
+                if used == declared:
+                    raise
+                self.p, self.d = old[0], old[1]
+                self._set_partition(used)
+                q, qd = self._reassembled(old[0], new_p, d)
         except AssemblyError:
             self.p, self.d, self.q, self.qd, self.t = old
             self._minv = None
+            if self.independent != used:
+                self._set_partition(used)
             raise
+        if self.independent != used:
+            self._set_partition(used)
         self.q, self.qd = q, qd
         self.start(first_step=getattr(self._solver, "h_abs", None) or None)
+
+    def _reassembled(self, old_p, new_p, d) -> tuple[list, list]:
+        """(q, qd) at the new parameters and drivers d keeping the current partition's independent
+        coordinates and rates from self.q, self.qd, on the branch they are on (leaves self.p, self.d
+        at the new ones)."""
+        self.p, self.d, self._minv = new_p, d, None
+        lu, piv, info = lapack.dgetrf(self.eq.jacobian(self.q, old_p)[:, list(self.dependent)])
+        sign = _det_sign(lu, piv) if self.dependent else 1
+        try:
+            q = self.positions(self.q, self.t)
+            if self.dependent and self._sign != sign:
+                raise AssemblyError("the other assembly branch")
+        except AssemblyError:
+            # A large change: follow the branch from the old parameters to the new ones.
+            self.d = d
+            q = self._follow(self.q, old_p, new_p, [self.q[i] for i in self.independent], self.t, sign,
+                             anchor_drivers=False)
+            if q is None:
+                self.positions(self.q, self.t)      # raises with Newton-Raphson's reason
+                raise AssemblyError("the loop cannot be closed on the way to the new parameters")
+            q = self.positions(q, self.t)
+        return q, self.velocities([self.qd[i] for i in self.independent], self.t)
 
     # -- derived outputs --------------------------------------------------------------
     def energy(self) -> float:

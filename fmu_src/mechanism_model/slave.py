@@ -6,7 +6,8 @@ A built FMU's script defines a subclass named after the mechanism (``FourBar``,
 Fault injection: the tunable parameters (lengths, masses, g, a driver's speed) may change
 between steps.  ``fmi2SetReal`` only assigns the attribute (pythonfmu); ``do_step`` compares
 the parameters with the ones in use and, when they differ, re-assembles the mechanism keeping
-its independent coordinates and their rates before integrating.  Outputs are updated only at
+the declared ([start]) coordinates and their rates (whatever the integrator uses then:
+MechanismDAE.change_parameters) before integrating.  Outputs are updated only at
 the end of ``do_step``, so the outputs read at a communication point always show the state
 before a change made at that point.
 """

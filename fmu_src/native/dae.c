@@ -18,11 +18,12 @@
  * assembly branch is kept by continuity: a stage of a rejected step may sit on the other
  * branch near a dead point), and their rates from Phi_q qd = nu.  Every reported state
  * satisfies both to round-off.  After every accepted Runge-Kutta step the partition is reviewed
- * at the step's end: when the dependent block's LU pivots spread by more than
- * 1 / DAE_REPARTITION_REVIEW, the independent coordinates change to those a column-pivoted QR
- * factorisation of Phi_q picks if their dependent block is DAE_REPARTITION_GAIN times better
- * conditioned, and the integrator restarts there (at the communication point, from the reported
- * state, when the step passed it).  A trial
+ * at the step's end: when the independent coordinates' velocity ratio (velocity_ratio) exceeds
+ * DAE_REPARTITION_AWAY, they change to those a column-pivoted QR factorisation of Phi_q picks if
+ * their ratio is DAE_REPARTITION_GAIN times smaller, and the integrator restarts there (at the
+ * communication point, from the reported state, when the step passed it); the declared ones come
+ * back once their ratio is below DAE_REPARTITION_RETURN.  A parameter change keeps the declared
+ * coordinates whatever the partition (dae_change_parameters).  A trial
  * stage that Newton-Raphson from the prediction does not reach, or reaches on the other
  * assembly branch (the sign of the dependent block's determinant, which changes only through a
  * dead point), is reached by continuation from the base (DAE_CONTINUATION_STEPS sub-steps);
@@ -71,8 +72,6 @@
  *   (a dense LU, the partition's review); the outputs are computed when a host reads them,
  *   a group at a time (fmi2Functions.c), the state's from the cos and sin the reported state was
  *   solved with (ModelState.tr) rather than libm's again;
- * - the partition's review (once per accepted step) finds the LU pivots through bit masks
- *   of where the block may be nonzero (linalg.h: lu_pivot_ratio_sparse);
  * - the small dense kernels are unrolled and inlined (linalg.h).
  * Results agree with dae.py's to round-off: tests/test_fmu_native.py.
  */
@@ -124,15 +123,15 @@ static const int DEP_COLS[RA] = MECH_DEP_COLS;
 static const int ZEROS[KA] = {0};       /* a dense matrix's envelope (cholesky_factor) */
 static const int ANGLES[MECH_ALLOC(MECH_N_ANGLES)] = MECH_ANGLES;
 static const int S_ENVELOPE[MA] = MECH_RANGE_ENVELOPE;
-static const unsigned long long DEP_PATTERN[MA] = MECH_DEP_PATTERN;     /* the declared block's structure */
-static const int DEP_NONZERO_AT[MECH_ALLOC(MECH_DEP_NONZEROS)] = MECH_DEP_NONZERO_AT;
-static const int DEP_NONZERO_J[MECH_ALLOC(MECH_DEP_NONZEROS)] = MECH_DEP_NONZERO_J;
 static const int DRIVERS[MECH_ALLOC(MECH_N_DRIVERS)][3] = MECH_DRIVERS;
 static const char *const ROW_NAMES[MA] = MECH_ROW_NAMES;
 static const int OUTPUT_KINDS[MECH_N_OUTPUTS] = MECH_OUTPUT_KINDS;
 static const int OUTPUT_INDICES[MECH_N_OUTPUTS] = MECH_OUTPUT_INDICES;
 static const int STATE_GROUP[MECH_ALLOC(MECH_N_STATE_GROUP)] = MECH_STATE_GROUP;
 static const char *const INTEGRATOR_NAMES[FB_N_INTEGRATORS] = FB_INTEGRATOR_NAMES;
+
+static void declared_partition(int *independent, int *dependent);
+static double length_scale(const double *q);
 
 /* The whole dependent block's LU kernels (a partition other than the declared one, the review). */
 static NOINLINE int dense_factor(double *a, int *piv, double *inv_diag)
@@ -1284,6 +1283,7 @@ int dae_assemble(ModelState *s, double t, const double *guess, const double *rat
     r = velocities(1, s->dependent, s->independent, &c, s->rhs_message);
     if (r) return r;
     mass_inverse(s->p, c.q, c.tr, s->mass, s->minv);
+    s->length_scale = length_scale(c.q);
     s->t = t;
     memcpy(s->q, c.q, sizeof s->q);
     memcpy(s->tr, c.tr, sizeof s->tr);
@@ -1303,7 +1303,9 @@ int dae_start(ModelState *s, double first_step)
     return DAE_OK;
 }
 
-int dae_change_parameters(ModelState *s, const double *p)
+/* The new parameters' state keeping the current partition's independent coordinates and rates
+   (dae.py's _reassembled); on failure nothing changed. */
+static int reassembled(ModelState *s, const double *p)
 {
     Configuration c;
     double d[MECH_ALLOC(3 * MECH_N_DRIVERS)], end[KA];
@@ -1355,6 +1357,29 @@ int dae_change_parameters(ModelState *s, const double *p)
     return DAE_OK;
 }
 
+int dae_change_parameters(ModelState *s, const double *p)
+{
+    int used_independent[KA], used_dependent[MA];
+    const int used_declared = s->declared;
+    memcpy(used_independent, s->independent, sizeof used_independent);
+    memcpy(used_dependent, s->dependent, sizeof used_dependent);
+    if (!used_declared) {
+        /* the declared coordinates carry the re-assembly, whatever the integrator uses */
+        declared_partition(s->independent, s->dependent);
+        s->declared = 1;
+    }
+    int r = reassembled(s, p);
+    if (!used_declared) {
+        /* the integrator goes on with its coordinates (its review takes the declared ones back) */
+        memcpy(s->independent, used_independent, sizeof used_independent);
+        memcpy(s->dependent, used_dependent, sizeof used_dependent);
+        s->declared = 0;
+        /* at a dead point of the declared coordinates: the ones in use */
+        if (r == DAE_ASSEMBLY) r = reassembled(s, p);
+    }
+    return r;
+}
+
 /* -- time stepping ------------------------------------------------------------------------- */
 
 /* A failed right-hand side as dae.py reports it from advance: an assembly failure with the
@@ -1400,31 +1425,85 @@ static void set_partition(ModelState *s, const int *independent, const int *depe
     s->repartitions++;
 }
 
-/* dae.py's review of the partition at a state whose Phi_q is J (whole): 1, with the QR's choice in
-   independent and dependent, when the dependent block's LU pivots (partial pivoting, at that
-   state) spread by more than 1 / DAE_REPARTITION_REVIEW and that choice's block is
-   DAE_REPARTITION_GAIN times better conditioned (2-norm); else 0. */
+/* The file's partition: INDEPENDENT (the file's order, as dae_assemble) and the other coordinates. */
+static void declared_partition(int *independent, int *dependent)
+{
+    int is_independent[N];
+    memset(is_independent, 0, sizeof is_independent);
+    for (int j = 0; j < K; j++) {
+        independent[j] = INDEPENDENT[j];
+        is_independent[INDEPENDENT[j]] = 1;
+    }
+    for (int i = 0, j = 0; i < N; i++)
+        if (!is_independent[i]) dependent[j++] = i;
+}
+
+/* Coordinate i's unit in the velocity ratio: 1 for an angle, the mechanism's size for a position. */
+static double ratio_scale(const ModelState *s, int i)
+{
+    for (int a = 0; a < N_ANGLES; a++)
+        if (ANGLES[a] == i) return 1.0;
+    return s->length_scale;
+}
+
+/* The velocity ratio of a partition where Phi_q is J (whole; dae.py's velocity_ratio): the largest
+   rate of a dependent coordinate per unit rate of the independent ones,
+   ||diag(1/s_dep) block^-1 Phi_q[:, independent] diag(s_ind)||_inf; INFINITY where the block is
+   singular (a dead point of the independent coordinates). */
+static double velocity_ratio(const ModelState *s, const double *J, const int *independent, const int *dependent)
+{
+    double block[MA * MA], inv_diag[MA], b[MA], x[MA], sum[MA];
+    int piv[MA];
+    if (K == 0) return 0.0;
+    dependent_block(J, dependent, block);
+    if (dense_factor(block, piv, inv_diag)) return INFINITY;
+    memset(sum, 0, sizeof sum);
+    for (int j = 0; j < K; j++) {
+        const double scale = ratio_scale(s, independent[j]);
+        for (int i = 0; i < M; i++) b[i] = J[i * N + independent[j]];
+        dense_solve(block, piv, inv_diag, b, x);
+        for (int i = 0; i < M; i++) sum[i] += fabs(x[i]) * scale;
+    }
+    double ratio = 0.0;
+    for (int i = 0; i < M; i++) {
+        const double r = sum[i] / ratio_scale(s, dependent[i]);
+        if (!(r <= ratio)) ratio = r;
+    }
+    return isfinite(ratio) ? ratio : INFINITY;
+}
+
+/* The mechanism's size at q (dae.py's length_scale): the largest distance between two bodies'
+   centres, 1 m with fewer than two (or all at one point). */
+static double length_scale(const double *q)
+{
+    static const int CENTRES[MECH_ALLOC(2 * MECH_N_CENTRES)] = MECH_CENTRES;
+    double span = 0.0;
+    for (int a = 0; a < MECH_N_CENTRES; a++)
+        for (int b = a + 1; b < MECH_N_CENTRES; b++) {
+            const double h = hypot(q[CENTRES[2 * a]] - q[CENTRES[2 * b]], q[CENTRES[2 * a + 1]] - q[CENTRES[2 * b + 1]]);
+            if (h > span) span = h;
+        }
+    return span > 0.0 ? span : 1.0;
+}
+
+/* dae.py's review of the partition at a state whose Phi_q is J (whole): 1, with the new choice in
+   independent and dependent, else 0.  The declared coordinates are kept while their velocity
+   ratio is at most DAE_REPARTITION_AWAY; other coordinates give way to the declared ones once
+   those are below DAE_REPARTITION_RETURN (hysteresis), and to the column-pivoted QR's choice when
+   their own ratio exceeds DAE_REPARTITION_AWAY and that choice's is DAE_REPARTITION_GAIN times
+   smaller. */
 static int better_partition(const ModelState *s, const double *J, int *independent, int *dependent)
 {
-    double block[MA * MA];
-    int row[MA], cols[MA];
     if (K == 0) return 0;
-    if (s->declared && MECH_DEP_HAS_PATTERN) {
-        /* the declared block's structure is known: its nonzero entries gathered, its masks given */
-        memset(block, 0, sizeof block);
-        for (int k = 0; k < MECH_DEP_NONZEROS; k++) block[DEP_NONZERO_AT[k]] = J[DEP_NONZERO_J[k]];
-        if (lu_pivot_ratio_sparse(M, block, DEP_PATTERN, row, cols) >= DAE_REPARTITION_REVIEW) return 0;
-    } else {
-        dependent_block(J, s->dependent, block);
-        if (lu_pivot_ratio_sparse(M, block, NULL, row, cols) >= DAE_REPARTITION_REVIEW) return 0;
+    if (!s->declared) {
+        declared_partition(independent, dependent);
+        if (velocity_ratio(s, J, independent, dependent) < DAE_REPARTITION_RETURN) return 1;
     }
+    const double ratio = velocity_ratio(s, J, s->independent, s->dependent);
+    if (ratio <= DAE_REPARTITION_AWAY) return 0;
     choose_partition(J, independent, dependent);
     if (memcmp(independent, s->independent, K * sizeof(int)) == 0) return 0;
-    dependent_block(J, s->dependent, block);
-    const double now = condition_number(M, block);
-    dependent_block(J, dependent, block);
-    const double chosen = condition_number(M, block);
-    return chosen * DAE_REPARTITION_GAIN < now;
+    return velocity_ratio(s, J, independent, dependent) * DAE_REPARTITION_GAIN < ratio;
 }
 
 /* The review of an accepted Runge-Kutta step, at its end (the base; dae.py's _better_partition at

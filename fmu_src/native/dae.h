@@ -15,11 +15,16 @@ enum { DAE_OK = 0, DAE_ASSEMBLY = 1, DAE_INTEGRATION = 2 };
 /* Newton-Raphson stops once every correction is at most NEWTON_STEP (1 + |q_i|) (dae.py). */
 #define DAE_NEWTON_STEP 1e-8
 #define DAE_NEWTON_ITERATIONS 25
-/* The partition is reviewed when min|U_ii| / max|U_ii| of the dependent block's LU factorisation
-   falls below this (at the end of every accepted Runge-Kutta step) ... */
-#define DAE_REPARTITION_REVIEW 0.1
-/* ... and changes to the column-pivoted QR's choice when that choice's dependent block is at least
-   this many times better conditioned (2-norm). */
+/* The partition's review (dae.py's REPARTITION_AWAY, REPARTITION_RETURN, REPARTITION_GAIN): the
+   velocity ratio of independent coordinates is the largest rate of a dependent coordinate per unit
+   rate of the independent ones (positions in units of the mechanism's size, s->length_scale),
+   infinite at their dead points.  The declared coordinates are left when theirs exceeds
+   DAE_REPARTITION_AWAY ... */
+#define DAE_REPARTITION_AWAY 20.0
+/* ... and taken back once it is below DAE_REPARTITION_RETURN (hysteresis); other coordinates are left
+   when theirs exceeds DAE_REPARTITION_AWAY ... */
+#define DAE_REPARTITION_RETURN 8.0
+/* ... for the column-pivoted QR's choice, when that choice's ratio is this many times smaller. */
 #define DAE_REPARTITION_GAIN 2.0
 /* Sub-steps tried, in turn, to follow the assembly branch from the base to a trial stage that
    Newton-Raphson from the predictor does not reach (dae.py's CONTINUATION_STEPS). */
@@ -54,9 +59,12 @@ int dae_start(ModelState *s, double first_step);
    naming the cap and the time reached (the bound on the work of one doStep). */
 int dae_advance(ModelState *s, double t_end, double max_evaluations);
 
-/* Apply new parameters at s->t: re-assembly keeping the independent coordinates and their rates,
-   the drivers continuing from where they are; on DAE_ASSEMBLY the state is unchanged.  Does
-   not restart the integrator (dae_start). */
+/* Apply new parameters at s->t: re-assembly keeping the declared ([start]) coordinates and their
+   rates whatever partition the integrator uses (which it keeps afterwards); only where the declared
+   ones cannot carry it (their block singular, or the loop not closing with them held: at a dead
+   point of theirs) the coordinates in use instead (dae.py's change_parameters).  The drivers
+   continue from where they are; on DAE_ASSEMBLY the state is unchanged.  Does not restart the
+   integrator (dae_start). */
 int dae_change_parameters(ModelState *s, const double *p);
 
 /* The outputs of a consistent state with parameters p and drivers d, into out (MECH_N_OUTPUTS,

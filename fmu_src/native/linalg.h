@@ -4,14 +4,13 @@
  * algorithms are used, written out:
  * - LU factorisation with partial pivoting (LAPACK dgetrf's choice of pivot: the first entry of
  *   largest magnitude in the column), solves with it and its transpose, the sign of the
- *   determinant, for the dependent block of Phi_q (its Schur complement, or all of it); and the
- *   same factorisation's pivot ratio for a sparse block (the partition's review);
+ *   determinant, for the dependent block of Phi_q (its Schur complement, or all of it; and the
+ *   velocity ratio of the partition's review);
  * - Cholesky factorisation of a symmetric positive definite matrix (LAPACK dposv's role), for the
  *   range-space solve of eq. (11);
  * - the column order of a Householder QR factorisation with column pivoting (LAPACK dgeqp3's
  *   choice: the remaining column of largest norm, the first on ties), for choosing the
- *   independent coordinates, and a 2-norm condition number (one-sided Jacobi singular values)
- *   to compare two choices.
+ *   independent coordinates.
  *
  * The functions are static and dae.c calls them with compile-time sizes.  For small sizes the
  * includer defines LINALG_UNROLL as a request to unroll the next loop completely (measured on a
@@ -76,121 +75,6 @@ LINALG_INLINE static int lu_factor(int n, double *a, int *piv, double *inv_diag)
         }
     }
     return info;
-}
-
-/* The index of the lowest set bit of m (m != 0), portably (de Bruijn multiplication). */
-static int lowest_bit(unsigned long long m)
-{
-    static const unsigned char INDEX[64] = {
-        0, 1, 48, 2, 57, 49, 28, 3, 61, 58, 50, 42, 38, 29, 17, 4, 62, 55, 59, 36, 53, 51, 43, 22, 45, 39, 33, 30,
-        24, 18, 12, 5, 63, 47, 56, 27, 60, 41, 37, 16, 54, 35, 52, 21, 44, 32, 23, 11, 46, 26, 40, 15, 34, 20, 31,
-        10, 25, 14, 19, 9, 13, 8, 7, 6};
-    return INDEX[((m & (0ULL - m)) * 0x03f79d71b4cb0a89ULL) >> 58];
-}
-
-/* min |U[i][i]| / max |U[i][i]| of lu_factor's factorisation of the n x n matrix `a` (overwritten
-   with a part of it), 0 when a pivot is exactly zero (then lu_factor reports it singular): how well
-   the block is conditioned, as dae.py's _pivot_ratio measures it (1 for n = 0).  The
-   same pivots, computed with less work for a sparse matrix: L is not kept, the rows are exchanged
-   through an index rather than moved, and for n <= 64 bit masks hold where each row and column may
-   be nonzero (the entries that are, and those an elimination filled in), so that the pivot's
-   search, the elimination's rows and its columns visit only those.  An entry in a mask that is
-   exactly zero changes nothing: it never wins the search (|v| > largest, strictly) and as a
-   multiplier or a pivot row's entry it subtracts zero.  pattern: per row, a mask of where it may be
-   nonzero, known beforehand (the declared block's structure, equations.h: MECH_DEP_PATTERN), or
-   NULL to find it in `a`.  row and cols: n ints of scratch.  (For the
-   partition's review, after every accepted step: not unrolled;
-   measured on the Watt six-bar's 14 x 14 block, 3,500 -> 900 instructions.) */
-static double lu_pivot_ratio_sparse(int n, double *a, const unsigned long long *pattern, int *row, int *cols)
-{
-    double lo = INFINITY, hi = 0.0;
-    if (n == 0) return 1.0;
-    if (n <= 64) {
-        unsigned long long row_mask[64], col_mask[64], remaining = 0;   /* by physical row / column */
-        int position[64];                                                /* of each physical row */
-        for (int j = 0; j < n; j++) col_mask[j] = 0;
-        for (int i = 0; i < n; i++) {
-            unsigned long long m = 0;
-            if (pattern) {
-                m = pattern[i];
-                for (unsigned long long b = m; b; b &= b - 1) col_mask[lowest_bit(b)] |= 1ULL << i;
-            } else {
-                for (int j = 0; j < n; j++)
-                    if (a[i * n + j] != 0.0) {
-                        m |= 1ULL << j;
-                        col_mask[j] |= 1ULL << i;
-                    }
-            }
-            row_mask[i] = m;
-            row[i] = i;
-            position[i] = i;
-            remaining |= 1ULL << i;
-        }
-        for (int k = 0; k < n; k++) {
-            /* partial pivoting's choice: the largest |entry| of column k in the rows at positions
-               k.. (row[k] first), the first position on ties */
-            int p = row[k];
-            double big = fabs(a[p * n + k]);
-            for (unsigned long long m = col_mask[k] & remaining; m; m &= m - 1) {
-                const int i = lowest_bit(m);
-                const double v = fabs(a[i * n + k]);
-                if (v > big || (v == big && position[i] < position[p])) { big = v; p = i; }
-            }
-            const int r = p, at = position[p];
-            row[at] = row[k];
-            position[row[k]] = at;
-            row[k] = r;
-            position[r] = k;
-            remaining &= ~(1ULL << r);
-            const double *pivot_row = a + r * n;
-            const double pivot = pivot_row[k];
-            if (pivot == 0.0) return 0.0;
-            if (big < lo) lo = big;
-            if (big > hi) hi = big;
-            const double inverse = 1.0 / pivot;
-            const unsigned long long upper = row_mask[r] & ~((2ULL << k) - 1);   /* columns k+1.. */
-            int count = 0;
-            for (unsigned long long m = upper; m; m &= m - 1) cols[count++] = lowest_bit(m);
-            for (unsigned long long m = col_mask[k] & remaining; m; m &= m - 1) {
-                const int i = lowest_bit(m);
-                double *row_i = a + i * n;
-                if (row_i[k] == 0.0) continue;
-                const double l = row_i[k] * inverse;
-                for (int c = 0; c < count; c++) row_i[cols[c]] -= l * pivot_row[cols[c]];
-                row_mask[i] |= upper;
-                for (int c = 0; c < count; c++) col_mask[cols[c]] |= 1ULL << i;
-            }
-        }
-        return lo / hi;
-    }
-    for (int i = 0; i < n; i++) row[i] = i;
-    for (int k = 0; k < n; k++) {
-        int p = k;
-        double big = fabs(a[row[k] * n + k]);
-        for (int i = k + 1; i < n; i++) {
-            const double v = fabs(a[row[i] * n + k]);
-            if (v > big) { big = v; p = i; }
-        }
-        const int r = row[p];
-        row[p] = row[k];
-        row[k] = r;
-        const double *pivot_row = a + r * n;
-        const double pivot = pivot_row[k];
-        if (pivot == 0.0) return 0.0;
-        if (big < lo) lo = big;
-        if (big > hi) hi = big;
-        const double inverse = 1.0 / pivot;
-        int count = 0;
-        for (int j = k + 1; j < n; j++)
-            if (pivot_row[j] != 0.0) cols[count++] = j;
-        for (int i = k + 1; i < n; i++) {
-            double *row_i = a + row[i] * n;
-            if (row_i[k] == 0.0) continue;
-            const double l = row_i[k] * inverse;
-            for (int c = 0; c < count; c++) row_i[cols[c]] -= l * pivot_row[cols[c]];
-        }
-    }
-    return lo / hi;
 }
 
 /* x = A^-1 b with lu_factor's result (b and x may be the same array).  Column by column: the
@@ -312,47 +196,6 @@ static void cholesky_solve(int n, const double *l, const int *first, double *b)
             if (first[k] <= i) sum -= l[k * n + i] * b[k];
         b[i] = sum * l[i * n + i];
     }
-}
-
-/* The 2-norm condition number sigma_max / sigma_min of the n x n matrix `a` (overwritten), as
-   numpy.linalg.cond computes it: the singular values come from one-sided Jacobi rotations
-   (Hestenes), which orthogonalise the columns pairwise until no pair has a cosine above 1e-15;
-   they are then the columns' norms.  INFINITY for a singular matrix.  (Used rarely: not unrolled.) */
-static double condition_number(int n, double *a)
-{
-    for (int sweep = 0; sweep < 60; sweep++) {
-        int rotated = 0;
-        for (int p = 0; p < n - 1; p++)
-            for (int q = p + 1; q < n; q++) {
-                double alpha = 0.0, beta = 0.0, gamma = 0.0;
-                for (int i = 0; i < n; i++) {
-                    const double x = a[i * n + p], y = a[i * n + q];
-                    alpha += x * x;
-                    beta += y * y;
-                    gamma += x * y;
-                }
-                if (!(fabs(gamma) > 1e-15 * sqrt(alpha * beta))) continue;
-                rotated = 1;
-                const double zeta = (beta - alpha) / (2.0 * gamma);
-                const double t = (zeta >= 0.0 ? 1.0 : -1.0) / (fabs(zeta) + sqrt(1.0 + zeta * zeta));
-                const double c = 1.0 / sqrt(1.0 + t * t), s = c * t;
-                for (int i = 0; i < n; i++) {
-                    const double x = a[i * n + p], y = a[i * n + q];
-                    a[i * n + p] = c * x - s * y;
-                    a[i * n + q] = s * x + c * y;
-                }
-            }
-        if (!rotated) break;
-    }
-    double lo = INFINITY, hi = 0.0;
-    for (int j = 0; j < n; j++) {
-        double norm = 0.0;
-        for (int i = 0; i < n; i++) norm += a[i * n + j] * a[i * n + j];
-        norm = sqrt(norm);
-        if (norm < lo) lo = norm;
-        if (norm > hi) hi = norm;
-    }
-    return lo > 0.0 ? hi / lo : INFINITY;
 }
 
 /* perm (n entries): the column order a Householder QR factorisation with column pivoting of the

@@ -56,6 +56,7 @@ typedef struct {
                                                    them with q */
     double work[MECH_ALLOC(MECH_N_DRIVERS)];    /* each driver's work since the start, J */
     int declared;                               /* the partition's dependent coordinates are the file's */
+    double length_scale;                        /* the velocity ratio's length, m (dae.c: set at assembly) */
     double mass[MECH_N], minv[MECH_N];          /* diagonal of M and its inverse for p (MECH_MASS_IS_CONSTANT) */
     DaePoint base;                              /* the predictor's base: the last accepted step's end */
     DaePoint before;                            /* the accepted step's start (t NaN after a (re)start) */

@@ -135,6 +135,8 @@ int model_check_state(const ModelState *s, int model_exchange, char *why, size_t
     FINITE(s->tr, MECH_N_TRIG, "tr");
     FINITE(s->work, MECH_N_DRIVERS, "work");
     if (!is_flag(s->declared)) BAD("declared = %d: must be 0 or 1", s->declared);
+    if (assembled && !(isfinite(s->length_scale) && s->length_scale > 0.0))
+        BAD("length_scale = %g: must be finite, > 0", s->length_scale);
     FINITE(s->mass, MECH_N, "mass");
     FINITE(s->minv, MECH_N, "minv");
     if (check_point(&s->base, "base", 1, why, n)) return 1;
