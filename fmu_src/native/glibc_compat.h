@@ -4,7 +4,7 @@
  * is built on a newer one.
  *
  * glibc 2.29 gave exp, exp2, log, log2 and pow new versions (new implementations without the
- * SVID error wrapper), glibc 2.27 the float ones.  The old versions remain in every later
+ * SVID error wrapper), glibc 2.27 the float ones, glibc 2.35 hypot (the same: no SVID wrapper).  The old versions remain in every later
  * glibc; there they wrap the same new implementation, so the numbers are the same, only
  * errno handling on overflow differs (the FMU never reads errno).  A function the sources
  * do not call leaves no reference.  tests/test_fmu_native_strict.py reads the binary's
@@ -22,6 +22,7 @@ __asm__(".symver exp2,exp2@GLIBC_2.2.5");
 __asm__(".symver log,log@GLIBC_2.2.5");
 __asm__(".symver log2,log2@GLIBC_2.2.5");
 __asm__(".symver pow,pow@GLIBC_2.2.5");
+__asm__(".symver hypot,hypot@GLIBC_2.2.5");
 __asm__(".symver expf,expf@GLIBC_2.2.5");
 __asm__(".symver exp2f,exp2f@GLIBC_2.2.5");
 __asm__(".symver logf,logf@GLIBC_2.2.5");
