@@ -41,11 +41,15 @@ $(FMU): $(STAMP) $(FMU_SOURCES)
 
 fmu: $(FMU)
 
-# Every shipped mechanism's two FMUs (the four-bar's are $(FMU)'s), rebuilt when a source changes (the stamp records the build).
+# Every shipped mechanism's three FMUs (the four-bar's among them: $(FMU) and its Native twins),
+# rebuilt when a source changes (the stamp records the build).  BUILD_JOBS builds run at a time
+# (each is one process: sympy, then the C compiler), each build's lines printed together when it ends.
 MECH_STAMP := build/.mechanisms
+BUILD_JOBS ?= 2
 
-$(MECH_STAMP): $(FMU) $(FMU_SOURCES)
-	@for m in $(filter-out fourbar,$(MECHANISMS)); do $(BIN)/python build_fmu.py --mechanism $$m || exit 1; done
+$(MECH_STAMP): $(STAMP) $(FMU_SOURCES)
+	@printf '%s\n' $(MECHANISMS) | xargs -P $(BUILD_JOBS) -n 1 sh -c \
+	  'out=$$($(BIN)/python build_fmu.py --mechanism "$$1" 2>&1); s=$$?; printf "%s\n" "$$out"; exit $$s' sh
 	@touch $@
 
 mechanisms: $(MECH_STAMP)
@@ -67,9 +71,10 @@ browser:
 	  fi; }
 
 # The suite runs on two workers (pytest-xdist; TEST_WORKERS=0 runs it in one process) and
-# finds every mechanism's FMUs in build/, built once here rather than once per worker.
+# finds every mechanism's FMUs in build/, built once here rather than once per worker
+# ($(MECH_STAMP) first: it builds $(FMU) too, in parallel with the other mechanisms).
 TEST_WORKERS ?= 2
-test: $(FMU) $(MECH_STAMP) browser
+test: $(MECH_STAMP) $(FMU) browser
 	$(BIN)/python -m pytest -q $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist worksteal)
 
 check: $(FMU)

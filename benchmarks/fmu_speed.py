@@ -9,7 +9,10 @@ FMU's own integrator, fmu_src/mechanism_model/dae.py, outside the FMU), and how 
 time is scipy's own stepping: the same run replayed with the model's arithmetic replaced by
 table look-ups (see ``in_process``).
 
-Usage: python benchmarks/fmu_speed.py [--fmu build/FourBar.fmu] [--repeat 5]
+``--quick`` is the smoke setting (tests/test_benchmarks_smoke.py): every run cut to
+``QUICK_STOP`` s (Case 2's step at 10 s included), one round.  Its figures are not the benchmark's.
+
+Usage: python benchmarks/fmu_speed.py [--fmu build/FourBar.fmu] [--repeat 5] [--quick]
 """
 from __future__ import annotations
 
@@ -26,6 +29,10 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
+#: The runs' length (s), and ``--quick``'s: still past Case 2's L2 step at 10 s.
+STOP, QUICK_STOP = 100.0, 12.0
+#: Communication step (s).
+STEP = 0.01
 
 FLOOR_SOURCE = textwrap.dedent('''
     from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, DefaultExperiment
@@ -77,11 +84,11 @@ def l2_step():
     return np.array([(0.0, 1.0), (10.0, 1.0), (10.0, 1.1)], dtype=[("time", float), ("L2", float)])
 
 
-def time_run(fmu: Path, fault: bool) -> tuple[float, float]:
-    """(wall s, CPU s) of one 100 s run through fmpy.simulate_fmu."""
+def time_run(fmu: Path, fault: bool, stop: float = STOP) -> tuple[float, float]:
+    """(wall s, CPU s) of one ``stop`` s run through fmpy.simulate_fmu."""
     from fmpy import simulate_fmu
     t0, c0 = time.perf_counter(), time.process_time()
-    simulate_fmu(str(fmu), stop_time=100.0, output_interval=0.01, input=l2_step() if fault else None)
+    simulate_fmu(str(fmu), stop_time=stop, output_interval=STEP, input=l2_step() if fault else None)
     return time.perf_counter() - t0, time.process_time() - c0
 
 
@@ -91,19 +98,19 @@ def _generated_equations():
     return prepare_mechanism("fourbar").module
 
 
-def _run_dae(cls, eq, fault: bool):
+def _run_dae(cls, eq, fault: bool, stop: float = STOP):
     """Cases 1/2 through MechanismDAE.advance as the FMU's do_step calls it; returns (wall s, dae)."""
     from fmu_src.mechanism.check import start_state
     guess, rates, p = start_state(eq)
-    dae = cls(eq, p, rtol=1e-9, atol=1e-6, t_bound=101.0)
+    dae = cls(eq, p, rtol=1e-9, atol=1e-6, t_bound=stop + 1.0)
     dae.assemble(0.0, guess, rates)
     dae.start()
     faulty = tuple(1.1 if name == "L2" else value for name, value in zip(eq.PARAMETERS, p))
     t0 = time.perf_counter()
-    for k in range(1, 10001):
-        if fault and k == 1001:
+    for k in range(1, round(stop / STEP) + 1):
+        if fault and k == round(10.0 / STEP) + 1:
             dae.change_parameters(faulty)
-        dae.advance(k * 0.01)
+        dae.advance(k * STEP)
         dae.outputs()
     return time.perf_counter() - t0, dae
 
@@ -112,16 +119,16 @@ class InProcess:
     """The FMU's integrator run in this process: the model, and scipy's share by replay.
 
     The model is run once recording every right-hand-side value; ``replay`` then runs
-    the same 10,000 communication steps with the right-hand side and the state recovery
+    the same communication steps with the right-hand side and the state recovery
     replaced by table look-ups.  scipy's DOP853 sees identical numbers, takes the identical
     step sequence (steps, rejections, dense output), so the replay's wall time is what the
     integrator and the stepping logic cost before any model arithmetic: a lower bound for
     this design whatever the model code costs.
     """
 
-    def __init__(self, fault: bool):
+    def __init__(self, fault: bool, stop: float = STOP):
         from fmu_src.mechanism_model.dae import MechanismDAE
-        self.fault = fault
+        self.fault, self.stop = fault, stop
         self.eq = _generated_equations()
         record: list = []
         self._record = record
@@ -146,15 +153,15 @@ class InProcess:
                 return None
 
         self._model, self._replay = MechanismDAE, Replay
-        _, dae = _run_dae(Recording, self.eq, fault)
+        _, dae = _run_dae(Recording, self.eq, fault, stop)
         self.rhs_evaluations = dae.rhs_evaluations
 
     def model(self) -> float:
-        return _run_dae(self._model, self.eq, self.fault)[0]
+        return _run_dae(self._model, self.eq, self.fault, self.stop)[0]
 
     def replay(self) -> float:
         self._replay.values = iter(self._record)
-        return _run_dae(self._replay, self.eq, self.fault)[0]
+        return _run_dae(self._replay, self.eq, self.fault, self.stop)[0]
 
 
 def main(argv=None) -> int:
@@ -162,8 +169,12 @@ def main(argv=None) -> int:
     install_pythonfmu_exit_guard()   # pythonfmu 0.7.0 can abort the process at exit otherwise
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fmu", default=str(REPO / "build" / "FourBar.fmu"))
-    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--repeat", type=int, default=None, help="rounds (default 5; 1 with --quick)")
+    parser.add_argument("--quick", action="store_true",
+                        help=f"the smoke setting: {QUICK_STOP:g} s runs, one round (not the benchmark's figures)")
     args = parser.parse_args(argv)
+    stop = QUICK_STOP if args.quick else STOP
+    repeat = args.repeat if args.repeat is not None else 1 if args.quick else 5
     from fmpy import simulate_fmu
     med = statistics.median
     with tempfile.TemporaryDirectory() as tmp:
@@ -177,16 +188,16 @@ def main(argv=None) -> int:
             # in the machine's speed during the benchmark hits all of them alike; ratios are
             # medians of the per-round ratios.  The floor gets the same FMPy input (the L2
             # step) as FourBar: FMPy's input handling costs time every step.
-            ip = InProcess(fault)
+            ip = InProcess(fault, stop)
             rounds = []
-            for _ in range(args.repeat):
-                rounds.append((time_run(floor, fault), time_run(fourbar, fault), ip.model(), ip.replay()))
+            for _ in range(repeat):
+                rounds.append((time_run(floor, fault, stop), time_run(fourbar, fault, stop), ip.model(), ip.replay()))
             rows.append((case, rounds, ip.rhs_evaluations))
     print(f"Machine: {platform.processor() or platform.machine()}, {platform.python_implementation()} "
-          f"{platform.python_version()}, {__import__('os').cpu_count()} cores; median of {args.repeat} "
+          f"{platform.python_version()}, {__import__('os').cpu_count()} cores; median of {repeat} "
           "alternating rounds")
     print()
-    print("| run (100 s, step 0.01 s, rtol 1e-9, atol 1e-6) | wall s | floor wall s | ratio (wall) "
+    print(f"| run ({stop:g} s, step {STEP:g} s, rtol 1e-9, atol 1e-6) | wall s | floor wall s | ratio (wall) "
           "| CPU s | floor CPU s | ratio (CPU) | RHS evals / sim s |")
     print("|---|---|---|---|---|---|---|---|")
     for case, rounds, rhs in rows:
@@ -194,9 +205,9 @@ def main(argv=None) -> int:
         tw, tc = med(r[1][0] for r in rounds), med(r[1][1] for r in rounds)
         rw, rc = med(r[1][0] / r[0][0] for r in rounds), med(r[1][1] / r[0][1] for r in rounds)
         print(f"| FourBar {case} | {tw:.3f} | {fw:.3f} | {rw:.2f}x | {tc:.3f} | {fc:.3f} | {rc:.2f}x "
-              f"| {rhs / 100.0:.0f} |")
+              f"| {rhs / stop:.0f} |")
     print()
-    print("Where the time goes, in-process (the same 10,000 steps through MechanismDAE.advance, without FMPy):")
+    print(f"Where the time goes, in-process (the same {round(stop / STEP):,} steps through MechanismDAE.advance, without FMPy):")
     print()
     print("| run | model, wall s | of which scipy DOP853 + stepping logic (replay), wall s "
           "| floor + replay, ratio to floor |")

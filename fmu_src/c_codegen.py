@@ -1032,6 +1032,10 @@ def _variables(eqs: MechanismEquations, variables, guid: str, model_identifier: 
     return "\n".join(lines) + "\n"
 
 
+#: equations.h and equations.c per equations object (as derivation.derive caches the DAE).
+_EQUATIONS: dict[int, tuple[MechanismEquations, tuple[str, str]]] = {}
+
+
 def generate_c_sources(eqs: MechanismEquations, guid: str = "00000000-0000-0000-0000-000000000000",
                        model_identifier: str | None = None) -> dict[str, str]:
     """The generated C files of a mechanism's native FMU: {file name: text} (GENERATED_FILES).
@@ -1041,7 +1045,12 @@ def generate_c_sources(eqs: MechanismEquations, guid: str = "00000000-0000-0000-
     """
     model_identifier = model_identifier or f"{eqs.mechanism.name}Native"
     variables = native_variable_table(eqs)
-    header, source = _equations(eqs, variables)
+    # the printed equations depend on the mechanism only: one build asks for them four times
+    # (each FMI version's sources and GUID), and the sympy cse behind them is most of its time
+    hit = _EQUATIONS.get(id(eqs))
+    if hit is None or hit[0] is not eqs:
+        hit = _EQUATIONS[id(eqs)] = (eqs, _equations(eqs, variables))
+    header, source = hit[1]
     return {
         "equations.h": header,
         "equations.c": source,

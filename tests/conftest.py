@@ -122,3 +122,17 @@ class MechanismFMUs:
 def mechanism_fmus(tmp_path_factory) -> MechanismFMUs:
     """Builds (once) and finds the FMUs of the shipped mechanisms: ``mechanism_fmus.get(name, kind)``."""
     return MechanismFMUs(tmp_path_factory)
+
+
+@pytest.fixture(scope="session")
+def theta2_reference(tmp_path_factory):
+    """``reference_theta2.simulate`` computed once per session, shared by the xdist workers
+    (support.cached_theta2_reference): ``theta2_reference(times, th2_0, switches=(), **params)``."""
+    import functools
+
+    from support import cached_theta2_reference
+
+    base = tmp_path_factory.getbasetemp()
+    # under xdist every worker's basetemp is <the session's folder>/popen-gwN: share the parent
+    shared = base.parent if base.name.startswith("popen-gw") else base
+    return functools.partial(cached_theta2_reference, shared / "theta2-reference")

@@ -179,3 +179,40 @@ def wait_for_rows(out: Path, proc: subprocess.Popen, rows: int = 1, guard: float
         time.sleep(0.05)
     proc.kill()
     pytest.fail(f"the run into {out} never started writing rows")
+
+
+# -- the independent theta2 formulation, computed once per test session -------------------------
+def cached_theta2_reference(folder: Path, times, th2_0: float, switches: tuple = (), **params):
+    """``reference_theta2.simulate(times, th2_0, switches=switches, **params)``, read from ``folder``
+    when a process of this session (an xdist worker too) has computed it already.  A 100 s run of
+    the reference costs ~15 s of CPU, and test_fmu_physics.py (each FMU) and test_fmu_native.py
+    ask for the same Cases 1 and 2.  The key hashes the arguments and reference_theta2.py's own
+    text; the file is written whole (os.replace) under a lock, so a reader never sees a part."""
+    import hashlib
+
+    import numpy as np
+
+    import reference_theta2
+
+    times = np.asarray(times, dtype=float)
+    key = hashlib.sha256(repr((th2_0, tuple((t, sorted(p.items())) for t, p in switches), sorted(params.items())))
+                         .encode() + times.tobytes()
+                         + Path(reference_theta2.__file__).read_bytes()).hexdigest()[:32]
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"theta2-{key}.npy"
+    try:
+        import fcntl
+    except ImportError:                         # no flock (Windows): each process computes its own
+        fcntl = None
+    with open(folder / f"theta2-{key}.lock", "w") as lock:
+        if fcntl is not None:
+            fcntl.flock(lock, fcntl.LOCK_EX)    # the other worker waits for the file, not computes it again
+        if not path.exists():
+            result = reference_theta2.simulate(times, th2_0, switches=switches, **params)
+            partial = path.with_suffix(f".{os.getpid()}.tmp")
+            with open(partial, "wb") as f:
+                np.save(f, result)
+            os.replace(partial, path)
+    result = np.load(path)
+    result.setflags(write=False)
+    return result

@@ -17,7 +17,6 @@ from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi1 import FMICallException
 
-from reference_theta2 import simulate as reference
 from support import logged_callbacks
 
 pytestmark = pytest.mark.slow    # whole 100 s runs; `make check` leaves them out
@@ -166,15 +165,15 @@ def times():
     return np.round(np.arange(10001) * 0.01, 10)
 
 
-def test_agrees_with_independent_formulation_case1(case1_tight, times):
-    ref = reference(times, THETA2_0, **TABLE1)
+def test_agrees_with_independent_formulation_case1(case1_tight, times, theta2_reference):
+    ref = theta2_reference(times, THETA2_0, **TABLE1)
     fmu = np.column_stack([case1_tight[n] for n in CENTRES])
     err = np.abs(fmu - ref).max()
     assert err <= 1e-6, f"max |FMU - theta2 formulation| = {err:.3g} m"
 
 
-def test_agrees_with_independent_formulation_case2(case2_tight, times):
-    ref = reference(times, THETA2_0, switches=((10.0, {"L2": 1.1}),), **TABLE1)
+def test_agrees_with_independent_formulation_case2(case2_tight, times, theta2_reference):
+    ref = theta2_reference(times, THETA2_0, switches=((10.0, {"L2": 1.1}),), **TABLE1)
     fmu = np.column_stack([case2_tight[n] for n in CENTRES])
     err = np.abs(fmu - ref).max()
     assert err <= 1e-6, f"max |FMU - theta2 formulation| = {err:.3g} m"
@@ -185,10 +184,10 @@ def test_agrees_with_independent_formulation_case2(case2_tight, times):
         assert math.hypot(r["x2"], r["y2"]) == pytest.approx(L2 / 2, abs=1e-12)
 
 
-def test_rk45_is_selectable_and_accurate(either_fmu, times):
+def test_rk45_is_selectable_and_accurate(either_fmu, times, theta2_reference):
     r = run(either_fmu, stop=10.0, start_values={"integrator": "RK45", "rtol": 1e-11, "atol": 1e-11},
             output=CENTRES)
-    ref = reference(times[:1001], THETA2_0, **TABLE1)
+    ref = theta2_reference(times[:1001], THETA2_0, **TABLE1)
     assert np.abs(np.column_stack([r[n] for n in CENTRES]) - ref).max() <= 1e-6
 
 
