@@ -19,6 +19,7 @@ import signal
 import socket
 import subprocess
 import time
+from datetime import datetime
 from pathlib import Path
 
 import pytest
@@ -55,7 +56,12 @@ def test_a_second_writer_is_refused_and_the_first_run_is_untouched(native_fmu, t
                        r"since ([^)]+)\)", second.stderr)
     assert holder, second.stderr
     assert int(holder[1]) == first.pid and holder[2] == socket.gethostname()
-    assert holder[3] <= record["started_at"]          # ISO 8601 UTC: taken before run.json was first written
+    # The lock's "since" (whole seconds) and run.json's started_at (ms) both stamp this run's
+    # start, taken moments apart in either order: equal to within the 1 s truncation plus
+    # start-up (60 s is a hang guard against a stale or foreign stamp, not a speed bound).
+    since = datetime.fromisoformat(holder[3])
+    started = datetime.fromisoformat(record["started_at"])
+    assert abs((since - started).total_seconds()) <= 60.0, (holder[3], record["started_at"])
     assert "nothing was run or written" in second.stderr and "Traceback" not in second.stderr
     _, err = first.communicate(timeout=HANG_GUARD)
     assert first.returncode == 0, err
