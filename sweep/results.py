@@ -44,7 +44,7 @@ COLUMNS: dict[str, str] = {
     "delay_arl0_10h": "float", "delay_arl0_100h": "float", "delay_arl0_1000h": "float", "delay_arl0_10000h": "float",
     "rows_written": "int", "fmu_guid": "str",
     "diagnosis": "str", "diagnosed_variable": "str", "diagnosed_kind": "str", "diagnosed_value": "float",
-    "diagnosed_time": "float", "diagnosed_end_time": "float",
+    "diagnosed_time": "float", "diagnosed_end_time": "float", "diagnosed_runner_up": "str",
     # how it ran (differ between otherwise identical runs)
     "run_seconds": "float", "monitor_seconds": "float", "diagnosis_seconds": "float", "wall_seconds": "float",
     "cpu_seconds": "float", "worker": "str",

@@ -44,7 +44,7 @@ RESULT_FIELDS = ("status", "error", "detected", "detection_time", "latency", "fi
                  "statistic_max_post", "statistic_mean_post", "score_pre", "score_post", "score_early", "latency_limit",
                  "delay_arl0_0.1h", "delay_arl0_1h", "delay_arl0_10h", "delay_arl0_100h", "delay_arl0_1000h",
                  "delay_arl0_10000h", "rows_written", "fmu_guid", "diagnosis", "diagnosed_variable", "diagnosed_kind",
-                 "diagnosed_value", "diagnosed_time", "diagnosed_end_time",
+                 "diagnosed_value", "diagnosed_time", "diagnosed_end_time", "diagnosed_runner_up",
                  "run_seconds", "monitor_seconds", "diagnosis_seconds", "wall_seconds", "cpu_seconds", "worker")
 
 
@@ -205,6 +205,8 @@ def diagnosis_fields(run_dir: Path) -> dict[str, Any]:
     best = d.best
     return {"diagnosis": d.verdict, "diagnosed_variable": best.parameter, "diagnosed_kind": best.kind,
             "diagnosed_value": best.value, "diagnosed_time": best.change_time, "diagnosed_end_time": best.end_time,
+            # the other candidate of an ambiguous verdict (None otherwise)
+            "diagnosed_runner_up": d.runner_up.parameter if d.ambiguous and d.runner_up is not None else None,
             "diagnosis_seconds": d.seconds}
 
 
