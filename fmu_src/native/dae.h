@@ -20,10 +20,10 @@ enum { DAE_OK = 0, DAE_ASSEMBLY = 1, DAE_INTEGRATION = 2 };
    rate of the independent ones (positions in units of the mechanism's size, s->length_scale),
    infinite at their dead points.  The declared coordinates are left when theirs exceeds
    DAE_REPARTITION_AWAY ... */
-#define DAE_REPARTITION_AWAY 20.0
+#define DAE_REPARTITION_AWAY 5.0
 /* ... and taken back once it is below DAE_REPARTITION_RETURN (hysteresis); other coordinates are left
    when theirs exceeds DAE_REPARTITION_AWAY ... */
-#define DAE_REPARTITION_RETURN 8.0
+#define DAE_REPARTITION_RETURN 2.0
 /* ... for the column-pivoted QR's choice, when that choice's ratio is this many times smaller. */
 #define DAE_REPARTITION_GAIN 2.0
 /* Sub-steps tried, in turn, to follow the assembly branch from the base to a trial stage that
