@@ -28,7 +28,10 @@
    second condition (residuals under about 3 % of the change's in RMS) keeps a fit whose
    only misfit is the replay's integration error: a run made by the pythonfmu FMU and
    replayed by the native one differs by up to millimetres over 100 s at Table 1's
-   tolerances, far above the noise-free data's noise floor.
+   tolerances, far above the noise-free data's noise floor.  ``ambiguous`` when the best two
+   steps are under ``distinct_gain`` apart (:func:`_distinct_gap`), unless the ``refine`` best,
+   each searched again on windows twice as long after the alarm up to ``max_horizon`` s,
+   come that far apart there (:func:`_settle`): then ``explained``, with the ``Settlement``.
 """
 from __future__ import annotations
 
@@ -46,7 +49,7 @@ from .fit import RESOLUTION, Fit, Problem, StepSearch, change_scales, correlatio
 from .inputs import RunInputs, read_inputs
 from .simulator import BranchFailed, Simulator
 
-__all__ = ["Diagnosis", "DiagnoseOptions", "Separation", "change_text", "diagnose",
+__all__ = ["Diagnosis", "DiagnoseOptions", "Separation", "Settlement", "change_text", "diagnose",
            "diagnose_inputs", "fit_text"]
 
 #: The smallest noise level assumed for a column, in the column's unit.  Exact (noise-free)
@@ -114,6 +117,18 @@ class Separation:
 
 
 @dataclass(frozen=True)
+class Settlement:
+    """The two best explanations of the first window, within ``distinct_gain`` of each other
+    there (``first_gap``), fitted again on ``window`` (more rows after the alarm), where the
+    runner-up's chi-square is ``gap`` above the best's (module docstring, 6)."""
+
+    window: tuple[float, float]
+    runner_up: Fit
+    first_gap: float
+    gap: float
+
+
+@dataclass(frozen=True)
 class Curves:
     """The window's rows for the plot: data, healthy replay, best explanation (grid points x columns)."""
 
@@ -152,6 +167,7 @@ class Diagnosis:
     first_fit: Fit | None = None      # best as fitted on ``window``, when sharpened
     separating: tuple[Separation, ...] = ()   # ambiguous: the columns where the best two differ most
     distinct_gap: float | None = None          # runner-up's chi-square excess over best's, per independent residual's variance
+    settled: Settlement | None = None          # two explanations the first window could not tell apart, told apart on more rows
 
     @property
     def sharpened(self) -> bool:
@@ -189,6 +205,9 @@ class Diagnosis:
             "value_window": None if self.value_window is None else list(self.value_window),
             "first_fit": fit(self.first_fit),
             "separating": [asdict(c) for c in self.separating], "distinct_gap": self.distinct_gap,
+            "settled": None if self.settled is None else {
+                "window": list(self.settled.window), "runner_up": fit(self.settled.runner_up),
+                "first_gap": self.settled.first_gap, "distinct_gap": self.settled.gap},
             "healthy_chi2": self.healthy_chi2, "reduced_chi2": self.reduced_chi2, "simulator": self.simulator,
             "branches": self.branches, "seconds": self.seconds,
         })
@@ -286,9 +305,37 @@ def _message(verdict: str, best: Fit, runner: Fit | None, units: dict[str, str],
                 + (f"; the columns that would separate them: {columns}" if columns else ""))
     if runner is not None:
         ratio = math.sqrt(max(runner.chi2, floor_chi2) / max(ranked.chi2, floor_chi2))
+        shown = f"{ratio:.3g}" if ratio >= 1.1 else f"{ratio:.4f}"      # 1.0004x, not 1x
         text += (f"; next best explanation: {runner.parameter} {change_text(runner, units.get(runner.parameter, ''))} "
-                 f"(residual {ratio:.3g}x larger)")
+                 f"(residual {shown}x larger)")
     return text
+
+
+def _settled_message(best: Fit, settlement: Settlement, units: dict[str, str], options: DiagnoseOptions,
+                     horizon: float) -> str:
+    """An explanation the first window could not tell from the runner-up, told apart on more rows."""
+    runner = settlement.runner_up
+    return (f"{fit_text(best, units.get(best.parameter, ''))} (value fitted on {horizon:.3g} s of data after the "
+            f"alarm); told apart from {runner.parameter} {change_text(runner, units.get(runner.parameter, ''))} on "
+            f"{settlement.window[1] - settlement.window[0]:.3g} s of rows (chi-square {settlement.gap:.3g} apart "
+            f"per independent residual; {settlement.first_gap:.2g} on the first {options.horizon:g} s after the "
+            f"alarm, under {options.distinct_gain:g})")
+
+
+def _survey_range(problem: Problem, c0: int, options: DiagnoseOptions) -> tuple[list[int], range, int, int]:
+    """Where a step is surveyed (from ``search_back`` s before the first change-time estimate
+    ``c0`` to a little after it), the whole lookback it is then searched over, their stride and
+    the last row that scores the survey."""
+    grid = problem.sim.grid
+
+    def points(seconds: float) -> int:
+        return int(round(seconds / grid.step))
+
+    hi = min(problem.latest, c0 + points(SEARCH_AFTER))
+    stride = max(1, points(options.scan_step))
+    near = [*range(hi, max(problem.fit_from, c0 - points(options.search_back)) - 1, -stride),
+            *range(c0 - stride, c0 + 1)]       # a jump (a length) is exact: its own onset row
+    return near, range(hi, problem.fit_from - 1, -stride), stride, hi + points(options.scan_horizon)
 
 
 def _step_fits(problem: Problem, hypotheses, c0: int, options: DiagnoseOptions) -> list[Fit]:
@@ -299,25 +346,24 @@ def _step_fits(problem: Problem, hypotheses, c0: int, options: DiagnoseOptions) 
     whole lookback, to the grid point (:class:`diagnose.fit.StepSearch`); the others are
     fitted where their survey put them.
     """
-    grid = problem.sim.grid
-
-    def points(seconds: float) -> int:
-        return int(round(seconds / grid.step))
-
-    hi = min(problem.latest, c0 + points(SEARCH_AFTER))
-    stride = max(1, points(options.scan_step))
-    near = [*range(hi, max(problem.fit_from, c0 - points(options.search_back)) - 1, -stride),
-            *range(c0 - stride, c0 + 1)]       # a jump (a length) is exact: its own onset row
-    searches = {name: StepSearch(problem, name, hi + points(options.scan_horizon)) for name in hypotheses}
+    near, whole, stride, scan_until = _survey_range(problem, c0, options)
+    searches = {name: StepSearch(problem, name, scan_until) for name in hypotheses}
     surveyed = {name: search.survey(near) for name, search in searches.items()}
     order = sorted(searches, key=lambda n: surveyed[n].chi2 if surveyed[n] else math.inf)
-    whole = range(hi, problem.fit_from - 1, -stride)
     fits = [searches[n].fit(whole, stride, also=c0 - 1) for n in order[:options.refine]]
     for name in order[options.refine:]:
         point = surveyed[name] or next(iter(searches[name].best()), None)    # None: nothing in range
         if point is not None:
             fits.append(searches[name].solve(point.start, point.change, 8))
     return sorted(fits, key=lambda f: f.chi2)
+
+
+def _step_searched(problem: Problem, name: str, c0: int, options: DiagnoseOptions) -> Fit:
+    """``name`` fitted as a step searched over the whole lookback, as the ``refine`` best are by :func:`_step_fits`."""
+    near, whole, stride, scan_until = _survey_range(problem, c0, options)
+    search = StepSearch(problem, name, scan_until)
+    search.survey(near)
+    return search.fit(whole, stride, also=c0 - 1)
 
 
 def _distinct_gap(problem: Problem, step: Fit, best: Fit, runner: Fit) -> float:
@@ -434,8 +480,70 @@ def _more_data(inputs: RunInputs, index: np.ndarray, alarm: int, horizon: float)
     return alarm + int(round(horizon / inputs.grid.step)) < int(index[-1])
 
 
+def _step_near(problem: Problem, fit: Fit, options: DiagnoseOptions) -> Fit:
+    """``fit``'s parameter fitted as a step on ``problem``'s rows, every grid point within
+    ``sharpen_span`` s of ``fit``'s change time scored (SHARPEN_STEP apart first)."""
+    grid = problem.sim.grid
+    half = int(round(options.sharpen_span / grid.step))
+    stride = max(1, int(round(SHARPEN_STEP / grid.step)))
+    search = StepSearch(problem, fit.parameter)
+    c = grid.index(fit.change_time)
+    starts = range(min(c + half, problem.latest), max(c - half, problem.fit_from) - 1, -stride)
+    search.survey(starts)
+    return search.fit(starts, stride, also=c)
+
+
+@dataclass(frozen=True)
+class _Settled:
+    best: Fit
+    settlement: Settlement
+    curves: Curves
+    branches: int
+
+
+def _settle(inputs: RunInputs, index: np.ndarray, alarm: int, c0: int, ranking: list[Fit], first_gap: float,
+            sigma: np.ndarray, scales: dict, options: DiagnoseOptions) -> tuple[_Settled | None, int]:
+    """The ``refine`` best steps of a ranking whose best two the first window cannot tell
+    apart, each searched again over the whole lookback on windows twice as long after the
+    alarm, up to ``max_horizon`` s and the end of the data, until the best two are
+    ``distinct_gain`` apart (module docstring, 6); None when they never are.  Also the
+    branches it took.
+
+    Masses and g act only through the motion's dynamics: two of them that fit a few seconds
+    equally well drift apart in phase with every period after (the quick-return's m2 and m3
+    under 4 mm on five columns: 1.0000x over 3 s after the alarm).  Each is searched twice on
+    each window, the better kept: afresh over the whole lookback, as on the first window (whose
+    change time can be a wrong basin), and near its last fit's change time (the whole-lookback
+    scan scores on 1 s of rows only: the inverted slider-crank's m3 +10 % under 4 mm on four
+    columns came out +8.8 % and 46 worse in chi-square than m4 from the scan alone)."""
+    grid = inputs.grid
+    last = {f.parameter: f for f in ranking[:options.refine] if f.kind == "step"}
+    horizon, branches = options.horizon, 0
+    while horizon < options.max_horizon and _more_data(inputs, index, alarm, horizon):
+        horizon = min(2.0 * horizon, options.max_horizon)
+        w = _window(inputs, index, alarm, options, horizon)
+        with Simulator(inputs.simulator_fmu, inputs.parameters, inputs.columns, grid, inputs.tolerance, w.first,
+                       w.last, method=options.method) as sim:
+            problem = Problem(sim=sim, data=w.data, sigma=sigma, fit_from=w.fit_from,
+                              latest=min(alarm, w.last - 1), base=inputs.parameters, scales=scales)
+            fits = sorted((min(_step_searched(problem, name, c0, options), _step_near(problem, fit, options),
+                               key=lambda f: f.chi2) for name, fit in last.items()), key=lambda f: f.chi2)
+            if len(fits) < 2 or fits[0].refused is not None or not math.isfinite(fits[0].chi2):
+                return None, branches + sim.branches
+            gap = _distinct_gap(problem, fits[0], fits[0], fits[1])
+            curves = _curves(grid, w, sim, problem, fits[0]) if gap >= options.distinct_gain else None
+            branches += sim.branches
+        last = {f.parameter: f for f in fits}
+        if curves is not None:
+            window = (grid.time(w.fit_from), grid.time(w.last))
+            return _Settled(best=fits[0], curves=curves, branches=branches,
+                            settlement=Settlement(window=window, runner_up=fits[1], first_gap=first_gap,
+                                                  gap=gap)), branches
+    return None, branches
+
+
 def _sharpen(inputs: RunInputs, index: np.ndarray, alarm: int, best: Fit, sigma: np.ndarray, scales: dict,
-             options: DiagnoseOptions) -> _Sharpened | None:
+             options: DiagnoseOptions, start_horizon: float | None = None) -> _Sharpened | None:
     """``best``'s parameter fitted again as a step on windows twice as long after the alarm until
     its value is known to ``precision`` (step 5 of the module docstring); None when the data
     end first.
@@ -445,22 +553,12 @@ def _sharpen(inputs: RunInputs, index: np.ndarray, alarm: int, best: Fit, sigma:
     10.26 s and 1.104 kg at 10.00 s within 2 in chi-square of each other over 3 s), while
     the phase drift a wrong value leaves grows with every period after it.
     """
-    grid = inputs.grid
-    half = int(round(options.sharpen_span / grid.step))
-    stride = max(1, int(round(SHARPEN_STEP / grid.step)))
-    horizon, fit, done, branches = options.horizon, best, None, 0
-
-    def step_near(problem: Problem) -> Fit:
-        search = StepSearch(problem, best.parameter)
-        c = grid.index(fit.change_time)
-        starts = range(min(c + half, problem.latest), max(c - half, problem.fit_from) - 1, -stride)
-        search.survey(starts)
-        return search.fit(starts, stride, also=c)
-
+    horizon, fit, done, branches = start_horizon or options.horizon, best, None, 0
     while _imprecise(fit, options.precision) and horizon < options.max_horizon \
             and _more_data(inputs, index, alarm, horizon):
         horizon = min(2.0 * horizon, options.max_horizon)
-        new = _refit(inputs, index, alarm, sigma, scales, options, horizon, step_near)
+        new = _refit(inputs, index, alarm, sigma, scales, options, horizon,
+                     lambda problem, near=fit: _step_near(problem, near, options))
         if new is None:
             break
         branches += new.branches
@@ -548,6 +646,12 @@ def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOption
         branches, method = sim.branches, sim.method
     ranking = tuple(fits)
     separating: tuple[Separation, ...] = ()
+    settled = None
+    if verdict == "ambiguous" and best.kind == "step":
+        settled, more = _settle(inputs, index, a, c0, fits, gap, sigma, problem.scales, options)
+        branches += more
+        if settled is not None:
+            verdict = "explained"
     if verdict == "ambiguous":
         separating, more = _separating(inputs, w, best, runner, problem.scales, options)
         branches += more
@@ -555,7 +659,17 @@ def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOption
                        distinct_gain=options.distinct_gain, gap=gap if gap is not None else math.inf,
                        separating=separating)
     first_fit = value_window = sharp = None
-    if verdict == "explained" and best.kind == "ramp":
+    if settled is not None:
+        best, first_fit, curves = settled.best, next(f for f in ranking if f.parameter == settled.best.parameter), \
+            settled.curves
+        value_window = settled.settlement.window
+        more = _sharpen(inputs, index, a, best, sigma, problem.scales, options,
+                        start_horizon=value_window[1] - inputs.alarm_time)
+        if more is not None:
+            branches += more.branches
+            best, value_window, curves = more.fit, more.window, more.curves
+        message = _settled_message(best, settled.settlement, units, options, horizon=value_window[1] - inputs.alarm_time)
+    elif verdict == "explained" and best.kind == "ramp":
         step = next(f for f in ranking if f.parameter == best.parameter)
         sharp = _lengthen_ramp(inputs, index, a, step, best, sigma, problem.scales, options)
     elif verdict == "explained" and _imprecise(best, options.precision):
@@ -568,6 +682,7 @@ def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOption
                            floor_chi2=residuals, distinct_gain=options.distinct_gain, ranked=first_fit,
                            horizon=value_window[1] - inputs.alarm_time)
     return Diagnosis(verdict=verdict, message=message, best=best, ranking=ranking, ramp=ramp,
+                     settled=None if settled is None else settled.settlement,
                      alarm_time=inputs.alarm_time, onset_time=grid.time(c0) if found is not None else None,
                      window=(grid.time(fit_from), grid.time(last)), rows=problem.rows, columns=inputs.columns,
                      noise=dict(zip(inputs.columns, map(float, sigma))), healthy_chi2=healthy_chi2,
