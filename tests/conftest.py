@@ -125,14 +125,86 @@ def mechanism_fmus(tmp_path_factory) -> MechanismFMUs:
 
 
 @pytest.fixture(scope="session")
-def theta2_reference(tmp_path_factory):
+def shared_folder(tmp_path_factory) -> Path:
+    """A folder of this test session that every xdist worker sees (support.shared_result's)."""
+    base = tmp_path_factory.getbasetemp()
+    # under xdist every worker's basetemp is <the session's folder>/popen-gwN: share the parent
+    shared = base.parent if base.name.startswith("popen-gw") else base
+    return shared / "shared-results"
+
+
+@pytest.fixture(scope="session")
+def theta2_reference(shared_folder):
     """``reference_theta2.simulate`` computed once per session, shared by the xdist workers
     (support.cached_theta2_reference): ``theta2_reference(times, th2_0, switches=(), **params)``."""
     import functools
 
     from support import cached_theta2_reference
 
-    base = tmp_path_factory.getbasetemp()
-    # under xdist every worker's basetemp is <the session's folder>/popen-gwN: share the parent
-    shared = base.parent if base.name.startswith("popen-gw") else base
-    return functools.partial(cached_theta2_reference, shared / "theta2-reference")
+    return functools.partial(cached_theta2_reference, shared_folder)
+
+
+# -- the order the tests run in: the expensive modules first ------------------------------------
+# `make test` runs on two xdist workers with --dist worksteal: each worker starts with a
+# contiguous half of the collected tests, and one that runs out steals half of what the other
+# has left, from its end.  A slow module collected last (e.g. tests/test_view_*.py) then runs
+# alone at the end while the other core idles.  So whole modules (their tests kept together and
+# in pytest's order, so a module-scoped fixture is made once) are put in order of their cost:
+# the seconds the module took in the last run (recorded in pytest's cache, .pytest_cache/, by
+# the process that runs the session), or on a first run the number of its tests marked slow.
+# Only the order changes: every test still runs.
+_DURATIONS_KEY = "fourbar/module_seconds"
+
+
+def _module(nodeid: str) -> str:
+    return nodeid.split("::", 1)[0]
+
+
+@pytest.hookimpl(trylast=True)          # after pytest's own reordering (by fixture parameters)
+def pytest_collection_modifyitems(session, config, items):
+    cache = getattr(config, "cache", None)            # None with -p no:cacheprovider
+    recorded = cache.get(_DURATIONS_KEY, {}) if cache is not None else {}
+    slow: dict[str, int] = {}
+    count: dict[str, int] = {}
+    first: dict[str, int] = {}
+    for i, item in enumerate(items):
+        module = _module(item.nodeid)
+        first.setdefault(module, i)
+        count[module] = count.get(module, 0) + 1
+        slow[module] = slow.get(module, 0) + (item.get_closest_marker("slow") is not None)
+
+    def cost(module: str) -> float:
+        seconds = recorded.get(module)
+        return float(seconds) if isinstance(seconds, (int, float)) else 20.0 * slow[module] + 0.05 * count[module]
+
+    rank = {module: n for n, module in enumerate(sorted(first, key=lambda m: (-cost(m), first[m])))}
+    items.sort(key=lambda item: rank[_module(item.nodeid)])     # stable: a module's own order kept
+
+
+class _ModuleSeconds:
+    """Adds up each module's setup, call and teardown seconds (on the process that receives
+    every report: the controller under xdist) and records them in pytest's cache."""
+
+    def __init__(self, config):
+        self.config = config
+        self.seconds: dict[str, float] = {}
+
+    def pytest_runtest_logreport(self, report):
+        module = _module(report.nodeid)
+        self.seconds[module] = self.seconds.get(module, 0.0) + report.duration
+
+    def pytest_sessionfinish(self, session):
+        cache = getattr(self.config, "cache", None)
+        option = self.config.option
+        # a selection (-k, -m, a test's id) times part of a module: keep the whole module's figure
+        partial = option.keyword or option.markexpr or any("::" in str(a) for a in self.config.args)
+        if cache is None or partial or not self.seconds:
+            return
+        recorded = dict(cache.get(_DURATIONS_KEY, {}))
+        recorded.update({module: round(s, 2) for module, s in self.seconds.items()})
+        cache.set(_DURATIONS_KEY, recorded)
+
+
+def pytest_configure(config):
+    if not hasattr(config, "workerinput"):        # not on an xdist worker: its controller gets every report
+        config.pluginmanager.register(_ModuleSeconds(config), "fourbar-module-seconds")

@@ -188,31 +188,59 @@ def cached_theta2_reference(folder: Path, times, th2_0: float, switches: tuple =
     the reference costs ~15 s of CPU, and test_fmu_physics.py (each FMU) and test_fmu_native.py
     ask for the same Cases 1 and 2.  The key hashes the arguments and reference_theta2.py's own
     text; the file is written whole (os.replace) under a lock, so a reader never sees a part."""
-    import hashlib
-
     import numpy as np
 
     import reference_theta2
 
     times = np.asarray(times, dtype=float)
-    key = hashlib.sha256(repr((th2_0, tuple((t, sorted(p.items())) for t, p in switches), sorted(params.items())))
-                         .encode() + times.tobytes()
-                         + Path(reference_theta2.__file__).read_bytes()).hexdigest()[:32]
+    key = (repr((th2_0, tuple((t, sorted(p.items())) for t, p in switches), sorted(params.items()))).encode()
+           + times.tobytes() + Path(reference_theta2.__file__).read_bytes())
+    return shared_result(folder, "theta2", key,
+                         lambda: reference_theta2.simulate(times, th2_0, switches=switches, **params))
+
+
+def shared_result(folder: Path, name: str, key: bytes, compute):
+    """``compute()``, or its result as a process of this test session (an xdist worker too)
+    computed it already with the same ``key`` (bytes: every input the result depends on).
+
+    The suite's workers are separate processes, and a module's tests (with its module-scoped
+    fixtures) can run on both of them when one steals the other's tests: an expensive run made
+    by a fixture would then be made twice.  The result is pickled to ``folder`` (the session's
+    shared temporary folder, so nothing outlives the session) whole (os.replace) under a lock
+    file, so the other worker waits for it instead of computing it again and never reads a
+    part.  Numpy arrays come back read-only (a test cannot change what another one reads)."""
+    import hashlib
+    import pickle
+
+    import numpy as np
+
+    digest = hashlib.sha256(key).hexdigest()[:32]
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"theta2-{key}.npy"
+    path = folder / f"{name}-{digest}.pickle"
     try:
         import fcntl
     except ImportError:                         # no flock (Windows): each process computes its own
         fcntl = None
-    with open(folder / f"theta2-{key}.lock", "w") as lock:
+    with open(folder / f"{name}-{digest}.lock", "w") as lock:
         if fcntl is not None:
             fcntl.flock(lock, fcntl.LOCK_EX)    # the other worker waits for the file, not computes it again
         if not path.exists():
-            result = reference_theta2.simulate(times, th2_0, switches=switches, **params)
+            result = compute()
             partial = path.with_suffix(f".{os.getpid()}.tmp")
             with open(partial, "wb") as f:
-                np.save(f, result)
+                pickle.dump(result, f, protocol=pickle.HIGHEST_PROTOCOL)
             os.replace(partial, path)
-    result = np.load(path)
-    result.setflags(write=False)
+    with open(path, "rb") as f:
+        result = pickle.load(f)
+    for value in (result.values() if isinstance(result, dict) else [result]):
+        if isinstance(value, np.ndarray):
+            value.setflags(write=False)
     return result
+
+
+def file_key(*paths: Path) -> bytes:
+    """The contents of ``paths`` as part of a ``shared_result`` key (an FMU rebuilt mid-session
+    is a different input)."""
+    import hashlib
+
+    return b"".join(hashlib.sha256(Path(p).read_bytes()).digest() for p in paths)

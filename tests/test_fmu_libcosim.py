@@ -35,6 +35,7 @@ pytest.importorskip("libcosimpy", reason="libcosimpy is not installed (pip insta
 
 from fmpy import extract, read_model_description, simulate_fmu  # noqa: E402
 from fmpy.fmi2 import FMU2Slave  # noqa: E402
+from support import file_key, shared_result  # noqa: E402
 
 pytestmark = pytest.mark.slow    # whole 100 s runs; `make check` leaves them out
 
@@ -68,47 +69,61 @@ np.savez(sys.argv[3], **result)
 """
 
 
+# The three runs below (100 s each, ~12 s of CPU on the pythonfmu FMU) are made once per test
+# session, also when both xdist workers run tests of this module (support.shared_result).
 @pytest.fixture(scope="module")
-def libcosim_case2(either_fmu, repo_root, tmp_path_factory):
-    out = tmp_path_factory.mktemp("libcosim") / "case2.npz"
-    # A clean environment: no LD_PRELOAD, PYTHONHOME or PYTHONPATH (neither FMU needs them in a
-    # Python host; the native one needs them in no host at all).
-    env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "PYTHONHOME", "PYTHONPATH")}
-    proc = subprocess.run([sys.executable, "-c", _CHILD, str(repo_root / "examples" / "libcosim_case2.py"),
-                           str(either_fmu), str(out)], capture_output=True, text=True, timeout=300, env=env)
-    assert proc.returncode == 0 and out.exists(), f"libcosim run failed ({proc.returncode}):\n{proc.stderr[-3000:]}"
-    with np.load(out) as data:
-        return {name: data[name] for name in data.files}
+def libcosim_case2(either_fmu, repo_root, shared_folder, tmp_path_factory):
+    example = repo_root / "examples" / "libcosim_case2.py"
+
+    def run() -> dict:
+        out = tmp_path_factory.mktemp("libcosim") / "case2.npz"
+        # A clean environment: no LD_PRELOAD, PYTHONHOME or PYTHONPATH (neither FMU needs them in a
+        # Python host; the native one needs them in no host at all).
+        env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "PYTHONHOME", "PYTHONPATH")}
+        proc = subprocess.run([sys.executable, "-c", _CHILD, str(example), str(either_fmu), str(out)],
+                              capture_output=True, text=True, timeout=300, env=env)
+        assert proc.returncode == 0 and out.exists(), f"libcosim run failed ({proc.returncode}):\n{proc.stderr[-3000:]}"
+        with np.load(out) as data:
+            return {name: data[name] for name in data.files}
+
+    return shared_result(shared_folder, "libcosim-case2", file_key(either_fmu, example) + _CHILD.encode(), run)
 
 
 @pytest.fixture(scope="module")
-def fmpy_case2(either_fmu):
-    signal = np.array([(0.0, 1.0), (10.0, 1.0), (10.0, 1.1)], dtype=[("time", float), ("L2", float)])
-    return simulate_fmu(str(either_fmu), stop_time=100.0, output_interval=0.01, input=signal, output=OUTPUTS)
+def fmpy_case2(either_fmu, shared_folder):
+    def run():
+        signal = np.array([(0.0, 1.0), (10.0, 1.0), (10.0, 1.1)], dtype=[("time", float), ("L2", float)])
+        return simulate_fmu(str(either_fmu), stop_time=100.0, output_interval=0.01, input=signal, output=OUTPUTS)
+
+    return shared_result(shared_folder, "fmpy-case2", file_key(either_fmu) + repr(OUTPUTS).encode(), run)
 
 
 @pytest.fixture(scope="module")
-def fmpy_on_libcosim_grid(either_fmu, tmp_path_factory):
+def fmpy_on_libcosim_grid(either_fmu, shared_folder, tmp_path_factory):
     """FMPy's FMU2Slave making exactly libcosim's calls: same times, L2 set before step 1000."""
-    md = read_model_description(str(either_fmu))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    refs = [vr[name] for name in OUTPUTS]
-    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(either_fmu), tmp_path_factory.mktemp("fmu")),
-                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="fourbar")
-    slave.instantiate()
-    slave.setupExperiment(startTime=0.0)
-    slave.enterInitializationMode()
-    slave.exitInitializationMode()
-    rows = [slave.getReal(refs)]
-    for n in range(N_STEPS):
-        if n == N_CHANGE:
-            slave.setReal([vr["L2"]], [1.1])
-        t, t_next = (n * STEP_NS) / 1e9, ((n + 1) * STEP_NS) / 1e9
-        slave.doStep(currentCommunicationPoint=t, communicationStepSize=t_next - t)
-        rows.append(slave.getReal(refs))
-    slave.terminate()
-    slave.freeInstance()
-    return np.array(rows)
+    def run() -> np.ndarray:
+        md = read_model_description(str(either_fmu))
+        vr = {v.name: v.valueReference for v in md.modelVariables}
+        refs = [vr[name] for name in OUTPUTS]
+        slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(either_fmu), tmp_path_factory.mktemp("fmu")),
+                          modelIdentifier=md.coSimulation.modelIdentifier, instanceName="fourbar")
+        slave.instantiate()
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        rows = [slave.getReal(refs)]
+        for n in range(N_STEPS):
+            if n == N_CHANGE:
+                slave.setReal([vr["L2"]], [1.1])
+            t, t_next = (n * STEP_NS) / 1e9, ((n + 1) * STEP_NS) / 1e9
+            slave.doStep(currentCommunicationPoint=t, communicationStepSize=t_next - t)
+            rows.append(slave.getReal(refs))
+        slave.terminate()
+        slave.freeInstance()
+        return np.array(rows)
+
+    key = file_key(either_fmu) + repr((OUTPUTS, N_STEPS, N_CHANGE, STEP_NS)).encode()
+    return shared_result(shared_folder, "fmpy-libcosim-grid", key, run)
 
 
 def test_libcosim_runs_case2_on_the_grid(libcosim_case2):

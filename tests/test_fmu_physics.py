@@ -17,7 +17,7 @@ from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi1 import FMICallException
 
-from support import logged_callbacks
+from support import file_key, logged_callbacks, shared_result
 
 pytestmark = pytest.mark.slow    # whole 100 s runs; `make check` leaves them out
 
@@ -78,24 +78,32 @@ def _logged_instance(md, unzipdir):
     return instance
 
 
-@pytest.fixture(scope="module")
-def case1(either_fmu):
-    return run(either_fmu, start_values=TABLE1_TOLERANCES)
+def shared_run(folder, fmu, **kwargs):
+    """``run(fmu, **kwargs)`` made once per test session, also when both xdist workers run tests
+    of this module (support.shared_result): a 100 s run at tight tolerances costs ~18 s of CPU on
+    the pythonfmu FMU."""
+    return shared_result(folder, "physics-run", file_key(fmu) + repr(sorted(kwargs.items())).encode(),
+                         lambda: run(fmu, **kwargs))
 
 
 @pytest.fixture(scope="module")
-def case2(either_fmu):
-    return run(either_fmu, start_values=TABLE1_TOLERANCES, l2_step=(10.0, 1.1))
+def case1(either_fmu, shared_folder):
+    return shared_run(shared_folder, either_fmu, start_values=TABLE1_TOLERANCES)
 
 
 @pytest.fixture(scope="module")
-def case1_tight(either_fmu):
-    return run(either_fmu, start_values=TIGHT)
+def case2(either_fmu, shared_folder):
+    return shared_run(shared_folder, either_fmu, start_values=TABLE1_TOLERANCES, l2_step=(10.0, 1.1))
 
 
 @pytest.fixture(scope="module")
-def case2_tight(either_fmu):
-    return run(either_fmu, start_values=TIGHT, l2_step=(10.0, 1.1))
+def case1_tight(either_fmu, shared_folder):
+    return shared_run(shared_folder, either_fmu, start_values=TIGHT)
+
+
+@pytest.fixture(scope="module")
+def case2_tight(either_fmu, shared_folder):
+    return shared_run(shared_folder, either_fmu, start_values=TIGHT, l2_step=(10.0, 1.1))
 
 
 def joint_mismatch(r, L2):
