@@ -57,6 +57,7 @@ goes on (:func:`fault_is_safe`).
 """
 from __future__ import annotations
 
+import functools
 import json
 import math
 from dataclasses import dataclass, replace
@@ -76,8 +77,10 @@ MASSES = ("m2", "m3", "m4")
 PARAMETERS = (*LENGTHS, *MASSES, "g")
 STARTS = ("theta2_start", "omega2_start")
 
+@functools.lru_cache(maxsize=None)
 def _eq():
-    """The four-bar's generated equations module (the FMUs' own kinematics and energy)."""
+    """The four-bar's generated equations module (the FMUs' own kinematics and energy); read
+    once per process (prepare_mechanism checks the description again on every call)."""
     from fmu_src.mechanism.check import prepare_mechanism
 
     return prepare_mechanism("fourbar").module
@@ -242,6 +245,17 @@ class _Circle:
         return float(M[0]), float(V[0]), float(s[0])
 
 
+@functools.lru_cache(maxsize=256)
+def _circle(p: tuple[float, ...], theta0: float, transmission_min: float = TRANSMISSION_MIN) -> _Circle:
+    """``_Circle(p, theta0, transmission_min)``, computed once per process: analyse, draw_fault and
+    fault_is_safe ask for the same circles again (1440 crank angles each, most of a draw's cost).
+    Its arrays are read-only, so a caller cannot change another's."""
+    c = _Circle(p, float(theta0), transmission_min)
+    for array in (c.theta, c.M, c.V, c.sin_mu, c.closes):
+        array.setflags(write=False)
+    return c
+
+
 def _scan(c: _Circle, E: float, start: int, direction: int) -> tuple[str, int]:
     """From circle index ``start``, walk ``direction`` (+1/-1) while E > V: ("turn", k steps),
     ("fold", k) (comes within TRANSMISSION_MIN of a fold first) or ("round", N)."""
@@ -288,7 +302,7 @@ def analyse(values: dict, theta0: float | None = None, omega0: float | None = No
     p = _p(values)
     theta0 = float(values["theta2_start"] if theta0 is None else theta0)
     omega0 = float(values["omega2_start"] if omega0 is None else omega0)
-    c = _Circle(p, theta0, transmission_min)
+    c = _circle(p, theta0, transmission_min)
     if not c.closes[0]:
         if not math.isfinite(c.M[0]):
             return Motion("locks", f"the loop does not close at theta2 = {math.degrees(theta0):.4g} deg")
@@ -422,7 +436,7 @@ def draw_configuration(src: Source, family: str, *, attempts: int = 400) -> Conf
                     continue
                 values["theta2_start"] = start
             if family == "rotating":
-                c = _Circle(_p(values), values["theta2_start"])
+                c = _circle(_p(values), float(values["theta2_start"]))
                 if not c.closes.all():
                     continue
                 need = 2.0 * (float(np.max(c.V)) - float(c.V[0])) / float(c.M[0])     # omega0^2 to pass the top
@@ -443,7 +457,7 @@ def _basin_start(src: Source, values: dict) -> float | None:
     """A crank angle in the potential well around the lowest closable angle, below the lower
     of the two barriers that bound it (a potential top, or the last angle clear of a fold):
     released there at rest the linkage swings inside the well.  None when nothing closes."""
-    c = _Circle(_p(values), 0.0)
+    c = _circle(_p(values), 0.0)
     V = np.where(c.closes, c.V, np.inf)
     if not np.isfinite(V).any():
         return None
@@ -521,7 +535,7 @@ def fault_is_safe(config: Configuration, variable: str, relative: float, *, samp
     after = dict(v, **{variable: v[variable] * (1.0 + relative)})
     m = config.motion
     theta0, omega0 = v["theta2_start"], v["omega2_start"]
-    before = _Circle(_p(v), theta0)
+    before = _circle(_p(v), float(theta0))
     E = 0.5 * before.M[0] * omega0 ** 2 + before.V[0]
     if m.kind == "rotating":
         thetas = theta0 + np.linspace(0.0, 2.0 * math.pi, samples, endpoint=False)
@@ -529,7 +543,7 @@ def fault_is_safe(config: Configuration, variable: str, relative: float, *, samp
         thetas = np.linspace(m.theta_low, m.theta_high, samples)
     M0, V0, _s = _reduced(thetas, _p(v))
     omega2 = np.maximum(2.0 * (E - V0) / M0, 0.0)
-    new = _Circle(_p(after), theta0)
+    new = _circle(_p(after), float(theta0))
     M1, V1, s1 = _reduced(thetas, _p(after))
     for th, w2, m1, v1, s in zip(thetas, omega2, M1, V1, s1):
         if not (math.isfinite(m1) and s >= math.sin(TRANSMISSION_MIN)):
