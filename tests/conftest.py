@@ -127,10 +127,9 @@ def mechanism_fmus(tmp_path_factory) -> MechanismFMUs:
 @pytest.fixture(scope="session")
 def shared_folder(tmp_path_factory) -> Path:
     """A folder of this test session that every xdist worker sees (support.shared_result's)."""
-    base = tmp_path_factory.getbasetemp()
-    # under xdist every worker's basetemp is <the session's folder>/popen-gwN: share the parent
-    shared = base.parent if base.name.startswith("popen-gw") else base
-    return shared / "shared-results"
+    from support import shared_folder_of
+
+    return shared_folder_of(tmp_path_factory)
 
 
 @pytest.fixture(scope="session")

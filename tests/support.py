@@ -238,6 +238,14 @@ def shared_result(folder: Path, name: str, key: bytes, compute):
     return result
 
 
+def shared_folder_of(tmp_path_factory) -> Path:
+    """The folder of this test session that every xdist worker sees (``shared_result``'s)."""
+    base = tmp_path_factory.getbasetemp()
+    # under xdist every worker's basetemp is <the session's folder>/popen-gwN: share the parent
+    shared = base.parent if base.name.startswith("popen-gw") else base
+    return shared / "shared-results"
+
+
 def file_key(*paths: Path) -> bytes:
     """The contents of ``paths`` as part of a ``shared_result`` key (an FMU rebuilt mid-session
     is a different input)."""

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from support import REPO
+from support import REPO, file_key, shared_result
 
 sys.path.insert(0, str(REPO / "benchmarks"))
 import fuzz_inputs as F  # noqa: E402
@@ -57,17 +57,23 @@ def fuzz_work(tmp_path_factory, native_fmu) -> Path:
 
 
 @pytest.fixture(scope="module")
-def outcomes(fuzz_work) -> dict[tuple[str, str], list[F.Outcome]]:
+def outcomes(fuzz_work, native_fmu, shared_folder) -> dict[tuple[str, str], list[F.Outcome]]:
     """Every program's outcome on every input of the sample, by (family, name): the corpus and the
-    seeded examples, run two at a time (the sample is mostly process start-up)."""
+    seeded examples, run two at a time (the sample is mostly process start-up).  Made once per
+    test session (~45 s of CPU), also when both xdist workers run tests of this module
+    (support.shared_result)."""
     from concurrent.futures import ThreadPoolExecutor
 
-    exchange = F.exchange_base(fuzz_work / "base")
-    items = {(family, item.name): item for family in F.FAMILIES
-             for item in F.inputs(family, EXAMPLES[family], F.SEED, exchange)}
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        futures = {key: pool.submit(F.run_input, items[key], fuzz_work, timeout=HANG_GUARD) for key in SAMPLE}
-        return {key: future.result() for key, future in futures.items()}
+    def run_sample():
+        exchange = F.exchange_base(fuzz_work / "base")
+        items = {(family, item.name): item for family in F.FAMILIES
+                 for item in F.inputs(family, EXAMPLES[family], F.SEED, exchange)}
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            futures = {key: pool.submit(F.run_input, items[key], fuzz_work, timeout=HANG_GUARD) for key in SAMPLE}
+            return {key: future.result() for key, future in futures.items()}
+
+    key = file_key(native_fmu, Path(F.__file__)) + repr((SAMPLE, EXAMPLES, HANG_GUARD)).encode()
+    return shared_result(shared_folder, "fuzz-outcomes", key, run_sample)
 
 
 @pytest.mark.parametrize("family,name", SAMPLE, ids=[f"{f}-{n}" for f, n in SAMPLE])

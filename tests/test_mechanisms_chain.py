@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from support import BIN, FOURBAR_MONITOR, FOURBAR_RUN, case_file
+from support import BIN, FOURBAR_MONITOR, FOURBAR_RUN, REPO, case_file, file_key, shared_result
 
 FOURBAR_DIAGNOSE = str(BIN / "fourbar-diagnose")
 FAULT_STOP = 20.0       # s (module docstring)
@@ -130,27 +130,34 @@ def _monitor_args(chain: Chain, run_dir: Path) -> list[str]:
 
 
 @pytest.fixture(scope="module", params=[SLIDER, DRIVEN, WATT, FIVEBAR], ids=lambda c: c.mechanism)
-def outcome(request, mechanism_fmus, tmp_path_factory) -> Outcome:
-    """The chain on the case's fault (to ``FAULT_STOP``) and on the same case without it (``HEALTHY_STOP``)."""
+def outcome(request, mechanism_fmus, tmp_path_factory, shared_folder) -> Outcome:
+    """The chain on the case's fault (to ``FAULT_STOP``) and on the same case without it (``HEALTHY_STOP``).
+    Made once per test session (~12 s of CPU each), also when both xdist workers run this
+    mechanism's tests (support.shared_result)."""
     chain: Chain = request.param
     fmu = mechanism_fmus.get(chain.mechanism, "native")
-    tmp = tmp_path_factory.mktemp(chain.mechanism)
-    case = case_file(chain.case, fmu, tmp)
-    walls, healthy_walls = Walls(), Walls()
-    fault_dir, healthy_dir = tmp / "fault", tmp / "healthy"
 
-    run = walls.run("fourbar-run", [FOURBAR_RUN, str(case), "--out", str(fault_dir), "--stop", repr(FAULT_STOP),
-                                    "--quiet"], timeout=300)
-    assert run.returncode == 0, run.stdout + run.stderr
-    monitor = walls.run("fourbar-monitor", _monitor_args(chain, fault_dir), timeout=300)
-    diagnose = walls.run("fourbar-diagnose", [FOURBAR_DIAGNOSE, str(fault_dir)], timeout=600)
+    def run_chain() -> Outcome:
+        tmp = tmp_path_factory.mktemp(chain.mechanism)
+        case = case_file(chain.case, fmu, tmp)
+        walls, healthy_walls = Walls(), Walls()
+        fault_dir, healthy_dir = tmp / "fault", tmp / "healthy"
 
-    run = healthy_walls.run("fourbar-run", [FOURBAR_RUN, str(_without_events(case)), "--out", str(healthy_dir),
-                                            "--stop", repr(HEALTHY_STOP), "--quiet"], timeout=300)
-    assert run.returncode == 0, run.stdout + run.stderr
-    healthy_monitor = healthy_walls.run("fourbar-monitor", _monitor_args(chain, healthy_dir), timeout=300)
-    print(f"\n{chain.mechanism}: fault chain {walls.seconds}, healthy {healthy_walls.seconds}")
-    return Outcome(chain, fault_dir, healthy_dir, monitor, healthy_monitor, diagnose, walls, healthy_walls)
+        run = walls.run("fourbar-run", [FOURBAR_RUN, str(case), "--out", str(fault_dir), "--stop", repr(FAULT_STOP),
+                                        "--quiet"], timeout=300)
+        assert run.returncode == 0, run.stdout + run.stderr
+        monitor = walls.run("fourbar-monitor", _monitor_args(chain, fault_dir), timeout=300)
+        diagnose = walls.run("fourbar-diagnose", [FOURBAR_DIAGNOSE, str(fault_dir)], timeout=600)
+
+        run = healthy_walls.run("fourbar-run", [FOURBAR_RUN, str(_without_events(case)), "--out", str(healthy_dir),
+                                                "--stop", repr(HEALTHY_STOP), "--quiet"], timeout=300)
+        assert run.returncode == 0, run.stdout + run.stderr
+        healthy_monitor = healthy_walls.run("fourbar-monitor", _monitor_args(chain, healthy_dir), timeout=300)
+        print(f"\n{chain.mechanism}: fault chain {walls.seconds}, healthy {healthy_walls.seconds}")
+        return Outcome(chain, fault_dir, healthy_dir, monitor, healthy_monitor, diagnose, walls, healthy_walls)
+
+    key = file_key(fmu, REPO / "cases" / f"{chain.case}.toml") + repr((chain, FAULT_STOP, HEALTHY_STOP)).encode()
+    return shared_result(shared_folder, "mechanism-chain", key, run_chain)
 
 
 @pytest.mark.slow

@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from support import FOURBAR_MONITOR, FOURBAR_RUN, REPO, case_file, recorded_columns  # noqa: F401 - re-exported to the monitor tests
+from support import file_key, shared_folder_of, shared_result
 NOISE_STD = 0.005   # m, σ of the x2 sensor noise in the acceptance criteria
 
 NOISE_SEED = 7
@@ -34,28 +35,35 @@ def noise_case(name: str, fmu: Path, dest: Path, fault: bool) -> Path:
 
 
 def orchestrated(tmp_path_factory: pytest.TempPathFactory, fmu: Path, name: str) -> Path:
-    """Path of the exchange.csv of run ``name`` (case1, case2, noise1, noise2); runs them once."""
+    """Path of the exchange.csv of run ``name`` (case1, case2, noise1, noise2); runs them once per
+    test session, also when both xdist workers ask (support.shared_result: ~28 s of CPU on the
+    pythonfmu FMU).  The files are shared: a test that changes one works on a copy (copy_run)."""
     with _lock:
         if not _runs:
-            base = tmp_path_factory.mktemp("orchestrated")
-            cases = {
-                "case1": case_file("case1_normal", fmu, base / "case1.toml"),
-                "case2": case_file("case2_fault_L2", fmu, base / "case2.toml"),
-                "noise1": noise_case("noise1", fmu, base / "noise1.toml", fault=False),
-                "noise2": noise_case("noise2", fmu, base / "noise2.toml", fault=True),
-            }
-            procs = {}
-            for key, case in cases.items():
-                procs[key] = subprocess.Popen([FOURBAR_RUN, str(case), "--out", str(base / key), "--quiet"],
-                                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-            failures = []
-            for key, proc in procs.items():
-                out, err = proc.communicate(timeout=300)
-                if proc.returncode != 0:
-                    failures.append(f"{key}: exit {proc.returncode}\n{out}\n{err}")
-            if failures:
-                raise RuntimeError("fourbar-run failed:\n" + "\n".join(failures))
-            _runs.update({key: base / key / "exchange.csv" for key in cases})
+            def run_all() -> dict[str, Path]:
+                base = tmp_path_factory.mktemp("orchestrated")
+                cases = {
+                    "case1": case_file("case1_normal", fmu, base / "case1.toml"),
+                    "case2": case_file("case2_fault_L2", fmu, base / "case2.toml"),
+                    "noise1": noise_case("noise1", fmu, base / "noise1.toml", fault=False),
+                    "noise2": noise_case("noise2", fmu, base / "noise2.toml", fault=True),
+                }
+                procs = {}
+                for key, case in cases.items():
+                    procs[key] = subprocess.Popen([FOURBAR_RUN, str(case), "--out", str(base / key), "--quiet"],
+                                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                failures = []
+                for key, proc in procs.items():
+                    out, err = proc.communicate(timeout=300)
+                    if proc.returncode != 0:
+                        failures.append(f"{key}: exit {proc.returncode}\n{out}\n{err}")
+                if failures:
+                    raise RuntimeError("fourbar-run failed:\n" + "\n".join(failures))
+                return {key: base / key / "exchange.csv" for key in cases}
+
+            key = file_key(fmu, REPO / "cases" / "case1_normal.toml", REPO / "cases" / "case2_fault_L2.toml") + \
+                repr((NOISE_SEED, NOISE_STD)).encode()
+            _runs.update(shared_result(shared_folder_of(tmp_path_factory), "orchestrated", key, run_all))
     return _runs[name]
 
 
