@@ -143,20 +143,40 @@ def theta2_reference(shared_folder):
     return functools.partial(cached_theta2_reference, shared_folder)
 
 
-# -- the order the tests run in: the expensive modules first ------------------------------------
-# `make test` runs on two xdist workers with --dist worksteal: each worker starts with a
-# contiguous half of the collected tests, and one that runs out steals half of what the other
-# has left, from its end.  A slow module collected last (e.g. tests/test_view_*.py) then runs
-# alone at the end while the other core idles.  So whole modules (their tests kept together and
-# in pytest's order, so a module-scoped fixture is made once) are put in order of their cost:
-# the seconds the module took in the last run (recorded in pytest's cache, .pytest_cache/, by
-# the process that runs the session), or on a first run the number of its tests marked slow.
-# Only the order changes: every test still runs.
+# -- the order the tests run in: each worker's expensive modules first -------------------------
+# `make test` runs on two xdist workers with --dist worksteal: the first worker starts with the
+# first half of the collected tests (by count), the second with the rest, and one that runs out
+# steals half of what the other has left, from its end.  In pytest's order (by file name) a slow
+# module collected late ran alone at the end while the other core idled, and a module split by a
+# steal made its module-scoped fixtures on both workers.  So whole modules (their tests kept
+# together and in pytest's order, so a module-scoped fixture is made once per worker) are dealt
+# into two halves of about equal cost, each half with its costly modules first: each worker
+# begins with its share of the slow work, and what is left to steal at the end is the fast tests.
+# A module's cost: the seconds it took in the last run that ran it whole (recorded in pytest's
+# cache, .pytest_cache/, by the process that runs the session), or on a first run 20 s per test
+# marked slow.  Only the order changes: every test still runs.
 _DURATIONS_KEY = "fourbar/module_seconds"
 
 
 def _module(nodeid: str) -> str:
     return nodeid.split("::", 1)[0]
+
+
+def two_halves(modules: dict[str, tuple[float, int]]) -> list[str]:
+    """The modules (name: (cost, number of tests)) in the order they should be collected: two
+    groups of about equal cost, the first holding at least half of the tests (so the second
+    worker's share begins inside it at the latest), each group's modules by cost per test, the
+    costliest first (a module of many cheap tests last: the first worker's half ends in it)."""
+    groups: list[list[str]] = [[], []]
+    cost, count = [0.0, 0.0], [0, 0]
+    for name in sorted(modules, key=lambda m: -modules[m][0]):       # stable: ties keep their order
+        g = 0 if (cost[0], count[0]) <= (cost[1], count[1]) else 1
+        groups[g].append(name)
+        cost[g] += modules[name][0]
+        count[g] += modules[name][1]
+    first, second = groups if count[0] >= count[1] else groups[::-1]
+    density = {m: c / max(n, 1) for m, (c, n) in modules.items()}
+    return sorted(first, key=lambda m: -density[m]) + sorted(second, key=lambda m: -density[m])
 
 
 @pytest.hookimpl(trylast=True)          # after pytest's own reordering (by fixture parameters)
@@ -165,10 +185,8 @@ def pytest_collection_modifyitems(session, config, items):
     recorded = cache.get(_DURATIONS_KEY, {}) if cache is not None else {}
     slow: dict[str, int] = {}
     count: dict[str, int] = {}
-    first: dict[str, int] = {}
-    for i, item in enumerate(items):
+    for item in items:
         module = _module(item.nodeid)
-        first.setdefault(module, i)
         count[module] = count.get(module, 0) + 1
         slow[module] = slow.get(module, 0) + (item.get_closest_marker("slow") is not None)
 
@@ -176,7 +194,7 @@ def pytest_collection_modifyitems(session, config, items):
         seconds = recorded.get(module)
         return float(seconds) if isinstance(seconds, (int, float)) else 20.0 * slow[module] + 0.05 * count[module]
 
-    rank = {module: n for n, module in enumerate(sorted(first, key=lambda m: (-cost(m), first[m])))}
+    rank = {m: n for n, m in enumerate(two_halves({m: (cost(m), count[m]) for m in count}))}
     items.sort(key=lambda item: rank[_module(item.nodeid)])     # stable: a module's own order kept
 
 
