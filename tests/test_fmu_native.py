@@ -130,13 +130,18 @@ def native(native_fmu):
 
 # -- FMUs of other mechanisms, built once per module --------------------------------------
 class MechanismFMUs:
-    """``get(mechanism)``: the native FMU of a shipped name or a file, built on first use."""
+    """``get(mechanism)``: the native FMU of a shipped name (conftest's session-wide builder:
+    build/'s copy when it is newer than every source, as everywhere else in the suite, else one
+    build per session) or of a file (built here on first use)."""
 
-    def __init__(self, folder: Path):
+    def __init__(self, folder: Path, shipped):
         self.folder = folder
+        self.shipped = shipped
         self.built: dict[str, Path] = {}
 
     def get(self, mechanism: str | Path) -> Path:
+        if isinstance(mechanism, str):
+            return self.shipped.get(mechanism, "native")
         key = str(mechanism)
         if key not in self.built:
             from fmu_src.native_build import build_native_fmu, find_compiler
@@ -148,8 +153,10 @@ class MechanismFMUs:
 
 
 @pytest.fixture(scope="module")
-def mechanism_fmus(tmp_path_factory) -> MechanismFMUs:
-    return MechanismFMUs(tmp_path_factory.mktemp("mechanisms"))
+def mechanism_fmus(mechanism_fmus, tmp_path_factory) -> MechanismFMUs:
+    """conftest's ``mechanism_fmus`` for the shipped mechanisms (each native FMU used to be built
+    again here, ~15 s of CPU each), and a builder for the test mechanism files."""
+    return MechanismFMUs(tmp_path_factory.mktemp("mechanisms"), mechanism_fmus)
 
 
 def _variant(tmp_path_factory, name: str, shipped: str, replacements) -> Path:
