@@ -162,23 +162,6 @@ def _module(nodeid: str) -> str:
     return nodeid.split("::", 1)[0]
 
 
-def two_halves(modules: dict[str, tuple[float, int]]) -> list[str]:
-    """The modules (name: (cost, number of tests)) in the order they should be collected: two
-    groups of about equal cost, the first holding at least half of the tests (so the second
-    worker's share begins inside it at the latest), each group's modules by cost per test, the
-    costliest first (a module of many cheap tests last: the first worker's half ends in it)."""
-    groups: list[list[str]] = [[], []]
-    cost, count = [0.0, 0.0], [0, 0]
-    for name in sorted(modules, key=lambda m: -modules[m][0]):       # stable: ties keep their order
-        g = 0 if (cost[0], count[0]) <= (cost[1], count[1]) else 1
-        groups[g].append(name)
-        cost[g] += modules[name][0]
-        count[g] += modules[name][1]
-    first, second = groups if count[0] >= count[1] else groups[::-1]
-    density = {m: c / max(n, 1) for m, (c, n) in modules.items()}
-    return sorted(first, key=lambda m: -density[m]) + sorted(second, key=lambda m: -density[m])
-
-
 @pytest.hookimpl(trylast=True)          # after pytest's own reordering (by fixture parameters)
 def pytest_collection_modifyitems(session, config, items):
     cache = getattr(config, "cache", None)            # None with -p no:cacheprovider
@@ -193,6 +176,8 @@ def pytest_collection_modifyitems(session, config, items):
     def cost(module: str) -> float:
         seconds = recorded.get(module)
         return float(seconds) if isinstance(seconds, (int, float)) else 20.0 * slow[module] + 0.05 * count[module]
+
+    from support import two_halves
 
     rank = {m: n for n, m in enumerate(two_halves({m: (cost(m), count[m]) for m in count}))}
     items.sort(key=lambda item: rank[_module(item.nodeid)])     # stable: a module's own order kept
@@ -210,11 +195,13 @@ class _ModuleSeconds:
         module = _module(report.nodeid)
         self.seconds[module] = self.seconds.get(module, 0.0) + report.duration
 
-    def pytest_sessionfinish(self, session):
+    def pytest_sessionfinish(self, session, exitstatus):
         cache = getattr(self.config, "cache", None)
         option = self.config.option
-        # a selection (-k, -m, a test's id) times part of a module: keep the whole module's figure
-        partial = option.keyword or option.markexpr or any("::" in str(a) for a in self.config.args)
+        # a selection (-k, -m, a test's id) or an interrupted run times part of a module: keep the
+        # whole module's figure
+        partial = (option.keyword or option.markexpr or any("::" in str(a) for a in self.config.args)
+                   or exitstatus == pytest.ExitCode.INTERRUPTED)
         if cache is None or partial or not self.seconds:
             return
         recorded = dict(cache.get(_DURATIONS_KEY, {}))

@@ -252,3 +252,21 @@ def file_key(*paths: Path) -> bytes:
     import hashlib
 
     return b"".join(hashlib.sha256(Path(p).read_bytes()).digest() for p in paths)
+
+
+# -- the order of the suite's modules (conftest.pytest_collection_modifyitems) ------------------
+def two_halves(modules: dict[str, tuple[float, int]]) -> list[str]:
+    """The modules (name: (cost, number of tests)) in the order they should be collected: two
+    groups of about equal cost, the first holding at least half of the tests (so the second
+    worker's share begins inside it at the latest), each group's modules by cost per test, the
+    costliest first (a module of many cheap tests last: the first worker's half ends in it)."""
+    groups: list[list[str]] = [[], []]
+    cost, count = [0.0, 0.0], [0, 0]
+    for name in sorted(modules, key=lambda m: -modules[m][0]):       # stable: ties keep their order
+        g = 0 if (cost[0], count[0]) <= (cost[1], count[1]) else 1
+        groups[g].append(name)
+        cost[g] += modules[name][0]
+        count[g] += modules[name][1]
+    first, second = groups if count[0] >= count[1] else groups[::-1]
+    density = {m: c / max(n, 1) for m, (c, n) in modules.items()}
+    return sorted(first, key=lambda m: -density[m]) + sorted(second, key=lambda m: -density[m])
