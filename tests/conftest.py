@@ -89,12 +89,16 @@ class MechanismFMUs:
     ``get("slider_crank", "native")`` is the path of SliderCrankNative.fmu (``"native3"``: its
     FMI 3.0 twin SliderCrankNative3.fmu): build/'s copy when it is newer than every source
     (``python build_fmu.py --mechanism slider_crank`` writes them), else a private build in the
-    session's temporary folder.  The native kinds skip the test when there is no C compiler.
+    session's temporary folder, made once for every xdist worker (support.shared_result).  A
+    test mechanism file's path works too.  The native kinds skip the test when there is no C
+    compiler.
     """
 
     def __init__(self, factory):
         self._factory = factory
         self._built: dict[tuple[str, str], Path] = {}
+        from support import shared_folder_of
+        self._shared = shared_folder_of(factory)
 
     def get(self, mechanism: str, kind: str = "pythonfmu") -> Path:
         key = (mechanism, kind)
@@ -108,12 +112,22 @@ class MechanismFMUs:
                 from fmu_src.native_build import find_compiler
                 if find_compiler() is None:
                     pytest.skip("no C compiler: the native FMU cannot be built here")
-            built = self._factory.mktemp(name) / f"{name}.fmu"
             option = {"native": ["--only", "native", "--fmi", "2", "--native-out"],
                       "native3": ["--only", "native", "--fmi", "3", "--native3-out"],
                       "pythonfmu": ["--only", "pythonfmu", "--out"]}[kind]
-            subprocess.run([sys.executable, str(REPO / "build_fmu.py"), "--mechanism", mechanism, *option,
-                            str(built)], check=True, cwd=REPO, capture_output=True)
+
+            def build() -> Path:
+                fmu = self._factory.mktemp(name) / f"{name}.fmu"
+                subprocess.run([sys.executable, str(REPO / "build_fmu.py"), "--mechanism", mechanism, *option,
+                                str(fmu)], check=True, cwd=REPO, capture_output=True)
+                return fmu
+
+            # one build per session, also when both xdist workers ask (a test mechanism file, as
+            # tests/mechanisms/quick_return.toml, is asked for by several modules: ~10-25 s a build)
+            from support import file_key, shared_result
+            source = Path(mechanism)
+            shared_key = repr((str(mechanism), kind)).encode() + (file_key(source) if source.is_file() else b"")
+            built = shared_result(self._shared, "mechanism-fmu", shared_key, build)
         self._built[key] = built
         return built
 
