@@ -498,7 +498,6 @@ class _Settled:
     best: Fit
     settlement: Settlement
     curves: Curves
-    branches: int
 
 
 def _settle(inputs: RunInputs, index: np.ndarray, alarm: int, c0: int, ranking: list[Fit], first_gap: float,
@@ -536,7 +535,7 @@ def _settle(inputs: RunInputs, index: np.ndarray, alarm: int, c0: int, ranking: 
         last = {f.parameter: f for f in fits}
         if curves is not None:
             window = (grid.time(w.fit_from), grid.time(w.last))
-            return _Settled(best=fits[0], curves=curves, branches=branches,
+            return _Settled(best=fits[0], curves=curves,
                             settlement=Settlement(window=window, runner_up=fits[1], first_gap=first_gap,
                                                   gap=gap)), branches
     return None, branches
