@@ -310,8 +310,8 @@ def test_every_cited_md_file_exists():
 
 
 def test_the_citation_check_sees_a_missing_document():
-    assert cited_md("see ARCHITECTURE.md §1 and docs/contracts.md") == {"ARCHITECTURE.md", "docs/contracts.md"}
-    assert not (REPO / "ARCHITECTURE.md").exists()
+    assert cited_md("see NO_SUCH_GUIDE.md §1 and docs/contracts.md") == {"NO_SUCH_GUIDE.md", "docs/contracts.md"}
+    assert not (REPO / "NO_SUCH_GUIDE.md").exists()
 
 
 # --- sweep files shown in docs/sweep.md ------------------------------------------------------
