@@ -153,3 +153,23 @@ def test_generated_code_is_not_committed():
         pytest.skip("not a git checkout")
     names = {Path(line).name for line in tracked.stdout.split()}
     assert not names & (set(GENERATED) | {"equations.py"}), "generated files are tracked by git"
+
+
+#: What told the old single FmuInstance class which FMI flavour it drove (issue 38, item 3).
+FLAVOUR_FLAGS = {"fmi3", "model_exchange", "fmiVersion", "fmi_type", "FMI_TYPE", "PREFIX"}
+
+
+def test_fmi_flavours_are_classes_not_flags():
+    """orchestrator's FMU instance is one class per FMI flavour (orchestrator.instance.FLAVOURS),
+    chosen once by instance_for: no method of the FMI layer tests the FMI version or interface type."""
+    branches = []
+    for name in ("fmi_instance.py", "fmi_versions.py", "fmi_interfaces.py", "instance.py"):
+        tree = ast.parse((REPO / "orchestrator" / name).read_text())
+        for cls in (n for n in tree.body if isinstance(n, ast.ClassDef)):
+            for node in ast.walk(cls):
+                if isinstance(node, (ast.If, ast.IfExp)):
+                    used = {n.id for n in ast.walk(node.test) if isinstance(n, ast.Name)}
+                    used |= {n.attr for n in ast.walk(node.test) if isinstance(n, ast.Attribute)}
+                    if used & FLAVOUR_FLAGS:
+                        branches.append(f"{name}:{node.lineno} ({cls.name})")
+    assert not branches, f"flavour branches in the FMI layer: {branches}"
