@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Robustness beyond Table 1: detection and diagnosis on a fixed, seeded sample of generated
-configurations (benchmarks/configurations.py), written to docs/robustness.md.
+configurations (fmu_src/fourbar_configurations.py), written to docs/robustness.md.
 
 Families (``configurations.FAMILIES``), each drawn ``--per-family`` times and run twice,
 noise-free and with σ = 3-5 mm (drawn) on x2, the monitored column:
@@ -56,7 +56,7 @@ REPO = HERE.parent
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(HERE))
 
-import configurations as C  # noqa: E402
+from fmu_src import fourbar_configurations as C  # noqa: E402
 
 NATIVE = REPO / "build" / "FourBarNative.fmu"
 SEED = 20240623
@@ -387,7 +387,7 @@ def report(rows: list[dict], *, planned: int, notes: list[str], args, wall: floa
         f"{'noise-free' if args.quick else f'noise-free and with σ = {NOISE[0] * 1000:g}–{NOISE[1] * 1000:g} mm on x2'}), "
         f"{len(rows)} of {planned} planned runs, native FMU, monitor `--model {args.model}` with the CUSUM at its "
         f"default setting, `fourbar-diagnose` after every alarm. Configurations from "
-        f"`benchmarks/configurations.py` (seed {SEED}; rules in its docstring). "
+        f"`fmu_src/fourbar_configurations.py` (seed {SEED}; rules in its docstring). "
         f"Code fingerprint {fingerprint}; {wall / 60:.1f} min wall time this call.",
         "",
         "Runs per configuration: a healthy run of "
