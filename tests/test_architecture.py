@@ -173,3 +173,17 @@ def test_fmi_flavours_are_classes_not_flags():
                     if used & FLAVOUR_FLAGS:
                         branches.append(f"{name}:{node.lineno} ({cls.name})")
     assert not branches, f"flavour branches in the FMI layer: {branches}"
+
+
+def test_the_package_description_fits_what_it_builds():
+    """pyproject's description (issue 38, item 5): any planar mechanism, the four-bar the default;
+    FMI 2.0 and 3.0; pythonfmu and native C (it said "Four-bar linkage FMI 2.0 co-simulation")."""
+    import tomllib
+
+    project = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    text = project["description"]
+    for says in ("planar mechanism", "four-bar linkage by default", "FMI 2.0 and 3.0", "pythonfmu", "native C"):
+        assert says in text, f"pyproject.toml description does not say {says!r}: {text}"
+    first = (REPO / "fmu_src" / "__init__.py").read_text(encoding="utf-8").split("\n\n")[0]
+    assert "FMI 2.0 and 3.0" in first and "four-bar by default" in first, first
+
