@@ -187,3 +187,32 @@ def test_the_package_description_fits_what_it_builds():
     first = (REPO / "fmu_src" / "__init__.py").read_text(encoding="utf-8").split("\n\n")[0]
     assert "FMI 2.0 and 3.0" in first and "four-bar by default" in first, first
 
+
+
+def _benchmark_modules() -> set[str]:
+    return {p.stem for p in (REPO / "benchmarks").glob("*.py")}
+
+
+def test_no_test_imports_benchmark_code():
+    """Tests depend on the package, never on benchmarks/ (issue 38, item 4): what tests and
+    benchmarks share (tolerances, flavour tables, host runners, the configuration rules) lives in
+    the package, which the benchmarks import.  A test may still run a benchmark as a program."""
+    benchmarks = _benchmark_modules()
+    assert {"fmi_flavours", "fmi_hosts", "doc_figures"} <= benchmarks      # the scan sees them
+    offenders = {}
+    for path in sorted((REPO / "tests").rglob("*.py")):
+        bad = imported_roots(path) & (benchmarks | {"benchmarks"})
+        if bad:
+            offenders[str(path.relative_to(REPO))] = sorted(bad)
+    assert not offenders, f"tests import benchmark modules: {offenders}"
+
+
+def test_no_test_puts_benchmarks_on_the_import_path():
+    """Neither tests/support.py nor any test adds benchmarks/ to sys.path (they used to, to import it)."""
+    offenders = []
+    for path in sorted((REPO / "tests").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if (isinstance(node, ast.Call) and ast.unparse(node.func) in ("sys.path.insert", "sys.path.append")
+                    and "benchmarks" in ast.unparse(node)):
+                offenders.append(f"{path.relative_to(REPO)}:{node.lineno}")
+    assert not offenders, offenders
