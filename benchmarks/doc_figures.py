@@ -27,13 +27,20 @@ Two kinds of figure:
   of the shipped sweep files.  Timings depend on load, so they are measured only by the
   benchmarks; this check keeps every copy equal to its source.
 
-Usage: python benchmarks/doc_figures.py [--check | --write] [--data DIR]
+``--root DIR`` compares (and ``--write`` rewrites) the quotes in DIR's copy of README.md and
+docs/ instead of this repository's; ``--figures FILE`` takes the fresh figures from a JSON
+object (key: text) instead of measuring, and ``--quoted`` prints the figures as the files
+quote them now (JSON): with them, tests/test_doc_figures.py and tests/test_docs.py show on a
+copy that the check notices a changed or lost quote, running this script as a program.
+
+Usage: python benchmarks/doc_figures.py [--check | --write | --quoted] [--copied | --figures FILE] [--data DIR] [--root DIR]
 """
 from __future__ import annotations
 
 import argparse
 import contextlib
 import io
+import json
 import math
 import os
 import re
@@ -690,27 +697,40 @@ def main(argv: list[str] | None = None) -> int:
     mode.add_argument("--write", action="store_true", help="write the fresh figures into the files "
                       f"(and make demo's history plot into {DEMO_IMAGE}, its animation and live-page "
                       "screenshot into docs/img/case2.gif and docs/img/view.png)")
-    parser.add_argument("--copied", action="store_true",
+    mode.add_argument("--quoted", action="store_true",
+                      help="print the figures as the files quote them now, as JSON (key: text); exit 1 if a quote "
+                           "is not found")
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument("--copied", action="store_true",
                         help="only the figures copied from generated files and sweep files (no runs; a second)")
+    source.add_argument("--figures", type=Path, metavar="FILE",
+                        help="the fresh figures from this JSON object (key: text) instead of measuring them")
     parser.add_argument("--data", type=Path, help="folder for the runs (reused when present); default: a temp dir")
+    parser.add_argument("--root", type=Path, default=REPO,
+                        help="the folder whose README.md and docs/ hold the quotes (default: this repository)")
     args = parser.parse_args(argv)
-    with tempfile.TemporaryDirectory(prefix="doc_figures_") as tmp:
-        data = args.data or Path(tmp)
-        data.mkdir(parents=True, exist_ok=True)
-        figures = copied_figures() if args.copied else all_figures(data)
-        if not args.copied:
-            if args.write:
-                shutil.copyfile(data / "demo" / "monitor" / "history.png", REPO / DEMO_IMAGE)
-                # the README's animation and live-page screenshot, from the same demo run
-                subprocess.run([sys.executable, str(REPO / "scripts" / "readme_media.py"), str(data / "demo")],
-                               check=True)
-    findings = compare(figures, partial=args.copied)
+    if args.quoted:
+        return print_quoted(args.root)
+    if args.figures:
+        figures = json.loads(args.figures.read_text(encoding="utf-8"))
+    else:
+        with tempfile.TemporaryDirectory(prefix="doc_figures_") as tmp:
+            data = args.data or Path(tmp)
+            data.mkdir(parents=True, exist_ok=True)
+            figures = copied_figures(args.root) if args.copied else all_figures(data)
+            if not args.copied:
+                if args.write:
+                    shutil.copyfile(data / "demo" / "monitor" / "history.png", REPO / DEMO_IMAGE)
+                    # the README's animation and live-page screenshot, from the same demo run
+                    subprocess.run([sys.executable, str(REPO / "scripts" / "readme_media.py"), str(data / "demo")],
+                                   check=True)
+    findings = compare(figures, args.root, partial=args.copied)
     if args.write:
         missing = [f for f in findings if f.quoted is None]
         for f in missing:
             print(f"{f.file}: the quote of {f.key} was not found; edit the text or its pattern in "
                   f"benchmarks/doc_figures.py", file=sys.stderr)
-        changed = rewrite(figures)
+        changed = rewrite(figures, args.root)
         print(f"rewrote {', '.join(changed) if changed else 'nothing (all figures current)'}")
         return 1 if missing else 0
     width = max(len(f.key) for f in findings)
@@ -725,6 +745,16 @@ def main(argv: list[str] | None = None) -> int:
               + ("; rewrite with: python benchmarks/doc_figures.py --write" if stale else ""))
         return 1 if stale else 0
     return 0
+
+
+def print_quoted(root: Path) -> int:
+    """``--quoted``: the figures as the files under ``root`` quote them now, as JSON on stdout."""
+    findings = compare({key: "" for q in QUOTES for key in q.keys}, root)
+    missing = [f for f in findings if f.quoted is None]
+    for f in missing:
+        print(f"{f.file}: the quote of {f.key} was not found", file=sys.stderr)
+    print(json.dumps({f.key: f.quoted for f in findings if f.quoted is not None}, indent=1, ensure_ascii=False))
+    return 1 if missing else 0
 
 
 def _one_line(text: str) -> str:

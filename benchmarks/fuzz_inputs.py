@@ -54,16 +54,26 @@ and its stderr, so it can be run again by hand.
 ``--write FILE`` puts the figures between the marker lines of FILE (``BEGIN``/``END`` below;
 docs/robustness.md, "Fuzzed input files"), with benchmarks/fmi_hosts.py's ``write_section``.
 
+For a small sample (tests/test_fuzz_inputs.py runs one, as a program): ``--fmu`` names the
+native FMU, ``--family-examples`` sets ``--examples`` per family, ``--only`` keeps some of the
+drawn inputs, ``--jobs`` runs inputs side by side, ``--json`` writes every outcome;
+``--list`` prints the drawn inputs (name, SHA-256 of their files) and runs nothing;
+``--probe CODE`` classifies one ``python -c CODE`` run as a program run on an input (a check
+of the classifier) and prints its outcome as JSON.
+
 Usage:
   python benchmarks/fuzz_inputs.py [--examples N] [--seed S] [--timeout S] [--memory GIB]
                                    [--families case,mechanism,sweep,exchange] [--keep DIR]
                                    [--write docs/robustness.md]
+                                   [--fmu FMU] [--family-examples FAMILY=N,...] [--only FAMILY/NAME,...]
+                                   [--jobs N] [--json FILE] [--list | --probe CODE]
 
 Exit status: 0 no failing outcome, 1 some input failed (listed), 2 usage error.
 """
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import os
@@ -934,7 +944,35 @@ def _parse(argv) -> argparse.Namespace:
                    help="where failing inputs are saved for reproduction (default %(default)s)")
     p.add_argument("--write", type=Path, metavar="FILE",
                    help="also put the figures between the marker lines of FILE (docs/robustness.md)")
+    p.add_argument("--fmu", type=Path, default=NATIVE, metavar="FMU",
+                   help="the native FMU the case and sweep inputs run (default %(default)s)")
+    p.add_argument("--family-examples", default="", metavar="FAMILY=N,...",
+                   help="--examples for these families instead (e.g. exchange=1)")
+    p.add_argument("--only", default="", metavar="FAMILY/NAME,...", help="run only these of the drawn inputs")
+    p.add_argument("--jobs", type=int, default=1, metavar="N", help="inputs run side by side (default %(default)s)")
+    p.add_argument("--json", type=Path, metavar="FILE", help="also write every outcome to FILE (a JSON list)")
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument("--list", action="store_true",
+                      help="print each drawn input (family, name, SHA-256 of its files, what) and run nothing")
+    mode.add_argument("--probe", metavar="CODE",
+                      help="classify one `python -c CODE` run as a program run on an input (a check of the "
+                           "classifier); print its outcome as JSON and run nothing else")
     args = p.parse_args(argv)
+    per_family: dict[str, int] = {}
+    for entry in filter(None, (e.strip() for e in args.family_examples.split(","))):
+        family, _, count = entry.partition("=")
+        if family not in FAMILIES or not count.isdigit():
+            p.error(f"--family-examples: expected FAMILY=N with FAMILY one of {', '.join(FAMILIES)} and N >= 0, "
+                    f"got {entry!r}")
+        per_family[family] = int(count)
+    only = set()
+    for entry in filter(None, (e.strip() for e in args.only.split(","))):
+        family, _, name = entry.partition("/")
+        if family not in FAMILIES or not name:
+            p.error(f"--only: expected FAMILY/NAME with FAMILY one of {', '.join(FAMILIES)}, got {entry!r}")
+        only.add((family, name))
+    if args.jobs < 1:
+        p.error(f"--jobs: expected a number >= 1, got {args.jobs}")
     families = tuple(f.strip() for f in args.families.split(",") if f.strip())
     unknown = [f for f in families if f not in FAMILIES]
     if unknown or not families:
@@ -950,31 +988,82 @@ def _parse(argv) -> argparse.Namespace:
         problem = markers_problem(args.write, BEGIN, END)
         if problem:
             p.error(problem)
-    if not NATIVE.is_file():
-        p.error(f"{NATIVE} not found: run `make fmu` first")
+    if args.probe is None and not args.fmu.is_file():
+        p.error(f"{args.fmu} not found: run `make fmu` first")
     args.families = families
+    args.per_family = {family: per_family.get(family, args.examples) for family in families}
+    args.only = only
     return args
 
 
+def _outcome_json(o: Outcome) -> dict:
+    return {"family": o.input.family, "name": o.input.name, "origin": o.input.origin, "what": o.input.what,
+            "program": o.program, "kind": o.kind, "exit": o.exit, "seconds": o.seconds, "stderr": o.stderr,
+            "argv": list(o.argv)}
+
+
+def probe(code: str, timeout: float, memory_gib: float) -> int:
+    """``--probe``: ``python -c code`` as the one program of a one-file input, classified; its outcome as JSON."""
+    PROGRAMS["probe"] = (Program("python -c", (0, 1), lambda folder, out, item: [sys.executable, "-c", code]),)
+    try:
+        item = FuzzInput("probe", "probe", "corpus", (("x.txt", b"x"),))
+        with tempfile.TemporaryDirectory(prefix="fuzz_probe-") as tmp:
+            (outcome,) = run_input(item, Path(tmp), timeout=timeout, memory_gib=memory_gib)
+    finally:
+        del PROGRAMS["probe"]
+    print(json.dumps(_outcome_json(outcome)))
+    return 0
+
+
+def _digest(item: FuzzInput) -> str:
+    h = hashlib.sha256()
+    for rel, content in item.files:
+        h.update(rel.encode() + b"\0" + (content if isinstance(content, bytes) else f"<{content}>".encode()) + b"\0")
+    return h.hexdigest()[:16]
+
+
 def main(argv=None) -> int:
+    global NATIVE
     args = _parse(argv)
+    NATIVE = args.fmu
+    if args.probe is not None:
+        return probe(args.probe, args.timeout, args.memory)
     started = time.monotonic()
     outcomes: list[Outcome] = []
     with tempfile.TemporaryDirectory(prefix="fuzz_inputs-") as tmp:
         work = Path(tmp)
         exchange = exchange_base(work / "base") if "exchange" in args.families else None
-        for family in args.families:
-            items = inputs(family, args.examples, args.seed, exchange, with_corpus=not args.no_corpus)
-            for k, item in enumerate(items, 1):
-                for o in run_input(item, work, timeout=args.timeout, memory_gib=args.memory):
+        drawn = {family: inputs(family, args.per_family[family], args.seed, exchange, with_corpus=not args.no_corpus)
+                 for family in args.families}
+        unknown = args.only - {(family, item.name) for family, items in drawn.items() for item in items}
+        if unknown:
+            print(f"fuzz_inputs.py: --only: no input {', '.join(sorted(f'{f}/{n}' for f, n in unknown))} was drawn",
+                  file=sys.stderr)
+            return 2
+        if args.list:
+            for family, items in drawn.items():
+                for item in items:
+                    print(f"{family} {item.name} {_digest(item)} {item.what}")
+            return 0
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=args.jobs) as pool:
+            runs = [(family, k, len(items), item,
+                     pool.submit(run_input, item, work, timeout=args.timeout, memory_gib=args.memory))
+                    for family, items in drawn.items() for k, item in enumerate(items, 1)
+                    if not args.only or (family, item.name) in args.only]
+            for family, k, n, item, future in runs:
+                for o in future.result():
                     outcomes.append(o)
                     mark = "" if not o.failed else f"  <- {o.kind.upper()}: {_last_line(o.stderr)}"
-                    print(f"[{family} {k}/{len(items)}] {item.name} {o.program}: {o.kind} "
+                    print(f"[{family} {k}/{n}] {item.name} {o.program}: {o.kind} "
                           f"({'timeout' if o.exit is None else o.exit}, {o.seconds:.1f} s){mark}",
                           file=sys.stderr, flush=True)
                     if o.failed:
                         keep_failure(o, args.keep)
     seconds = time.monotonic() - started
+    if args.json:
+        args.json.write_text(json.dumps([_outcome_json(o) for o in outcomes], indent=1), encoding="utf-8")
     options = [(f"--examples {args.examples}", args.examples != 20), (f"--seed {args.seed}", args.seed != SEED),
                (f"--timeout {args.timeout:g}", args.timeout != TIMEOUT),
                (f"--memory {args.memory:g}", args.memory != MEMORY_GIB),

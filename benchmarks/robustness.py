@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Robustness beyond Table 1: detection and diagnosis on a fixed, seeded sample of generated
-configurations (benchmarks/configurations.py), written to docs/robustness.md.
+configurations (fmu_src/fourbar_configurations.py), written to docs/robustness.md.
 
 Families (``configurations.FAMILIES``), each drawn ``--per-family`` times and run twice,
 noise-free and with σ = 3-5 mm (drawn) on x2, the monitored column:
@@ -56,7 +56,8 @@ REPO = HERE.parent
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(HERE))
 
-import configurations as C  # noqa: E402
+from fmu_src import fourbar_configurations as C  # noqa: E402
+from robustness_page import USER_PART, write_part  # noqa: E402
 
 NATIVE = REPO / "build" / "FourBarNative.fmu"
 SEED = 20240623
@@ -387,7 +388,7 @@ def report(rows: list[dict], *, planned: int, notes: list[str], args, wall: floa
         f"{'noise-free' if args.quick else f'noise-free and with σ = {NOISE[0] * 1000:g}–{NOISE[1] * 1000:g} mm on x2'}), "
         f"{len(rows)} of {planned} planned runs, native FMU, monitor `--model {args.model}` with the CUSUM at its "
         f"default setting, `fourbar-diagnose` after every alarm. Configurations from "
-        f"`benchmarks/configurations.py` (seed {SEED}; rules in its docstring). "
+        f"`fmu_src/fourbar_configurations.py` (seed {SEED}; rules in its docstring). "
         f"Code fingerprint {fingerprint}; {wall / 60:.1f} min wall time this call.",
         "",
         "Runs per configuration: a healthy run of "
@@ -583,42 +584,6 @@ def _interrupt(signum, frame):
 
 
 
-#: Where this page's part ends: what follows belongs to benchmarks/fuzz_inputs.py (its own
-#: marked section), which ``--write`` keeps as it is.
-KEPT_FROM = "# Fuzzed input files\n"
-#: The part ``--mechanisms`` writes, between the four-bar part and KEPT_FROM.
-USER_PART = "# User-style mechanisms\n"
-
-
-def _read(page: Path) -> str:
-    try:
-        return page.read_text(encoding="utf-8")
-    except OSError:
-        return ""
-
-
-def _split(text: str) -> tuple[str, str, str]:
-    """``text`` as (four-bar part, user part, what follows): each "" when absent."""
-    fuzz = text.find("\n" + KEPT_FROM)
-    fuzz = len(text) if fuzz < 0 else fuzz + 1
-    user = text.find("\n" + USER_PART, 0, fuzz)
-    user = fuzz if user < 0 else user + 1
-    return text[:user], text[user:fuzz], text[fuzz:]
-
-
-def _kept_part(page: Path) -> str:
-    """What of ``page`` follows the four-bar part (the user part and KEPT_FROM on; "" when absent)."""
-    _four, user, rest = _split(_read(page))
-    return "" if not (user or rest) else "\n" + user + rest
-
-
-def _page_with_user_part(page: Path, part: str) -> str:
-    """``page`` with its user part replaced by ``part`` (inserted before KEPT_FROM if absent)."""
-    four, _user, rest = _split(_read(page))
-    four = four.rstrip("\n") + "\n\n" if four.strip() else ""
-    return four + part + ("\n" + rest if rest else "")
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=str(REPO / "out" / "benchmarks" / "robustness"), help="cache and run folders")
@@ -666,10 +631,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"robustness: {len(planned) - len(keys)} scenarios still to run (--limit); the page covers "
               f"{len(keys)}", file=sys.stderr)
     if args.write and args.mechanisms:
-        Path(args.write).write_text(_page_with_user_part(Path(args.write), text), encoding="utf-8")
+        write_part(Path(args.write), "user", text)
         print(f"wrote the user-style mechanisms' part of {args.write}", file=sys.stderr)
     elif args.write:
-        Path(args.write).write_text(text + _kept_part(Path(args.write)), encoding="utf-8")
+        write_part(Path(args.write), "four-bar", text)
         print(f"wrote {args.write}", file=sys.stderr)
     else:
         print(text)

@@ -44,7 +44,7 @@ outputs (in --out, default RUN_DIR/diagnosis): diagnosis.json, diagnosis.png
 examples:
   fourbar-diagnose out/case2_fault_L2
   fourbar-diagnose out/case3_ramp_noise --horizon 5
-  fourbar-diagnose RUN_DIR --columns x2,y2,x3,y3,x4,y4    # all written columns, not only the monitored ones
+  fourbar-diagnose RUN_DIR --columns x2,y2,x3,y3,x4,y4    # the four-bar's link centres, not only the monitored ones
 
 --out is checked before the diagnosis: a file, a folder that cannot be created or written
 is refused at once (exit 2). The verdict is printed before the files are written; if they

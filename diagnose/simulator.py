@@ -88,10 +88,10 @@ class Simulator:
 
     # -- life cycle ---------------------------------------------------------------------
     def __enter__(self) -> "Simulator":
-        from orchestrator.instance import FmuInstance
+        from orchestrator.instance import instance_for
 
         with deferred():
-            self._fmu = FmuInstance(self.description, "fourbar-diagnose").__enter__()
+            self._fmu = instance_for(self.description, "fourbar-diagnose").__enter__()
             try:
                 self._read = self._fmu.reader(self.columns)
                 self._initialise()

@@ -1,4 +1,5 @@
-"""The mechanical part: any planar mechanism described in a file, as FMI 2.0 co-simulation FMUs.
+"""The mechanical part: any planar mechanism described in a file (Table 1's four-bar by default), as
+FMUs: pythonfmu (FMI 2.0 co-simulation) and native C (FMI 2.0 and 3.0, co-simulation and model exchange).
 
 - ``mechanism``: the description file (``description``), the sympy derivation of eq. (10)-(11)
   (``derivation``), the variable table (``table``), the generated Python (``python_code``) and
@@ -8,6 +9,9 @@
   integrator (``dae``) and the slave (``slave``).
 - ``build.build_fmu``: derive, generate, package with pythonfmu, complete and validate.
 - ``c_codegen`` / ``native/`` / ``native_build``: the same equations printed as C, the native FMU.
+- ``fmi_hosts`` / ``fmi_flavours``: the FMUs run in other FMI hosts, and every FMI flavour against
+  FMI 2.0 co-simulation, with their tolerances; ``fourbar_configurations``: four-bar case
+  configurations drawn by rule.  Test and benchmark time only (tests and benchmarks/ share them).
 
 Attributes are imported on first use, so ``import fmu_src`` loads neither sympy nor pythonfmu.
 """

@@ -2,10 +2,10 @@
 
 Both symptoms are reported upstream in PythonFMU issue #228 (crash at process exit; the
 wrong slave class on a second load).  Everything pythonfmu-specific in this project lives
-here; FMUs that are not pythonfmu's are left alone.  Delete this module, and its two calls
-in :mod:`orchestrator.instance`, when a pythonfmu release fixes both: the tests in
-``tests/test_orchestrator_pythonfmu_workarounds.py`` then pass with the calls removed
-(the exit test's control run stops crashing too).
+here; FMUs that are not pythonfmu's are left alone.  Delete this module, and its calls in
+:mod:`orchestrator.fmi_instance` and :mod:`orchestrator.fmi_versions`, when a pythonfmu release
+fixes both: the tests in ``tests/test_orchestrator_pythonfmu_workarounds.py`` then pass with
+the calls removed (the exit test's control run stops crashing too).
 
 1. Crash at exit (Linux): :func:`install_exit_guard`, :func:`release_library`.
    pythonfmu's export library (the FMU's ``binaries/linux64/*.so``) keeps its interpreter

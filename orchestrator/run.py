@@ -358,14 +358,14 @@ class _Run:
 
     # -- the run ----------------------------------------------------------------------
     def execute(self) -> RunResult:
-        from .instance import FmuError, FmuInstance
+        from .instance import FmuError, instance_for
 
         stopped_by: int | None = None      # the signal that stopped the run
         note = ""
         try:
             with InterruptFlag() as flag:
                 try:
-                    with FmuInstance(self.case.fmu_description, self.case.name, fmi_type=self.case.fmi_type) as fmu:
+                    with instance_for(self.case.fmu_description, self.case.name, fmi_type=self.case.fmi_type) as fmu:
                         self._initialize_in_worker(fmu, flag)   # refused: StartValuesRefused, nothing written
                         flag.check()               # a signal while the FMU loaded: nothing written
                         self._start_outputs()

@@ -74,12 +74,12 @@ def unwritable_folder(tmp_path: Path) -> Path:
 
 
 # -- one FMU flavour against another (tests/test_fmu_model_exchange.py, test_fmu_fmi3.py) --------
-# Their tolerances and the outputs compared live with the benchmark that reports the same
-# comparisons (benchmarks/fmi_flavours.py, docs/fmi_hosts.md's flavour table): one home.
-sys.path.insert(0, str(REPO / "benchmarks"))
-from fmi_flavours import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, flavour_span,  # noqa: E402,F401
-                          lengths_and_angles)
-import fmi_hosts  # noqa: E402
+# Their tolerances and the outputs compared live in fmu_src/fmi_flavours.py, which the benchmark
+# that reports the same comparisons (benchmarks/fmi_flavours.py, docs/fmi_hosts.md's flavour
+# table) imports too: one home.
+from fmu_src import fmi_hosts  # noqa: E402
+from fmu_src.fmi_flavours import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, flavour_span,  # noqa: E402,F401
+                                  lengths_and_angles)
 
 
 def fmusim_or_skip() -> Path:
@@ -122,7 +122,7 @@ RESIDUAL = 1e-12
 # dangling (the next FMU that logs in the worker segfaults), or, kept alive, would swallow the
 # messages FMPy prints for the tests after it.  So every test logger is this one router, alive
 # for the process: a message goes to the sink registered for the instance's componentEnvironment,
-# any other to FMPy's printer (orchestrator/instance.py does the same for fourbar-run).
+# any other to FMPy's printer (orchestrator/fmi_versions.py does the same for fourbar-run).
 _SINKS: dict[int, object] = {}
 _KEPT: list = []
 

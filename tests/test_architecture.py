@@ -153,3 +153,66 @@ def test_generated_code_is_not_committed():
         pytest.skip("not a git checkout")
     names = {Path(line).name for line in tracked.stdout.split()}
     assert not names & (set(GENERATED) | {"equations.py"}), "generated files are tracked by git"
+
+
+#: What told the old single FmuInstance class which FMI flavour it drove (issue 38, item 3).
+FLAVOUR_FLAGS = {"fmi3", "model_exchange", "fmiVersion", "fmi_type", "FMI_TYPE", "PREFIX"}
+
+
+def test_fmi_flavours_are_classes_not_flags():
+    """orchestrator's FMU instance is one class per FMI flavour (orchestrator.instance.FLAVOURS),
+    chosen once by instance_for: no method of the FMI layer tests the FMI version or interface type."""
+    branches = []
+    for name in ("fmi_instance.py", "fmi_versions.py", "fmi_interfaces.py", "instance.py"):
+        tree = ast.parse((REPO / "orchestrator" / name).read_text())
+        for cls in (n for n in tree.body if isinstance(n, ast.ClassDef)):
+            for node in ast.walk(cls):
+                if isinstance(node, (ast.If, ast.IfExp)):
+                    used = {n.id for n in ast.walk(node.test) if isinstance(n, ast.Name)}
+                    used |= {n.attr for n in ast.walk(node.test) if isinstance(n, ast.Attribute)}
+                    if used & FLAVOUR_FLAGS:
+                        branches.append(f"{name}:{node.lineno} ({cls.name})")
+    assert not branches, f"flavour branches in the FMI layer: {branches}"
+
+
+def test_the_package_description_fits_what_it_builds():
+    """pyproject's description (issue 38, item 5): any planar mechanism, the four-bar the default;
+    FMI 2.0 and 3.0; pythonfmu and native C (it said "Four-bar linkage FMI 2.0 co-simulation")."""
+    import tomllib
+
+    project = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    text = project["description"]
+    for says in ("planar mechanism", "four-bar linkage by default", "FMI 2.0 and 3.0", "pythonfmu", "native C"):
+        assert says in text, f"pyproject.toml description does not say {says!r}: {text}"
+    first = (REPO / "fmu_src" / "__init__.py").read_text(encoding="utf-8").split("\n\n")[0]
+    assert "FMI 2.0 and 3.0" in first and "four-bar by default" in first, first
+
+
+
+def _benchmark_modules() -> set[str]:
+    return {p.stem for p in (REPO / "benchmarks").glob("*.py")}
+
+
+def test_no_test_imports_benchmark_code():
+    """Tests depend on the package, never on benchmarks/ (issue 38, item 4): what tests and
+    benchmarks share (tolerances, flavour tables, host runners, the configuration rules) lives in
+    the package, which the benchmarks import.  A test may still run a benchmark as a program."""
+    benchmarks = _benchmark_modules()
+    assert {"fmi_flavours", "fmi_hosts", "doc_figures"} <= benchmarks      # the scan sees them
+    offenders = {}
+    for path in sorted((REPO / "tests").rglob("*.py")):
+        bad = imported_roots(path) & (benchmarks | {"benchmarks"})
+        if bad:
+            offenders[str(path.relative_to(REPO))] = sorted(bad)
+    assert not offenders, f"tests import benchmark modules: {offenders}"
+
+
+def test_no_test_puts_benchmarks_on_the_import_path():
+    """Neither tests/support.py nor any test adds benchmarks/ to sys.path (they used to, to import it)."""
+    offenders = []
+    for path in sorted((REPO / "tests").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if (isinstance(node, ast.Call) and ast.unparse(node.func) in ("sys.path.insert", "sys.path.append")
+                    and "benchmarks" in ast.unparse(node)):
+                offenders.append(f"{path.relative_to(REPO)}:{node.lineno}")
+    assert not offenders, offenders

@@ -36,9 +36,6 @@ from pathlib import Path
 import pytest
 from support import REPO
 
-sys.path.insert(0, str(REPO / "benchmarks"))
-import doc_figures  # noqa: E402
-
 BIN = Path(sys.executable).parent
 DOCS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
 
@@ -339,8 +336,13 @@ def test_the_random_sample_example_loads(tmp_path):
 
 # --- Python examples ---------------------------------------------------------------------------
 
+def python_blocks(text: str) -> list[str]:
+    """The ```python blocks of a markdown text, in order."""
+    return [body for lang, body in code_blocks(text) if lang == "python"]
+
+
 def python_examples() -> list[tuple[str, str]]:
-    return [(rel(doc), block) for doc in DOCS for block in doc_figures.python_blocks(doc.read_text(encoding="utf-8"))]
+    return [(rel(doc), block) for doc in DOCS for block in python_blocks(doc.read_text(encoding="utf-8"))]
 
 
 def first_line(block: str) -> str:
@@ -367,7 +369,7 @@ def test_every_python_example_has_a_runner():
     assert not set(RUNNERS) - found, f"runners for examples that are gone: {sorted(set(RUNNERS) - found)}"
     # the FMPy block is the one doc_figures executes
     text = (REPO / "docs" / "fmi_hosts.md").read_text(encoding="utf-8")
-    assert first_line(doc_figures.python_blocks(text[text.index("### Python API"):])[0]) == "import numpy as np"
+    assert first_line(python_blocks(text[text.index("### Python API"):])[0]) == "import numpy as np"
 
 
 def example(file: str, first: str) -> str:
@@ -452,18 +454,29 @@ def test_sweep_example(tmp_path):
 
 # --- timings and counts copied from generated files (benchmarks/doc_figures.py, no runs) ------
 
+def copied_check(*args) -> tuple[subprocess.CompletedProcess, set[str]]:
+    """``benchmarks/doc_figures.py --copied *args`` run as a program (tests do not import benchmark
+    code), and the keys of the lines it marks STALE (``STALE file key quoted ...``)."""
+    proc = subprocess.run([sys.executable, str(REPO / "benchmarks" / "doc_figures.py"), "--copied", *map(str, args)],
+                          cwd=REPO, capture_output=True, text=True, timeout=120)
+    return proc, {line.split()[2] for line in proc.stdout.splitlines() if line.startswith("STALE")}
+
+
 def test_copied_timings_and_counts_match_their_sources():
-    findings = doc_figures.compare(doc_figures.copied_figures(), partial=True)
-    stale = [f"{f.file}: {f.key}: quoted {f.quoted}, source says {f.fresh}" for f in findings if not f.ok]
-    assert len(findings) > 50, "the copied-figure quotes were not found: check benchmarks/doc_figures.py"
-    assert not stale, ("figures copied by hand differ from the file they come from; update them with "
-                       "`python benchmarks/doc_figures.py --write --copied`:\n" + "\n".join(stale))
+    proc, stale = copied_check("--check")
+    counted = re.search(r"^\d+ of (\d+) quoted figures current", proc.stdout, flags=re.M)
+    assert counted and int(counted.group(1)) > 50, ("the copied-figure quotes were not found: check "
+                                                    "benchmarks/doc_figures.py\n" + proc.stdout + proc.stderr)
+    assert proc.returncode == 0 and not stale, (
+        "figures copied by hand differ from the file they come from; update them with "
+        "`python benchmarks/doc_figures.py --write --copied`:\n"
+        + "\n".join(line for line in proc.stdout.splitlines() if line.startswith("STALE")) + proc.stderr[-2000:])
 
 
 def test_a_regenerated_benchmark_makes_its_copies_stale(tmp_path):
-    for file in {q.file for q in doc_figures.QUOTES} | {s[1] for s in doc_figures.SOURCES}:
-        (tmp_path / file).parent.mkdir(parents=True, exist_ok=True)
-        (tmp_path / file).write_text((REPO / file).read_text(encoding="utf-8"), encoding="utf-8")
+    for doc in [REPO / "README.md", *(REPO / "docs").glob("*.md")]:   # every quote and every copied source
+        (tmp_path / doc.relative_to(REPO)).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / doc.relative_to(REPO)).write_text(doc.read_text(encoding="utf-8"), encoding="utf-8")
     for name in ("sweeps", "cases", "build"):
         (tmp_path / name).symlink_to(REPO / name, target_is_directory=True)
     bench = tmp_path / "docs" / "benchmarks.md"
@@ -471,11 +484,12 @@ def test_a_regenerated_benchmark_makes_its_copies_stale(tmp_path):
     row = re.search(r"\| pythonfmu \| (\d+) \| (\d+) \|", text)
     bench.write_text(text.replace(row.group(0), f"| pythonfmu | {row.group(1)} | {int(row.group(2)) + 3} |"),
                      encoding="utf-8")
-    figures = doc_figures.copied_figures(tmp_path)
-    stale = {f.key for f in doc_figures.compare(figures, tmp_path, partial=True) if not f.ok}
-    assert stale == {"sweep_pythonfmu_s"}
-    doc_figures.rewrite(figures, tmp_path)
-    assert all(f.ok for f in doc_figures.compare(figures, tmp_path, partial=True))
+    proc, stale = copied_check("--check", "--root", tmp_path)
+    assert proc.returncode == 1 and stale == {"sweep_pythonfmu_s"}, proc.stdout + proc.stderr
+    proc, _ = copied_check("--write", "--root", tmp_path)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    proc, stale = copied_check("--check", "--root", tmp_path)
+    assert proc.returncode == 0 and not stale, proc.stdout + proc.stderr
 
 
 # --- the native FMU's speed-up: one place, docs/benchmarks.md ----------------------------------

@@ -1,8 +1,9 @@
 """benchmarks/fmi_flavours.py: its comparisons on prebuilt FMUs, its table, its refusals.
 
 The full benchmark builds every mechanism afresh and writes docs/fmi_hosts.md's flavour
-table; here one mechanism's prebuilt FMUs go through the same ``run_mechanism`` (FMPy's
-columns; fmusim's where one is found), and the command line's refusals are checked.
+table; here one mechanism's prebuilt FMUs go through the same ``run_mechanism`` of
+fmu_src/fmi_flavours.py (FMPy's columns; fmusim's where one is found), and the command line's
+refusals are checked (the benchmark as a subprocess).
 """
 from __future__ import annotations
 
@@ -11,11 +12,8 @@ import sys
 
 import pytest
 
+from fmu_src import fmi_flavours, fmi_hosts
 from support import REPO
-
-sys.path.insert(0, str(REPO / "benchmarks"))
-import fmi_flavours  # noqa: E402
-import fmi_hosts  # noqa: E402
 
 SCRIPT = [sys.executable, str(REPO / "benchmarks" / "fmi_flavours.py")]
 
@@ -23,7 +21,7 @@ SCRIPT = [sys.executable, str(REPO / "benchmarks" / "fmi_flavours.py")]
 #: s compared here.  The benchmark's 10 s of every flavour against FMI 2.0 co-simulation are
 #: asserted for every shipped mechanism, the four-bar included, by tests/test_fmu_model_exchange.py
 #: (FMI 2.0 ME, FMPy and fmusim) and tests/test_fmu_fmi3.py (FMI 3.0 CS and ME, FMPy and fmusim),
-#: with the same tolerances (support.py imports them from the benchmark); this test checks the
+#: with the same tolerances (fmu_src/fmi_flavours.py, which the benchmark imports too); this test checks the
 #: benchmark's own comparison and table, which 2 s (200 rows, every flavour run) go through as
 #: 10 s do.  10 s cost ~50 s of the suite's wall (FMPy's Model Exchange loop at rtol 1e-14).
 SPAN = 2.0

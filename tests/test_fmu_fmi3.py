@@ -30,12 +30,11 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
+from fmu_src import fmi_hosts   # the hosts' runners: one home
 from fmu_src.mechanism.description import load_mechanism, shipped_mechanisms
 from support import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, REPO, RESIDUAL, flavour_span,
                      fmusim_or_skip, lengths_and_angles)
 
-sys.path.insert(0, str(REPO / "benchmarks"))
-import fmi_hosts  # noqa: E402   (the hosts' runners: one home)
 
 MECHANISMS = shipped_mechanisms()
 GLIBC_BASELINE = (2, 17)        # manylinux2014, as the FMI 2.0 binary

@@ -9,7 +9,6 @@ round-off whatever the host's solver, while the accuracy is the solver's.
 from __future__ import annotations
 
 import ctypes
-import sys
 
 import numpy as np
 import pytest
@@ -17,12 +16,11 @@ from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi2 import FMU2Model
 from scipy.integrate import DOP853
 
+from fmu_src import fmi_hosts   # the hosts' runners: one home
 from fmu_src.mechanism.description import shipped_mechanisms
-from support import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, REPO, RESIDUAL, flavour_span,
+from support import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, RESIDUAL, flavour_span,
                      fmucheck_or_skip, fmusim_or_skip, lengths_and_angles)
 
-sys.path.insert(0, str(REPO / "benchmarks"))
-import fmi_hosts  # noqa: E402   (the hosts' runners: one home)
 
 MECHANISMS = shipped_mechanisms()
 

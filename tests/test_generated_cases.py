@@ -3,7 +3,7 @@ can write in a case file -- geometries (Grashof or not), start angles and rates 
 full rotations), which parameters the file names, the fault's parameter, size and time, on
 and off the output grid -- and over invalid case files and damaged exchange files.
 
-The rules that make a configuration live in ``benchmarks/configurations.py`` (one home:
+The rules that make a configuration live in ``fmu_src/fourbar_configurations.py`` (one home:
 ``benchmarks/robustness.py`` draws its seeded sample with the same rules); here hypothesis
 supplies the numbers (:class:`Drawn`).  Every example runs the real CLIs on the native FMU
 as subprocesses, and each property asserts what a user sees: exit codes, messages, files.
@@ -41,8 +41,7 @@ from hypothesis import HealthCheck, Phase, given, note, reject, settings
 from hypothesis import strategies as st
 from support import BIN, REPO
 
-sys.path.insert(0, str(REPO / "benchmarks"))
-import configurations as C  # noqa: E402
+from fmu_src import fourbar_configurations as C
 
 FOURBAR_RUN = str(BIN / "fourbar-run")
 FOURBAR_MONITOR = str(BIN / "fourbar-monitor")
@@ -93,7 +92,7 @@ def _same_examples_in_every_process(monkeypatch):
 
 
 class Drawn:
-    """A ``configurations.Source`` drawing from hypothesis (``draw`` of a composite strategy)."""
+    """A ``fourbar_configurations.Source`` drawing from hypothesis (``draw`` of a composite strategy)."""
 
     def __init__(self, draw):
         self.draw = draw
@@ -202,7 +201,7 @@ def _crossing_times(t: np.ndarray, x: np.ndarray, level: float) -> np.ndarray:
 @examples(6)
 @given(config=configurations())
 def test_the_generated_motion_is_the_fmus(config, tmp_path_factory, native_fmu):
-    """The family (swing or rotation), period and swing range predicted by configurations.analyse
+    """The family (swing or rotation), period and swing range predicted by fourbar_configurations.analyse
     are the FMU's: the labels the other properties rely on are right."""
     from orchestrator import load_case, run_case
 

@@ -22,17 +22,15 @@ sources), and are skipped otherwise.  A ``$FMUSIM`` that names no executable fai
 from __future__ import annotations
 
 import dataclasses
-import sys
 
 import numpy as np
 import pytest
 
-from support import REPO, fmucheck_or_skip, fmusim_or_skip
+from support import fmucheck_or_skip, fmusim_or_skip
 
-sys.path.insert(0, str(REPO / "benchmarks"))
-import fmi_hosts  # noqa: E402
-from fmu_src.mechanism.description import shipped_mechanisms  # noqa: E402
-from fmu_src.mechanism.table import DEFAULT_TOLERANCE  # noqa: E402
+from fmu_src import fmi_hosts
+from fmu_src.mechanism.description import shipped_mechanisms
+from fmu_src.mechanism.table import DEFAULT_TOLERANCE
 
 pytest.importorskip("libcosimpy", reason="libcosimpy is not installed (pip install libcosimpy); "
                                          "the libcosim comparison needs it")

@@ -178,9 +178,9 @@ def test_step_through_steps_sets_and_reads_like_single_calls(stepper_fmu):
     import numpy as np
 
     from orchestrator.case import describe_fmu
-    from orchestrator.instance import FmuError, FmuInstance
+    from orchestrator.instance import FmuError, instance_for
 
-    with FmuInstance(describe_fmu(stepper_fmu), "fast") as fmu:
+    with instance_for(describe_fmu(stepper_fmu), "fast") as fmu:
         fmu.setup_experiment(0.0, 1.0, None)
         fmu.set_values([("offset", 0.5), ("u", 2.0)])
         fmu.enter_initialization_mode()
