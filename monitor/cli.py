@@ -11,13 +11,12 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from dataclasses import fields
 from pathlib import Path
 from typing import Any, Sequence, TextIO
 
 from fourbar_common import package_version
 
-from .options import FollowOptions, MonitorOptions, add_arguments
+from .options import FollowOptions, MonitorOptions, add_arguments, option_names
 
 __all__ = ["main", "build_parser"]
 
@@ -246,7 +245,7 @@ def _main(argv: Sequence[str] | None, stop: Any) -> int:
     if args.status_every is None:
         args.status_every = 1.0 if args.follow else 10.0
     printer = _Printer(args, out, err)
-    settings = {f.name: getattr(args, f.name) for f in fields(MonitorOptions) if hasattr(args, f.name)}
+    settings = {name: getattr(args, name) for name in option_names() if hasattr(args, name)}
     from .errors import MonitorError
 
     out_dir = None

@@ -467,9 +467,10 @@ def _alarm_spans(result: "MonitorResult", end: float) -> list[tuple[float, float
 
 def _interval_maximum(result: "MonitorResult") -> bool:
     """The statistic recorded at ``t`` is the largest of the interval ``(t - every, t]`` (cusum):
-    drawn as steps over its interval, so an alarm inside it falls where the statistic is high.
-    (A field of :class:`~monitor.detector.StatisticPlot` would be this fact's better home.)"""
-    return result.options.detector == "cusum"
+    drawn as steps over its interval, so an alarm inside it falls where the statistic is high
+    (the detector's :attr:`StatisticPlot.interval_maximum <monitor.detector.StatisticPlot>`)."""
+    o = result.options
+    return o.detector_class.plot_text(o, result.summary.fit).interval_maximum
 
 
 def _statistic_scale(stat: np.ndarray, thr: np.ndarray) -> tuple[str, float | None]:

@@ -435,10 +435,12 @@ class _Validator(ProblemReporter):
     def monitor(self, case) -> MonitorSpec | None:
         from monitor import MonitorOptions
         from monitor import OptionError
-        from monitor.forecasters import MODELS
+        from monitor.forecasters import forecaster_names
+        from monitor.options import option_default, option_names
 
+        MODELS = forecaster_names()
         table = self.table("monitor") or {}
-        fields = tuple(MonitorOptions.__dataclass_fields__)
+        fields = option_names()
         self.unknown_keys(table, fields, "monitor")
         ok = True
         from monitor.options import split_signals
@@ -472,7 +474,7 @@ class _Validator(ProblemReporter):
 
         models = self.axis("monitor.model", table.get("model", MonitorOptions.model), model_check,
                            allow_range=False)
-        thresholds = self.axis("monitor.threshold", table.get("threshold", MonitorOptions.threshold),
+        thresholds = self.axis("monitor.threshold", table.get("threshold", option_default("threshold")),
                                threshold_check)
         options = {k: v for k, v in table.items() if k not in ("signal", "model", "threshold") and k in fields}
         # the remaining options are checked by the monitor itself, all problems at once
