@@ -31,6 +31,8 @@ __all__ = ["CusumDetector", "CusumSettings", "SignalFit"]
 class CusumSettings(DetectorSettings):
     """The cusum detector's own settings (units: seconds; σ = the learnt noise scale)."""
 
+    design_rate = "false_alarm_rate"
+
     false_alarm_rate: float = option(0.01, RATE, "cusum: false alarms per hour of data the detector is designed for",
                                      flag="--false-alarm-rate", group="detection")
     design_shift: float = option(0.5, positive("in noise standard deviations"), "cusum: the mean shift, in noise "
@@ -210,10 +212,6 @@ class CusumDetector(Detector):
         return StatisticPlot(f"CUSUM of {options.signal} (largest of the {options.every:g} s interval)",
                              f"limit h ({options.settings.false_alarm_rate:g} false alarms/h)", "CUSUM (noise σ)",
                              floor=1e-3, shade_alarm=True, forecast="phase-locked forecast", interval_maximum=True)
-
-    @classmethod
-    def designed_arl0_hours(cls, settings: CusumSettings) -> float | None:
-        return 1.0 / settings.false_alarm_rate
 
     @classmethod
     def series_text(cls, threshold: Any, limits: list[float], arl0_hours: float | None, unit: str = "") -> str:

@@ -255,8 +255,10 @@ class Detector(ABC):
 
     @classmethod
     def designed_arl0_hours(cls, settings: Any) -> float | None:
-        """The mean hours between false alarms the detector is designed for (None: not designed so)."""
-        return None
+        """The mean hours between false alarms the detector is designed for: 1 / the rate its
+        ``Settings.design_rate`` names (None: not designed so)."""
+        field = cls.Settings.design_rate
+        return None if field is None else 1.0 / float(getattr(settings, field))
 
     @classmethod
     def series_text(cls, threshold: Any, limits: list[float], arl0_hours: float | None, unit: str = "") -> str:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import math
 from dataclasses import asdict, dataclass, field, fields
-from typing import Any, Callable
+from typing import Any, Callable, ClassVar
 
 from .errors import OptionError
 
@@ -125,4 +125,7 @@ class DetectorSettings(Checked):
     runs is refused unless left at its default.  A detector with no settings keeps this class.
     """
 
+    #: the setting that is the designed false-alarm rate per hour, if the detector is designed by
+    #: one (the contract suite then checks that rate on white noise); None: not designed so
+    design_rate: ClassVar[str | None] = None
     _what = "monitor options"

@@ -48,6 +48,7 @@ from typing import TYPE_CHECKING, Any, Iterator
 import numpy as np
 
 from fourbar_common import output_folder_problem, write_json_atomic
+from fourbar_common.contract.monitor_events import MonitorEvent
 from fourbar_common.files import replace_atomically
 from fourbar_common.files import NotRegularFileError, file_kind
 
@@ -209,9 +210,10 @@ class OutputWriters:
         self._put(self._events, "")
 
     def event(self, e: Event) -> None:
-        d = e.as_dict()
-        d["wall"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds")
-        self._put(self._events, json.dumps(jsonable(d), allow_nan=False) + "\n")
+        wall = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds")
+        line = MonitorEvent.build(e.time, e.kind, e.state.value, jsonable(e.statistic), jsonable(e.threshold),
+                                  e.message, jsonable(e.data), wall).to_json()
+        self._put(self._events, line + "\n")
 
     def evaluation(self, t: float, statistic: float, threshold: float, state: State) -> None:
         self._put(self._evals, f"{t!r},{statistic!r},{threshold!r},{state.value}\n")

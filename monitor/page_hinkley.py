@@ -52,6 +52,8 @@ __all__ = ["PageHinkleyDesign", "PageHinkleyDetector", "PageHinkleySettings", "d
 class PageHinkleySettings(DetectorSettings):
     """The page-hinkley detector's own settings (σ: the learnt noise scale)."""
 
+    design_rate = "ph_false_alarm_rate"
+
     ph_false_alarm_rate: float = option(0.01, RATE, "page-hinkley: false alarms per hour of data the limit h is "
                                         "designed for", flag="--ph-false-alarm-rate", group="detection")
     ph_delta: float = option(0.25, positive("in noise standard deviations"), "page-hinkley: drift allowance δ per "
@@ -258,10 +260,6 @@ class PageHinkleyDetector(Detector):
             return [f"signal: the page-hinkley detector watches one column, got {options.signal!r}; use "
                     "detector cusum to monitor several jointly"]
         return []
-
-    @classmethod
-    def designed_arl0_hours(cls, settings: PageHinkleySettings) -> float | None:
-        return 1.0 / settings.ph_false_alarm_rate
 
     @classmethod
     def series_text(cls, threshold: Any, limits: list[float], arl0_hours: float | None, unit: str = "") -> str:
