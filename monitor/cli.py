@@ -258,6 +258,11 @@ def _main(argv: Sequence[str] | None, stop: Any) -> int:
 
         exchange = exchange_file(args.exchange, later=args.follow)      # a run folder: its exchange.csv
         options = merged(MonitorOptions(), settings)   # inconsistent options are refused before anything is read
+        if not options.signal:                         # the run's default signal (x2 for the four-bar)
+            from .session import with_run_signal
+
+            options = with_run_signal(options, exchange)
+            settings["signal"] = args.signal = options.signal
         printer.detector = options.detector_class
         out_dir = checked_out_dir(args.out) if args.out is not None else checked_default_out_dir(exchange)
         earlier = _output_stamps(out_dir)

@@ -48,6 +48,8 @@ def split_signals(value: str) -> tuple[str, ...]:
 
 
 def _signals_ok(value: Any) -> bool:
+    if value == "":                  # the run's default (monitor.session.run_signal)
+        return True
     if not isinstance(value, str) or not value.strip():
         return False
     names = split_signals(value)
@@ -78,13 +80,16 @@ class MonitorOptions(Checked):
     ``TypeError``.  :attr:`settings` is the running detector's typed settings.
     ``validation_fraction`` is the held-out part of the training window (both built-ins);
     ``chunk_seconds`` is the forecast cache's chunk; ``history_points`` and
-    ``evaluation_points`` bound the kept series.
+    ``evaluation_points`` bound the kept series.  ``signal=""`` (the default) stands for the run's
+    default signal, which :func:`monitor.replay` and :func:`monitor.follow` fill in before
+    monitoring (:func:`monitor.session.run_signal`: x2 for the four-bar).
     """
 
     _what = "monitor options"
 
-    signal: str = option("x2", SIGNAL, "column(s) to monitor, e.g. x2 or x2,x3,y4 (monitored jointly)",
-                         flag="--signal", group="model")
+    signal: str = option("", SIGNAL, "column(s) to monitor, e.g. x2 or x2,x3,y4 (monitored jointly); default: the "
+                         "run's first output column (the exchange file's first column after time, else run.json's "
+                         "first recorded output: x2 for the four-bar)", flag="--signal", group="model")
     train: tuple[float, float] = option((0.0, 9.0), TRAIN, "training window in s (the paper's: 0 9)",
                                         flag="--train", group="model")
     model: str = option("prophet", choice(forecaster_names), "prophet (the paper's) or harmonic (least-squares "
@@ -173,7 +178,7 @@ class MonitorOptions(Checked):
 
     def _normalised(self) -> "MonitorOptions":
         return replace(self, train=(float(self.train[0]), float(self.train[1])),
-                       signal=",".join(split_signals(self.signal)))
+                       signal=",".join(split_signals(self.signal)) if self.signal else "")
 
     def as_dict(self) -> dict[str, Any]:
         """Every option by name: the shared fields, then each registered detector's settings
@@ -260,8 +265,8 @@ def add_arguments(groups: Mapping[str, Any], cls: type) -> None:
         rule: Rule = f.metadata["rule"]
         default = f.default if f.default is not MISSING else None
         shown = " ".join(map(str, default)) if isinstance(default, tuple) else default
-        kwargs: dict[str, Any] = {"dest": f.name, "default": default,
-                                  "help": f"{f.metadata['help']} (default: {shown})"}
+        said = f" (default: {shown})" if shown != "" else ""        # "": the help says what the default is
+        kwargs: dict[str, Any] = {"dest": f.name, "default": default, "help": f"{f.metadata['help']}{said}"}
         if isinstance(default, tuple):
             kwargs.update(nargs=len(default), metavar=tuple(rule.metavar.split()),
                           type=Rule(_is_number, "a finite time in seconds").argparse_type())

@@ -445,8 +445,12 @@ class _Validator(ProblemReporter):
         ok = True
         from monitor.options import split_signals
 
-        signal = table.get("signal", MonitorOptions.signal)
-        if not isinstance(signal, str) or not signal.strip():
+        # the run's default signal: the base case's first output column (x2 for the four-bar)
+        default_signal = case.recorded[0] if case is not None and case.recorded else ""
+        signal = table.get("signal", default_signal)
+        if "signal" not in table and not default_signal:
+            pass                          # no base case: reported already
+        elif not isinstance(signal, str) or not signal.strip():
             self.problem("monitor.signal", signal, "expected the name of an output column, e.g. \"x2\", or several "
                                                    "separated by commas")
             ok = False
