@@ -94,6 +94,10 @@ class Forecaster:
         self.predict_calls = 0
         self.train_mae = float(np.mean(np.abs(self.predict(t) - x)))
 
+    @classmethod
+    def warm_up(cls) -> None:
+        """Import the libraries a fit will need (a live monitor then reacts at once); none by default."""
+
     def predict_direct(self, t: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
 
@@ -183,6 +187,11 @@ class ProphetForecaster(Forecaster):
             fit_seconds = time.perf_counter() - start
         self.model = model
         self._setup(t, x, period, order, fit_seconds, chunk_seconds)
+
+    @classmethod
+    def warm_up(cls) -> None:
+        with quiet_prophet():
+            import prophet  # noqa: F401
 
     def _ds(self, t: np.ndarray) -> "Any":
         import pandas as pd

@@ -2,10 +2,12 @@
 
 The residual of the monitored signal against its periodic forecast (fitted on the training
 window, not phase-tracked), standardised by the noise scale learnt from held-out training
-data (:func:`monitor.sequential.noise_scale`, the cusum detector's rule), is watched by a
-two-sided Page–Hinkley test (Page 1954, Hinkley 1971; river's ``drift.PageHinkley``)::
+data (:func:`monitor.sequential.noise_scale`, the cusum detector's rule) widened by the
+forecast's timing-error bound, is watched by a two-sided Page–Hinkley test (Page 1954,
+Hinkley 1971; river's ``drift.PageHinkley``)::
 
-    z_i = (x_i − f(t_i)) / σ            x̄_n = (1/n) Σ_{i≤n} z_i     (the running mean)
+    z_i = (x_i − f(t_i)) / sqrt(σ² + (f'(t_i) · PHASE_Z · σ_P/P · |t_i − t_c|)²)
+    x̄_n = (1/n) Σ_{i≤n} z_i     (the running mean)
     m⁺_n = Σ_{i≤n} (z_i − x̄_i − δ)     PH⁺_n = m⁺_n − min_{j≤n} m⁺_j
     m⁻_n = Σ_{i≤n} (x̄_i − z_i − δ)     PH⁻_n = m⁻_n − min_{j≤n} m⁻_j
 
@@ -23,6 +25,11 @@ Calibration (:func:`design_page_hinkley`)
     the rate is per hour of data time, ``ARL₀ = 2 · 3600 / (rate · dt)`` samples per side.
     The running mean only lowers the early rate (the first increments are pulled to 0).
     ``δ = 0.25`` σ by default: the cusum detector's ``k`` (a design shift of 0.5 σ).
+
+The timing term is the auto threshold's (:mod:`monitor.threshold`): the period's standard error
+``σ_P`` makes the forecast's timing error grow linearly from the training window's centre
+``t_c``; where the waveform is steep (``f'`` large) that error looks like a change, so the
+scale is widened there instead (sensitivity falls slowly with the time since training).
 
 Evaluations are recorded at ``t_end + k·every`` (``t_end`` the end of the training window),
 each the largest statistic of its interval; the statistic is updated at every sample, so the
@@ -44,8 +51,13 @@ from .forecasters import Forecaster, fit_forecaster
 from .option_rules import NON_NEGATIVE, RATE, DetectorSettings, option, positive
 from .sequential import NoiseScale, noise_scale
 from .spectrum import PeriodEstimate, dominant_period
+from .tracking import PeriodicTemplate
 
-__all__ = ["PageHinkleyDesign", "PageHinkleyDetector", "PageHinkleySettings", "design_page_hinkley"]
+__all__ = ["PHASE_Z", "PageHinkleyDesign", "PageHinkleyDetector", "PageHinkleySettings", "design_page_hinkley"]
+
+#: z of the timing-error bound: the forecast's timing error after ``τ`` s is bounded by
+#: ``PHASE_Z · σ_P/P · τ`` (σ_P the period's standard error), the auto threshold's ``z``.
+PHASE_Z = 4.0
 
 
 @dataclass(frozen=True)
@@ -110,6 +122,9 @@ class PageHinkleyDetector(Detector):
         self.design: PageHinkleyDesign | None = None
         self.scale: NoiseScale | None = None
         self._model: Forecaster | None = None
+        self._template: PeriodicTemplate | None = None
+        self._drift = 0.0                    # PHASE_Z · σ_P / P: timing error per second from the window's centre
+        self._t_center = 0.0
         self._origin = 0.0
         self._eps = 0.0
         self._next_eval = 1
@@ -151,6 +166,10 @@ class PageHinkleyDetector(Detector):
         self.scale = noise_scale(x[held] - check.predict(t[held]), est.amplitude, c.ph_noise_floor)
         self.design = design_page_hinkley(c.ph_false_alarm_rate, float(sample_step), c.ph_delta)
         self._model = model
+        self._template = PeriodicTemplate(model)
+        rel = est.period_stderr / est.period if math.isfinite(est.period_stderr) else 0.0
+        self._drift = PHASE_Z * rel
+        self._t_center = float(est.t_center)
         self._origin = float(end)
         self._eps = 1e-6 * float(sample_step)
         self._restart(self._origin)
@@ -175,7 +194,9 @@ class PageHinkleyDetector(Detector):
         x = np.asarray(X, dtype=float).reshape(t.size, -1)[:, 0]
         f = self._model.predict(t)
         start = time.perf_counter()
-        self._feed(t.tolist(), ((x - f) / self.scale.sigma).tolist())
+        timing = self._template.slope(t) * self._drift * np.abs(t - self._t_center)
+        sd = np.sqrt(self.scale.sigma ** 2 + timing * timing)
+        self._feed(t.tolist(), ((x - f) / sd).tolist())
         self.host.timing["evaluate"] += time.perf_counter() - start
         return f
 

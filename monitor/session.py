@@ -278,11 +278,9 @@ def warm_up(model: str) -> None:
     import scipy.optimize  # noqa: F401
     import sklearn.metrics  # noqa: F401
 
-    if model == "prophet":
-        from .forecasters import quiet_prophet
+    from .forecasters import forecaster_class
 
-        with quiet_prophet():
-            import prophet  # noqa: F401
+    forecaster_class(model).warm_up()
 
 
 #: The signal of a run that names none yet: an exchange file followed before it (and its run.json)
