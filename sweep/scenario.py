@@ -255,7 +255,7 @@ def run_scenario(scenario: Scenario, base_case, run_dir: str, monitor_options: M
                           monitor_seconds=time.perf_counter() - m0)
         monitor_seconds = time.perf_counter() - m0
         ev = monitored.evaluations
-        alarm_times = [e["time"] for e in monitored.events if e.get("event") == "alarm"]
+        alarm_times = [e.time for e in monitored.summary.alarm_events]          # typed, not re-read by key
         figures = score(ev["time"].to_numpy(), ev["statistic"].to_numpy(), ev["threshold"].to_numpy(), alarm_times,
                         scenario.fault_time, detector_persistence(monitored.options), latency_limit)
         fit = monitored.summary.fit
