@@ -155,3 +155,20 @@ def test_events_round_trip_through_the_events_contract(name, tmp_path):
         assert not isinstance(event.payload, OtherPayload), line  # a built-in's payload is typed
         assert MonitorEvent.from_json(event.to_json()) == event
     assert any(e.event == "alarm" and e.payload.reason for e in events)
+
+
+def test_a_line_that_is_not_an_event_names_every_bad_field():
+    from fourbar_common.contract.problems import ContractError
+
+    with pytest.raises(ContractError) as info:
+        MonitorEvent.from_json('{"time": "soon", "event": "boom", "state": "?", "statistic": "big"}', "e.jsonl:3")
+    assert [p.field for p in info.value.problems] == ["time", "event", "state", "statistic"]
+    assert str(info.value).startswith("e.jsonl:3: time: expected a number of seconds, got 'soon'")
+    with pytest.raises(ContractError, match="cusum_h: missing"):     # a typed payload checks its fields
+        MonitorEvent.from_dict({"time": 9.0, "event": "trained", "state": "TRAINING", "detector": "cusum",
+                                "period_fft_s": 3.0, "period_s": 3.0, "period_stderr_s": None, "model": "harmonic",
+                                "order": 30, "fit_seconds": 0.1, "train_start": 0.0, "train_end": 9.0,
+                                "signals": ["x2"], "cusum_k": 0.25, "arl0_hours": 100.0, "noise_sigma": {"x2": 1e-3},
+                                "signal_periods_s": {"x2": 3.0}})
+    with pytest.raises(ContractError, match="not JSON"):
+        MonitorEvent.from_json('{"time": 2.0')
