@@ -167,9 +167,10 @@ class OutputWriters:
     renamed over the name), so they are whole or absent.
     """
 
-    def __init__(self, out_dir: Path, signals: tuple[str, ...]):
+    def __init__(self, out_dir: Path, signals: tuple[str, ...], detector: str = ""):
         self.out_dir = Path(out_dir)
         self.signals = tuple(signals)
+        self.detector = detector          # events of a built-in detector are checked against their payload type
         self._files: list[Any] = []
         self._paths: dict[Any, Path] = {}
         with self._writing(self.out_dir):
@@ -212,7 +213,7 @@ class OutputWriters:
     def event(self, e: Event) -> None:
         wall = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds")
         line = MonitorEvent.build(e.time, e.kind, e.state.value, jsonable(e.statistic), jsonable(e.threshold),
-                                  e.message, jsonable(e.data), wall).to_json()
+                                  e.message, jsonable(e.data), wall, detector=self.detector).to_json()
         self._put(self._events, line + "\n")
 
     def evaluation(self, t: float, statistic: float, threshold: float, state: State) -> None:

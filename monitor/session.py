@@ -103,7 +103,7 @@ class _Session:
     def _outputs(self) -> OutputWriters | None:
         """The output files, created at the first thing worth writing."""
         if self._writers is None and self.out_dir is not None and self.output_error is None:
-            self._writers = OutputWriters(self.out_dir, self.options.signals)
+            self._writers = OutputWriters(self.out_dir, self.options.signals, self.options.detector)
         return self._writers
 
     def _write(self, action: Callable[[OutputWriters], None]) -> None:

@@ -169,6 +169,6 @@ def test_a_line_that_is_not_an_event_names_every_bad_field():
                                 "period_fft_s": 3.0, "period_s": 3.0, "period_stderr_s": None, "model": "harmonic",
                                 "order": 30, "fit_seconds": 0.1, "train_start": 0.0, "train_end": 9.0,
                                 "signals": ["x2"], "cusum_k": 0.25, "arl0_hours": 100.0, "noise_sigma": {"x2": 1e-3},
-                                "signal_periods_s": {"x2": 3.0}})
+                                "signal_periods_s": {"x2": 3.0}}, strict=True)
     with pytest.raises(ContractError, match="not JSON"):
         MonitorEvent.from_json('{"time": 2.0')

@@ -41,7 +41,7 @@ from .problems import ContractError, Problem
 
 __all__ = ["ChangeAlarm", "CusumTrained", "EVENT_KINDS", "MaeTrained", "ModelFitted", "MonitorEvent", "NoPayload",
            "OtherPayload", "PageHinkleyTrained", "Payload", "RefitWindow", "RuleAlarm", "SCHEMA_VERSION", "STATES",
-           "read_events"]
+           "TYPED_DETECTORS", "read_events"]
 
 SCHEMA_VERSION = 1
 EVENT_KINDS = ("trained", "stable", "refit", "alarm", "clear")
@@ -210,6 +210,8 @@ class OtherPayload(Payload):
 
 
 _TRAINED = {"cusum": CusumTrained, "mae": MaeTrained, "page-hinkley": PageHinkleyTrained}
+#: The detectors whose payloads this contract types (the built-in ones).
+TYPED_DETECTORS = tuple(_TRAINED)
 _ALARMS = {"cusum": ChangeAlarm, "page-hinkley": ChangeAlarm, "mae": RuleAlarm, "refit_limit": RuleAlarm}
 
 
@@ -261,8 +263,14 @@ class MonitorEvent:
         return json.dumps(_finite(self.as_dict()), allow_nan=False)
 
     @classmethod
-    def from_dict(cls, data: Any, source: str = "events.jsonl") -> "MonitorEvent":
-        """The event of one parsed line; :class:`ContractError` lists every problem."""
+    def from_dict(cls, data: Any, source: str = "events.jsonl", *, strict: bool = False) -> "MonitorEvent":
+        """The event of one parsed line; :class:`ContractError` lists every problem.
+
+        The payload is typed when its fields are those of its kind's payload class (a value of
+        the wrong type is a problem); otherwise it is an :class:`OtherPayload` (a detector
+        registered by a user may give its alarms any fields), unless ``strict``: then a missing
+        or extra field is a problem too (what the monitor writes for a built-in detector).
+        """
         if not isinstance(data, dict):
             raise ContractError(source, [Problem("", f"expected a JSON object, got {type(data).__name__}")])
         problems: list[Problem] = []
@@ -287,7 +295,10 @@ class MonitorEvent:
         payload: Payload | None = NoPayload()
         if kind in EVENT_KINDS:
             cls_ = payload_class(kind, rest)
-            if cls_ is OtherPayload:
+            names = {f.name for f in fields(cls_)}
+            required = {f.name for f in fields(cls_) if not f.metadata.get("optional")}
+            fits = required <= set(rest) <= names
+            if cls_ is OtherPayload or (not strict and not fits):
                 payload = OtherPayload(tuple(rest.items()))
             else:
                 extra = sorted(set(rest) - {f.name for f in fields(cls_)})
@@ -311,11 +322,14 @@ class MonitorEvent:
 
     @classmethod
     def build(cls, time: float, event: str, state: str, statistic: float | None, threshold: float | None,
-              message: str, data: Mapping[str, Any], wall: str | None = None) -> "MonitorEvent":
-        """The typed event of a detector's event (``data``: its payload fields, JSON values)."""
+              message: str, data: Mapping[str, Any], wall: str | None = None, *,
+              detector: str = "") -> "MonitorEvent":
+        """The typed event of a detector's event (``data``: its payload fields, JSON values);
+        strict (:meth:`from_dict`) for the built-in ``detector`` names this contract types."""
         return cls.from_dict(_finite({"time": time, "event": event, "state": state, "statistic": statistic,
                                       "threshold": threshold, "message": message, **data,
-                                      **({"wall": wall} if wall is not None else {})}), "event")
+                                      **({"wall": wall} if wall is not None else {})}), "event",
+                             strict=detector in TYPED_DETECTORS)
 
 
 def read_events(text: str, source: str = "events.jsonl") -> list[MonitorEvent]:
