@@ -127,7 +127,7 @@ def time_live_evaluations(path: Path, model: str) -> float:
     df = read_exchange(path, columns=["x2"])
     t = df["time"].to_numpy()
     x = df["x2"].to_numpy()
-    mon = Monitor(MonitorOptions(model=model))
+    mon = Monitor(MonitorOptions(model=model, signal="x2"))
     costs = []
     for start in range(0, t.size, 10):
         before = mon.n_evaluations
@@ -223,12 +223,13 @@ def main(argv: list[str] | None = None) -> int:
         import prophet
         versions = f"prophet {prophet.__version__}, {versions}"
     if defaults.detector == "cusum":
-        setting = (f"detector cusum, {defaults.false_alarm_rate:g} false alarms/h designed, statistic recorded every "
+        setting = (f"detector cusum, {defaults.settings.false_alarm_rate:g} false alarms/h designed, statistic recorded every "
                    f"{defaults.every:g} s")
         limit = "CUSUM limit h"
     else:
-        setting = (f"detector mae, window {defaults.window:g} s every {defaults.every:g} s, persistence "
-                   f"{defaults.persistence}, threshold {defaults.threshold}")
+        own = defaults.settings
+        setting = (f"detector mae, window {own.window:g} s every {defaults.every:g} s, persistence "
+                   f"{own.persistence}, threshold {own.threshold}")
         limit = "auto threshold base (m)"
 
     print("## Monitor: replay speed and detection (benchmarks/monitor_replay.py)\n")

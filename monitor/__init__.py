@@ -14,10 +14,12 @@ Public API::
     follow(exchange_path, **options) -> MonitorResult         # a growing file
     score_alarms(alarm_times, fault_time) -> FaultScore       # false alarms, latency
 
-Modules: ``options`` (every setting), ``reader`` (exchange file, run.json), ``spectrum``
-(period), ``forecasters``, ``detector`` (the detectors' interface), ``detectors`` (their
-registry), ``mae`` and ``threshold`` (the paper's rule), ``cusum_detector``, ``sequential``,
-``tracking`` and ``cusum`` (the default sequential detector), ``stream`` (the streaming monitor), ``summary`` (typed results, fault scoring), ``session``
+Modules: ``options`` (the settings every detector shares), ``option_rules`` (how a setting
+is declared and checked), ``reader`` (exchange file, run.json), ``spectrum`` (period),
+``forecasters`` (and their registry), ``detector`` (the detectors' interface), ``detectors``
+(their registry), ``mae`` and ``threshold`` (the paper's rule), ``cusum_detector``,
+``sequential``, ``tracking`` and ``cusum`` (the default sequential detector), ``page_hinkley``
+(the Page–Hinkley detector), ``stream`` (the streaming monitor), ``summary`` (typed results, fault scoring), ``session``
 (replay/follow), ``outputs`` (files and plots), ``cli``.
 
 Command: ``fourbar-monitor`` (:mod:`monitor.cli`).  Method and options: docs/monitor.md.

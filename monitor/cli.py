@@ -11,13 +11,12 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from dataclasses import fields
 from pathlib import Path
 from typing import Any, Sequence, TextIO
 
 from fourbar_common import package_version
 
-from .options import FollowOptions, MonitorOptions, add_arguments
+from .options import FollowOptions, MonitorOptions, add_arguments, option_names
 
 __all__ = ["main", "build_parser"]
 
@@ -246,7 +245,7 @@ def _main(argv: Sequence[str] | None, stop: Any) -> int:
     if args.status_every is None:
         args.status_every = 1.0 if args.follow else 10.0
     printer = _Printer(args, out, err)
-    settings = {f.name: getattr(args, f.name) for f in fields(MonitorOptions) if hasattr(args, f.name)}
+    settings = {name: getattr(args, name) for name in option_names() if hasattr(args, name)}
     from .errors import MonitorError
 
     out_dir = None
@@ -259,6 +258,11 @@ def _main(argv: Sequence[str] | None, stop: Any) -> int:
 
         exchange = exchange_file(args.exchange, later=args.follow)      # a run folder: its exchange.csv
         options = merged(MonitorOptions(), settings)   # inconsistent options are refused before anything is read
+        if not options.signal:                         # the run's default signal (x2 for the four-bar)
+            from .session import with_run_signal
+
+            options = with_run_signal(options, exchange)
+            settings["signal"] = args.signal = options.signal
         printer.detector = options.detector_class
         out_dir = checked_out_dir(args.out) if args.out is not None else checked_default_out_dir(exchange)
         earlier = _output_stamps(out_dir)

@@ -18,12 +18,39 @@ import numpy as np
 from .detector import Detector, DetectorHost, Event, Fit, State, StatisticPlot
 from .errors import TrainingError
 from .forecasters import Forecaster, fit_forecaster
+from .option_rules import NON_NEGATIVE, RATE, DetectorSettings, option, positive
 from .sequential import NoiseScale, ResidualCusum, SequentialDetector, design_cusum, noise_scale
 from .spectrum import PeriodEstimate, dominant_period
 from .tracking import PeriodicTemplate, PhaseTracker, ShapeCorrection
 from .common_period import CommonPeriod, common_period
 
-__all__ = ["CusumDetector", "SignalFit"]
+__all__ = ["CusumDetector", "CusumSettings", "SignalFit"]
+
+
+@dataclass(frozen=True)
+class CusumSettings(DetectorSettings):
+    """The cusum detector's own settings (units: seconds; σ = the learnt noise scale)."""
+
+    design_rate = "false_alarm_rate"
+
+    false_alarm_rate: float = option(0.01, RATE, "cusum: false alarms per hour of data the detector is designed for",
+                                     flag="--false-alarm-rate", group="detection")
+    design_shift: float = option(0.5, positive("in noise standard deviations"), "cusum: the mean shift, in noise "
+                                 "standard deviations, the CUSUM is tuned to (reference k = shift/2)",
+                                 flag="--design-shift", group="detection")
+    noise_floor: float = option(1e-3, NON_NEGATIVE, "cusum: smallest noise scale, as a fraction of the training "
+                                "amplitude (the scale of a noise-free signal)", flag="--noise-floor", group="detection")
+    guard: float = option(3.0, NON_NEGATIVE, "cusum: phase tracking learns only from data at least GUARD s old "
+                          "and quiet since", flag="--guard", group="detection")
+    track_time: float = option(15.0, positive("of seconds"), "cusum: time constant of the phase tracker; phase "
+                               "drifts slower than this are followed", flag="--track-time", group="detection")
+    shape_time: float = option(60.0, NON_NEGATIVE, "cusum: time constant of the waveform-shape correction, learnt "
+                               "like the phase from quiet data; shape changes slower than this are followed; 0 = "
+                               "no correction", flag="--shape-time", group="detection")
+    clear_after: float = option(30.0, positive("of seconds"), "cusum: a latched alarm clears after this long "
+                                "without a CUSUM crossing", flag="--clear-after", group="detection")
+    tracker_block: float = option(1.0, positive("of seconds"))
+    rate_prior: float = option(3e-5, NON_NEGATIVE)
 
 
 @dataclass(frozen=True)
@@ -56,10 +83,12 @@ class CusumDetector(Detector):
 
     name = "cusum"
     label = "CUSUM"
+    Settings = CusumSettings
+    arl0_curve = True
 
     def __init__(self, options: Any, host: DetectorHost):
         super().__init__(options, host)
-        self.latch = SequentialDetector(clear_after=options.clear_after, emit=host.emit)
+        self.latch = SequentialDetector(clear_after=self.settings.clear_after, emit=host.emit)
         self.engine: ResidualCusum | None = None
 
     # the latch holds the state machine
@@ -98,7 +127,7 @@ class CusumDetector(Detector):
             raise TrainingError(f"{self.host.source}: {name} in {t[0]:g}–{t[-1]:g} s: {exc}") from exc
 
     def train(self, tt: np.ndarray, xx: np.ndarray, end: float, sample_step: float) -> None:
-        o = self.options
+        o, c = self.options, self.settings
         dt = float(sample_step)
         start = time.perf_counter()
         names = o.signals
@@ -125,28 +154,28 @@ class CusumDetector(Detector):
                                    chunk_seconds=o.chunk_seconds)
             check = fit_forecaster(o.model, tt[~held], xx[~held, j], val_periods[j], order=o.order, seed=o.seed,
                                    chunk_seconds=o.chunk_seconds)
-            scale = noise_scale(xx[held, j] - check.predict(tt[held]), estimates[j].amplitude, o.noise_floor)
+            scale = noise_scale(xx[held, j] - check.predict(tt[held]), estimates[j].amplitude, c.noise_floor)
             template = PeriodicTemplate(model)
             info += float(np.mean(template.slope(tt) ** 2)) / (dt * scale.sigma ** 2)
             fits.append(SignalFit(name, estimates[j], model, scale, common.multiples[j]))
             templates.append(template)
-        design = design_cusum(o.false_alarm_rate, dt, len(names), o.design_shift)
+        design = design_cusum(c.false_alarm_rate, dt, len(names), c.design_shift)
         rel = period_err / period if math.isfinite(period_err) else 0.0
-        tracker = PhaseTracker(float(tt.mean()), rate_std=max(3.0 * rel, o.rate_prior),
+        tracker = PhaseTracker(float(tt.mean()), rate_std=max(3.0 * rel, c.rate_prior),
                                shift_std=math.sqrt(1.0 / (info * (tt[-1] - tt[0]))),
-                               noise_per_second=1.0 / info, track_time=o.track_time,
-                               variance_horizon=o.guard + o.tracker_block)
+                               noise_per_second=1.0 / info, track_time=c.track_time,
+                               variance_horizon=c.guard + c.tracker_block)
         seconds = time.perf_counter() - start
         self.host.timing["train"] += seconds
         fit = Fit(float(tt[0]), float(end), estimates[0], fits[0].forecaster, design, seconds, tuple(fits),
                   period, period_err)
         self.host.add_fit(fit)
         corrections = None
-        if o.shape_time > 0:
+        if c.shape_time > 0:
             corrections = [ShapeCorrection(tpl.period, tpl.origin, bins=int(np.clip(round(tpl.period / (2.0 * dt)), 16, 1024)),
-                                           time_constant=o.shape_time, sample_step=dt) for tpl in templates]
+                                           time_constant=c.shape_time, sample_step=dt) for tpl in templates]
         self.engine = ResidualCusum(names, templates, [f.scale for f in fits], design, tracker, self.latch,
-                                    origin=float(end), guard=o.guard, block=o.tracker_block, every=o.every,
+                                    origin=float(end), guard=c.guard, block=c.tracker_block, every=o.every,
                                     sample_step=dt, on_evaluation=self.host.record, corrections=corrections)
         info_event = {"period_fft_s": estimates[0].fft_period, "period_s": period, "period_stderr_s": period_err,
                       "model": o.model, "order": fits[0].forecaster.order,
@@ -175,11 +204,17 @@ class CusumDetector(Detector):
 
     @classmethod
     def settings_text(cls, options: Any) -> str:
-        return (f"detector cusum, {options.false_alarm_rate:g} false alarms/h, design shift "
-                f"{options.design_shift:g} sigma")
+        c = options.settings
+        return f"detector cusum, {c.false_alarm_rate:g} false alarms/h, design shift {c.design_shift:g} sigma"
 
     @classmethod
     def plot_text(cls, options: Any, fit: Fit | None) -> StatisticPlot:
         return StatisticPlot(f"CUSUM of {options.signal} (largest of the {options.every:g} s interval)",
-                             f"limit h ({options.false_alarm_rate:g} false alarms/h)", "CUSUM (noise σ)",
-                             floor=1e-3, shade_alarm=True, forecast="phase-locked forecast")
+                             f"limit h ({options.settings.false_alarm_rate:g} false alarms/h)", "CUSUM (noise σ)",
+                             floor=1e-3, shade_alarm=True, forecast="phase-locked forecast", interval_maximum=True)
+
+    @classmethod
+    def series_text(cls, threshold: Any, limits: list[float], arl0_hours: float | None, unit: str = "") -> str:
+        h = sorted({round(float(v), 4) for v in limits if v is not None and math.isfinite(float(v))})
+        text = "CUSUM" + (f" h {h[0]:.4g}" if len(h) == 1 else f" h {h[0]:.4g}–{h[-1]:.4g}" if h else "")
+        return text + (f" (ARL0 {arl0_hours:.3g} h)" if arl0_hours else "")

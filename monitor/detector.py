@@ -4,6 +4,7 @@ A detector turns the samples after the training window into evaluations and even
 :class:`~monitor.stream.Monitor` drives it only through this interface::
 
     det = cls(options, host)          # cls = options.detector_class (monitor.detectors)
+    det.settings                      # its own settings: a cls.Settings (options.settings)
     det.state                         # State.TRAINING until det.train(...) succeeded
     det.train(t, X, end, step)        # the training window's samples; fits, host.add_fit(...)
     F = det.update(t, X)              # newer samples; returns the forecasts they were judged by
@@ -14,7 +15,12 @@ evaluations (``record``: time, statistic, limit, state) and fitted models (``add
 What only one detector does (the MAE rule's refits, the CUSUM's phase tracker) stays in its
 class.  How its results are shown comes from the class too: ``label`` (the statistic's
 name), :meth:`Detector.describe` (one event as a line of text), :meth:`Detector.settings_text`
-and :meth:`Detector.plot_text`.  A new detector is one subclass, registered with
+and :meth:`Detector.plot_text`; how a sweep labels and scores it from the class as well
+(:meth:`Detector.series_text`, :meth:`Detector.designed_arl0_hours`,
+:meth:`Detector.alarm_persistence`, ``arl0_curve``).  Its own settings are its ``Settings``
+class (a frozen :class:`~monitor.option_rules.DetectorSettings`: each setting's default, check,
+flag and help), which the command line, :class:`~monitor.options.MonitorOptions` and sweep
+files read.  A new detector is one subclass, registered with
 :func:`monitor.detectors.register` (docs/monitor.md, "Adding a detector").
 """
 from __future__ import annotations
@@ -27,6 +33,7 @@ from typing import Any, Callable, ClassVar
 import numpy as np
 
 from .forecasters import Forecaster
+from .option_rules import DetectorSettings
 from .spectrum import PeriodEstimate
 
 __all__ = ["ALARM_MESSAGE", "Detector", "DetectorHost", "Event", "Fit", "State", "StatisticPlot", "alarm_event"]
@@ -121,13 +128,17 @@ class StatisticPlot:
     floor: float = 1e-12      # smallest value drawn on the log axis
     shade_alarm: bool = False  # shade the evaluations in state ALARM (latched alarms)
     forecast: str = "forecast"  # the history plot's name for the forecast line
+    interval_maximum: bool = False  # the statistic at t is the largest of (t − every, t]: drawn as steps
 
 
 class Detector(ABC):
     """The interface every detector implements (module docstring).
 
-    Class attributes: ``name`` (the value of the ``detector`` option, the registry's key)
-    and ``label`` (the statistic's display name, e.g. ``"CUSUM"``).  ``state``, ``alarms``
+    Class attributes: ``name`` (the value of the ``detector`` option, the registry's key),
+    ``label`` (the statistic's display name, e.g. ``"CUSUM"``), ``Settings`` (its own
+    settings class; ``self.settings`` is the instance it runs with) and ``arl0_curve`` (True
+    when its fitted rule, ``Fit.rule``, offers ``h`` and ``limit_at_arl0(hours)``: a sweep then
+    records the delay the run would have had at other false-alarm levels).  ``state``, ``alarms``
     (alarm episodes so far) and ``first_alarm`` are read-only; a simple detector changes
     them with :meth:`_enter` and :meth:`_raise_alarm`, one with its own state machine
     overrides the three properties.
@@ -135,9 +146,12 @@ class Detector(ABC):
 
     name: ClassVar[str] = ""
     label: ClassVar[str] = ""
+    Settings: ClassVar[type[DetectorSettings]] = DetectorSettings
+    arl0_curve: ClassVar[bool] = False
 
     def __init__(self, options: Any, host: DetectorHost):
         self.options = options
+        self.settings = options.settings
         self.host = host
         self._state = State.TRAINING
         self._alarms = 0
@@ -238,3 +252,16 @@ class Detector(ABC):
     def alarm_persistence(cls, options: Any) -> int:
         """Consecutive evaluations above the limit that make an alarm (for scoring statistic series)."""
         return 1
+
+    @classmethod
+    def designed_arl0_hours(cls, settings: Any) -> float | None:
+        """The mean hours between false alarms the detector is designed for: 1 / the rate its
+        ``Settings.design_rate`` names (None: not designed so)."""
+        field = cls.Settings.design_rate
+        return None if field is None else 1.0 / float(getattr(settings, field))
+
+    @classmethod
+    def series_text(cls, threshold: Any, limits: list[float], arl0_hours: float | None, unit: str = "") -> str:
+        """A sweep's label of a series run with this detector: ``threshold`` the series' threshold
+        axis value, ``limits`` the runs' limits (``threshold_base``), ``arl0_hours`` the design."""
+        return f"{cls.name}, threshold {threshold}"

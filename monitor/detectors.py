@@ -5,10 +5,11 @@ This is the one place where the option is decoded (:func:`detector_class`;
 it).  The built-in detectors are registered here; another one registers itself with
 :func:`register` from its own module (docs/monitor.md, "Adding a detector")::
 
-    class PageHinkley(Detector):
-        name, label = "page-hinkley", "PH"
+    class Ewma(Detector):
+        name, label = "ewma", "EWMA"
+        Settings = EwmaSettings       # its own settings: a frozen DetectorSettings dataclass
         ...
-    register(PageHinkley)
+    register(Ewma)
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from .cusum_detector import CusumDetector
 from .detector import Detector
 from .errors import OptionError
 from .mae import MaeDetector
+from .page_hinkley import PageHinkleyDetector
 
 __all__ = ["detector_class", "detector_names", "register", "unregister"]
 
@@ -55,6 +57,6 @@ def detector_class(name: str) -> type[Detector]:
         raise OptionError(f"detector: expected one of {', '.join(_REGISTRY)}, got {name!r}") from None
 
 
-for _cls in (CusumDetector, MaeDetector):      # the default first
+for _cls in (CusumDetector, MaeDetector, PageHinkleyDetector):      # the default first
     register(_cls)
 _BUILT_IN = frozenset(_REGISTRY)

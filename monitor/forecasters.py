@@ -38,11 +38,9 @@ import numpy as np
 from .errors import OptionError, TrainingError
 from .spectrum import fit_fourier, fourier_design, max_fourier_order
 
-__all__ = ["Forecaster", "HarmonicForecaster", "ProphetForecaster", "fit_forecaster", "quiet_prophet", "MODELS",
-           "PROPHET_EPOCH"]
+__all__ = ["Forecaster", "HarmonicForecaster", "ProphetForecaster", "fit_forecaster", "forecaster_class",
+           "forecaster_names", "quiet_prophet", "MODELS", "PROPHET_EPOCH", "register_forecaster"]
 
-#: Model kinds accepted by :func:`fit_forecaster`.
-MODELS = ("prophet", "harmonic")
 #: Datetime of t = 0 s in the frame given to Prophet.
 PROPHET_EPOCH = "1970-01-01 00:00:00"
 _LOGGERS = ("prophet", "prophet.plot", "prophet.models", "prophet.forecaster", "cmdstanpy")
@@ -96,6 +94,10 @@ class Forecaster:
         self.predict_calls = 0
         self.train_mae = float(np.mean(np.abs(self.predict(t) - x)))
 
+    @classmethod
+    def warm_up(cls) -> None:
+        """Import the libraries a fit will need (a live monitor then reacts at once); none by default."""
+
     def predict_direct(self, t: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
 
@@ -144,7 +146,9 @@ class HarmonicForecaster(Forecaster):
 
     kind = "harmonic"
 
-    def __init__(self, t: np.ndarray, x: np.ndarray, period: float, order: int, *, chunk_seconds: float = 20.0):
+    def __init__(self, t: np.ndarray, x: np.ndarray, period: float, order: int, *, seed: int = 0,
+                 chunk_seconds: float = 20.0):
+        del seed                # a least-squares fit draws no random numbers
         start = time.perf_counter()
         self.coef, _ = fit_fourier(t, x, period, order)
         self._setup(t, x, period, order, time.perf_counter() - start, chunk_seconds)
@@ -184,6 +188,11 @@ class ProphetForecaster(Forecaster):
         self.model = model
         self._setup(t, x, period, order, fit_seconds, chunk_seconds)
 
+    @classmethod
+    def warm_up(cls) -> None:
+        with quiet_prophet():
+            import prophet  # noqa: F401
+
     def _ds(self, t: np.ndarray) -> "Any":
         import pandas as pd
 
@@ -210,17 +219,48 @@ class ProphetForecaster(Forecaster):
         return d
 
 
+#: The registry: the ``model`` option's values and the classes they name, built-ins first.
+_REGISTRY: dict[str, type[Forecaster]] = {}
+
+
+def register_forecaster(cls: type[Forecaster]) -> type[Forecaster]:
+    """Make ``cls`` available as ``model=cls.kind``; returns ``cls`` (usable as a decorator).
+
+    ``cls(t, x, period, order, *, seed, chunk_seconds)`` fits on the training samples; a
+    heavy library (Prophet) is imported in that constructor, never at module import.
+    """
+    if not (isinstance(cls, type) and issubclass(cls, Forecaster)) or not cls.kind:
+        raise TypeError(f"register_forecaster: expected a subclass of Forecaster with a kind, got {cls!r}")
+    known = _REGISTRY.get(cls.kind)
+    if known is not None and known is not cls:
+        raise ValueError(f"register_forecaster: model name {cls.kind!r} is taken by {known.__name__}")
+    _REGISTRY[cls.kind] = cls
+    return cls
+
+
+def forecaster_names() -> tuple[str, ...]:
+    """The accepted values of the ``model`` option, the default (``prophet``) first."""
+    return tuple(_REGISTRY)
+
+
+def forecaster_class(kind: str) -> type[Forecaster]:
+    """The class registered as ``kind`` (raises :class:`OptionError` for an unknown name)."""
+    try:
+        return _REGISTRY[kind]
+    except (KeyError, TypeError):
+        raise OptionError(f"model: {kind!r} is not a model; expected one of {', '.join(_REGISTRY)}") from None
+
+
 def fit_forecaster(kind: str, t: np.ndarray, x: np.ndarray, period: float, *, order: int = 30,
                    seed: int = 0, chunk_seconds: float = 20.0) -> Forecaster:
-    """Fit a forecaster of ``kind`` (``"prophet"`` or ``"harmonic"``) on samples ``(t, x)``.
+    """Fit a forecaster of ``kind`` (a registered model: ``"prophet"``, ``"harmonic"``) on samples ``(t, x)``.
 
     ``period`` is the fundamental period in seconds (the refined one); ``order`` the Fourier
     order, capped at :func:`~monitor.spectrum.max_fourier_order` for the sampling.
     ``seed`` (Prophet's optimiser) is ignored by the harmonic model; ``chunk_seconds`` is
     the length of the cached prediction chunks (see :class:`Forecaster`).
     """
-    if kind not in MODELS:
-        raise OptionError(f"model: {kind!r} is not a model; expected one of {', '.join(MODELS)}")
+    cls = forecaster_class(kind)
     t = np.asarray(t, dtype=float)
     x = np.asarray(x, dtype=float)
     if t.ndim != 1 or t.shape != x.shape or t.size < 16:
@@ -232,6 +272,10 @@ def fit_forecaster(kind: str, t: np.ndarray, x: np.ndarray, period: float, *, or
         raise OptionError(f"order: Fourier order must be at least 1, got {order!r}")
     dt = float(np.median(np.diff(t)))
     order = min(int(order), max_fourier_order(period, dt, t.size))
-    if kind == "harmonic":
-        return HarmonicForecaster(t, x, period, order, chunk_seconds=chunk_seconds)
-    return ProphetForecaster(t, x, period, order, seed=seed, chunk_seconds=chunk_seconds)
+    return cls(t, x, period, order, seed=seed, chunk_seconds=chunk_seconds)
+
+
+for _cls in (ProphetForecaster, HarmonicForecaster):      # the default first
+    register_forecaster(_cls)
+#: The built-in model kinds (the registry may hold more: :func:`forecaster_names`).
+MODELS = forecaster_names()

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -30,10 +30,47 @@ import numpy as np
 from .detector import Detector, DetectorHost, Event, Fit, State, StatisticPlot, alarm_event
 from .errors import OptionError, TrainingError
 from .forecasters import fit_forecaster
+from .option_rules import NON_NEGATIVE, DetectorSettings, Rule, at_least, choice, is_number, option, positive
 from .spectrum import PeriodEstimate, dominant_period
 from .threshold import ThresholdRule, auto_threshold, fixed_threshold, window_mae
 
-__all__ = ["MaeDetector", "MaeRule"]
+__all__ = ["MaeDetector", "MaeRule", "MaeSettings", "THRESHOLD"]
+
+REFIT_POLICIES = ("none", "paper")
+
+
+def _parse_threshold(text: str) -> float | str:
+    return "auto" if text.strip().lower() == "auto" else float(text)
+
+
+THRESHOLD = Rule(lambda v: v == "auto" or (is_number(v) and v > 0),
+                 "a positive number in the signal's units or 'auto'", parse=_parse_threshold,
+                 metavar="LEVEL|auto")
+
+
+@dataclass(frozen=True)
+class MaeSettings(DetectorSettings):
+    """The mae detector's own settings (units: seconds and the signal's unit).
+
+    ``auto_k``, ``auto_floor`` and ``auto_z`` parametrise the auto threshold
+    (:func:`monitor.threshold.auto_threshold`).
+    """
+
+    threshold: float | str = option("auto", THRESHOLD, "mae: MAE threshold in the signal's units, or 'auto' from the "
+                                    "training data", flag="--threshold", group="detection")
+    window: float = option(0.5, positive("of seconds"), "mae: evaluation window: the newest WINDOW s of data",
+                           flag="--window", group="detection")
+    persistence: int = option(2, at_least(1), "mae: consecutive evaluations above the threshold before an alarm",
+                              flag="--persistence", group="detection")
+    refit: str = option("none", choice(REFIT_POLICIES), "mae: none: fit once; paper: refit on the latest "
+                        "--refit-samples samples until the first evaluation passes (the paper's policy)",
+                        flag="--refit", group="detection")
+    refit_samples: int = option(1000, at_least(32), "mae: samples per refit", flag="--refit-samples",
+                                group="detection")
+    max_refits: int = option(10, at_least(0))
+    auto_k: float = option(2.0, positive(""))
+    auto_floor: float = option(0.01, NON_NEGATIVE)
+    auto_z: float = option(4.0, positive(""))
 
 
 class MaeRule:
@@ -126,10 +163,11 @@ class MaeDetector(Detector):
 
     name = "mae"
     label = "MAE"
+    Settings = MaeSettings
 
     def __init__(self, options: Any, host: DetectorHost):
         super().__init__(options, host)
-        o = options
+        o = self.settings
         self.rule = MaeRule(persistence=o.persistence, refit=o.refit, max_refits=o.max_refits)
         self._t = np.empty(0)
         self._x = np.empty(0)
@@ -203,24 +241,24 @@ class MaeDetector(Detector):
             raise TrainingError(f"{self.host.source}: {self.options.signal} in {t[0]:g}–{t[-1]:g} s: {exc}") from exc
 
     def _install_fit(self, tt: np.ndarray, xx: np.ndarray, end: float) -> None:
-        o = self.options
+        o, c = self.options, self.settings
         start = time.perf_counter()
         est = self._estimate(tt, xx)
         model = fit_forecaster(o.model, tt, xx, est.period, order=o.order, seed=o.seed,
                                chunk_seconds=o.chunk_seconds)
-        if o.threshold == "auto":
-            rule = auto_threshold(tt, xx, est, model=o.model, order=o.order, window=o.window, every=o.every,
-                                  k=o.auto_k, floor=o.auto_floor, z=o.auto_z,
+        if c.threshold == "auto":
+            rule = auto_threshold(tt, xx, est, model=o.model, order=o.order, window=c.window, every=o.every,
+                                  k=c.auto_k, floor=c.auto_floor, z=c.auto_z,
                                   validation_fraction=o.validation_fraction, seed=o.seed)
         else:
-            rule = fixed_threshold(float(o.threshold))
+            rule = fixed_threshold(float(c.threshold))
         seconds = time.perf_counter() - start
         self.host.timing["train"] += seconds
         fit = Fit(float(tt[0]), float(end), est, model, rule, seconds)
         self.host.add_fit(fit)
         self._fit = fit
         self._origin = float(end)
-        self._next_k = int(np.ceil(o.window / o.every - 1e-9))     # first window wholly after `end`
+        self._next_k = int(np.ceil(c.window / o.every - 1e-9))     # first window wholly after `end`
         info = {"period_fft_s": est.fft_period, "period_s": est.period, "period_stderr_s": est.period_stderr,
                 "model": o.model, "order": model.order, "fit_seconds": model.fit_seconds,
                 "train_start": fit.start, "train_end": fit.end, "detector": self.name, "threshold_base": rule.base,
@@ -230,7 +268,7 @@ class MaeDetector(Detector):
         self.host.emit(self.rule.trained(float(end), rule, info))
 
     def _evaluate_due(self) -> None:
-        o = self.options
+        o, c = self.options, self.settings
         x = self._x
         while True:
             assert self._fit is not None
@@ -241,8 +279,8 @@ class MaeDetector(Detector):
             ks = np.arange(self._next_k, k_last + 1)
             times = self._origin + o.every * ks
             start = time.perf_counter()
-            mae, _ = window_mae(self._t, x, self._f, times, o.window, eps=self._eps,
-                                min_samples=max(1, int(round(0.5 * o.window / self._dt))))
+            mae, _ = window_mae(self._t, x, self._f, times, c.window, eps=self._eps,
+                                min_samples=max(1, int(round(0.5 * c.window / self._dt))))
             thr = np.asarray(self._fit.rule.at(times), dtype=float)
             self.host.timing["evaluate"] += time.perf_counter() - start
             refit_at = None
@@ -267,7 +305,7 @@ class MaeDetector(Detector):
 
     def _refit_window(self, at: float) -> np.ndarray:
         """Indices of the samples a refit at ``at`` is fitted on: the latest ``refit_samples``."""
-        return np.flatnonzero(self._t <= at + self._eps)[-self.options.refit_samples:]
+        return np.flatnonzero(self._t <= at + self._eps)[-self.settings.refit_samples:]
 
     def _refit(self, at: float) -> None:
         sel = self._refit_window(at)
@@ -287,8 +325,8 @@ class MaeDetector(Detector):
                 self._judged[idx - first] = self._f[idx]
 
     def _trim(self) -> None:
-        o = self.options
-        keep_s = max(o.window + 2 * o.every, (o.refit_samples + 2) * self._dt if o.refit == "paper" else 0.0)
+        o, c = self.options, self.settings
+        keep_s = max(c.window + 2 * o.every, (c.refit_samples + 2) * self._dt if c.refit == "paper" else 0.0)
         cut = np.searchsorted(self._t, self._t[-1] - keep_s, side="left")
         if cut > 4096:          # trim in large steps; keeps concatenation cheap
             self._t, self._x, self._f = self._t[cut:], self._x[cut:], self._f[cut:]
@@ -308,13 +346,14 @@ class MaeDetector(Detector):
 
     @classmethod
     def settings_text(cls, options: Any) -> str:
-        return (f"detector mae, threshold {options.threshold}, window {options.window:g} s every "
-                f"{options.every:g} s, persistence {options.persistence}")
+        c = options.settings
+        return (f"detector mae, threshold {c.threshold}, window {c.window:g} s every "
+                f"{options.every:g} s, persistence {c.persistence}")
 
     @classmethod
     def plot_text(cls, options: Any, fit: Fit | None) -> StatisticPlot:
         mode = fit.rule.mode if fit is not None else "?"
-        return StatisticPlot(f"MAE over the newest {options.window:g} s (every {options.every:g} s)",
+        return StatisticPlot(f"MAE over the newest {options.settings.window:g} s (every {options.every:g} s)",
                              f"threshold ({mode})", f"MAE of {options.signal}", ylabel_in_signal_units=True)
 
     @classmethod
@@ -326,4 +365,9 @@ class MaeDetector(Detector):
 
     @classmethod
     def alarm_persistence(cls, options: Any) -> int:
-        return int(options.persistence)
+        return int(options.settings.persistence)
+
+    @classmethod
+    def series_text(cls, threshold: Any, limits: list[float], arl0_hours: float | None, unit: str = "") -> str:
+        shown = threshold if threshold == "auto" or not unit else f"{threshold} {unit}"
+        return f"MAE threshold {shown}"

@@ -48,6 +48,7 @@ from typing import TYPE_CHECKING, Any, Iterator
 import numpy as np
 
 from fourbar_common import output_folder_problem, write_json_atomic
+from fourbar_common.contract.monitor_events import MonitorEvent
 from fourbar_common.files import replace_atomically
 from fourbar_common.files import NotRegularFileError, file_kind
 
@@ -166,9 +167,10 @@ class OutputWriters:
     renamed over the name), so they are whole or absent.
     """
 
-    def __init__(self, out_dir: Path, signals: tuple[str, ...]):
+    def __init__(self, out_dir: Path, signals: tuple[str, ...], detector: str = ""):
         self.out_dir = Path(out_dir)
         self.signals = tuple(signals)
+        self.detector = detector          # events of a built-in detector are checked against their payload type
         self._files: list[Any] = []
         self._paths: dict[Any, Path] = {}
         with self._writing(self.out_dir):
@@ -209,9 +211,10 @@ class OutputWriters:
         self._put(self._events, "")
 
     def event(self, e: Event) -> None:
-        d = e.as_dict()
-        d["wall"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds")
-        self._put(self._events, json.dumps(jsonable(d), allow_nan=False) + "\n")
+        wall = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds")
+        line = MonitorEvent.build(e.time, e.kind, e.state.value, jsonable(e.statistic), jsonable(e.threshold),
+                                  e.message, jsonable(e.data), wall, detector=self.detector).to_json()
+        self._put(self._events, line + "\n")
 
     def evaluation(self, t: float, statistic: float, threshold: float, state: State) -> None:
         self._put(self._evals, f"{t!r},{statistic!r},{threshold!r},{state.value}\n")
@@ -467,9 +470,10 @@ def _alarm_spans(result: "MonitorResult", end: float) -> list[tuple[float, float
 
 def _interval_maximum(result: "MonitorResult") -> bool:
     """The statistic recorded at ``t`` is the largest of the interval ``(t - every, t]`` (cusum):
-    drawn as steps over its interval, so an alarm inside it falls where the statistic is high.
-    (A field of :class:`~monitor.detector.StatisticPlot` would be this fact's better home.)"""
-    return result.options.detector == "cusum"
+    drawn as steps over its interval, so an alarm inside it falls where the statistic is high
+    (the detector's :attr:`StatisticPlot.interval_maximum <monitor.detector.StatisticPlot>`)."""
+    o = result.options
+    return o.detector_class.plot_text(o, result.summary.fit).interval_maximum
 
 
 def _statistic_scale(stat: np.ndarray, thr: np.ndarray) -> tuple[str, float | None]:

@@ -119,6 +119,11 @@ class CusumDesign:
         """Bound on the mean time between false alarms of the whole detector (union bound)."""
         return self.arl0_samples * self.sample_step / self.statistics / 3600.0
 
+    def limit_at_arl0(self, hours: float) -> float:
+        """The limit ``h`` this design would have for a mean of ``hours`` between false alarms (same
+        ``k``, sampling step and statistic count; Siegmund)."""
+        return cusum_threshold(hours * 3600.0 * self.statistics / self.sample_step, self.k)
+
     def as_dict(self) -> dict[str, Any]:
         return {"rule": "two-sided CUSUM on standardised residuals", "false_alarm_rate_per_hour": self.false_alarm_rate,
                 "sample_step_s": self.sample_step, "one_sided_statistics": self.statistics,

@@ -103,7 +103,7 @@ class _Session:
     def _outputs(self) -> OutputWriters | None:
         """The output files, created at the first thing worth writing."""
         if self._writers is None and self.out_dir is not None and self.output_error is None:
-            self._writers = OutputWriters(self.out_dir, self.options.signals)
+            self._writers = OutputWriters(self.out_dir, self.options.signals, self.options.detector)
         return self._writers
 
     def _write(self, action: Callable[[OutputWriters], None]) -> None:
@@ -278,11 +278,39 @@ def warm_up(model: str) -> None:
     import scipy.optimize  # noqa: F401
     import sklearn.metrics  # noqa: F401
 
-    if model == "prophet":
-        from .forecasters import quiet_prophet
+    from .forecasters import forecaster_class
 
-        with quiet_prophet():
-            import prophet  # noqa: F401
+    forecaster_class(model).warm_up()
+
+
+#: The signal of a run that names none yet: an exchange file followed before it (and its run.json)
+#: exists.  The four-bar's first output, kept so that case behaves as it always did.
+FALLBACK_SIGNAL = "x2"
+
+
+def run_signal(path: Path, run: RunInfo | None) -> str | None:
+    """The run's default signal: the exchange file's first column after ``time``, else run.json's
+    first recorded output (None: neither is known yet).  x2 for the four-bar."""
+    if path.is_file():
+        reader = ExchangeReader(path)
+        try:
+            reader.poll()
+        finally:
+            reader.close()
+        if reader.columns:
+            return reader.columns[0]
+    if run is not None and run.record is not None and run.record.outputs:
+        return run.record.outputs[0]
+    return None
+
+
+def with_run_signal(options: MonitorOptions, path: Path, run: RunInfo | None = None) -> MonitorOptions:
+    """``options`` with the run's default signal when they name none (``signal=""``)."""
+    if options.signal:
+        return options
+    if run is None and not path.is_file():
+        run = _checked_run_info(path)
+    return merged(options, {"signal": run_signal(path, run) or FALLBACK_SIGNAL})
 
 
 def _checked_run_info(path: Path) -> RunInfo | None:
@@ -320,6 +348,7 @@ def replay(exchange_path: str | os.PathLike[str], *, options: MonitorOptions | N
     if not path.exists():
         raise ExchangeMissingError(f"{path}: exchange file not found (use --follow to wait for it)")
     run = _checked_run_info(path)
+    opts = with_run_signal(opts, path, run)
     session = _Session(path, opts, out_dir, on_event, on_evaluation, on_warning)
     session.use_run(run)
     try:
@@ -375,6 +404,7 @@ def follow(exchange_path: str | os.PathLike[str], *, options: MonitorOptions | N
     path = exchange_file(exchange_path, later=True)
     regular_or_absent(path)
     say = on_wait or (lambda message: None)
+    opts = with_run_signal(opts, path)
     warm_up(opts.model)
     session = _Session(path, opts, out_dir, on_event, on_evaluation, on_warning)
     initial = _checked_run_info(path)

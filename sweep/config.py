@@ -435,16 +435,22 @@ class _Validator(ProblemReporter):
     def monitor(self, case) -> MonitorSpec | None:
         from monitor import MonitorOptions
         from monitor import OptionError
-        from monitor.forecasters import MODELS
+        from monitor.forecasters import forecaster_names
+        from monitor.options import option_default, option_names
 
+        MODELS = forecaster_names()
         table = self.table("monitor") or {}
-        fields = tuple(MonitorOptions.__dataclass_fields__)
+        fields = option_names()
         self.unknown_keys(table, fields, "monitor")
         ok = True
         from monitor.options import split_signals
 
-        signal = table.get("signal", MonitorOptions.signal)
-        if not isinstance(signal, str) or not signal.strip():
+        # the run's default signal: the base case's first output column (x2 for the four-bar)
+        default_signal = case.recorded[0] if case is not None and case.recorded else ""
+        signal = table.get("signal", default_signal)
+        if "signal" not in table and not default_signal:
+            pass                          # no base case: reported already
+        elif not isinstance(signal, str) or not signal.strip():
             self.problem("monitor.signal", signal, "expected the name of an output column, e.g. \"x2\", or several "
                                                    "separated by commas")
             ok = False
@@ -472,7 +478,7 @@ class _Validator(ProblemReporter):
 
         models = self.axis("monitor.model", table.get("model", MonitorOptions.model), model_check,
                            allow_range=False)
-        thresholds = self.axis("monitor.threshold", table.get("threshold", MonitorOptions.threshold),
+        thresholds = self.axis("monitor.threshold", table.get("threshold", option_default("threshold")),
                                threshold_check)
         options = {k: v for k, v in table.items() if k not in ("signal", "model", "threshold") and k in fields}
         # the remaining options are checked by the monitor itself, all problems at once

@@ -60,40 +60,37 @@ class DetectorDesign:
     @classmethod
     def from_options(cls, options: Mapping[str, Any]) -> "DetectorDesign":
         """From a sweep's fixed monitor options (``MonitorSpec.options``; defaults from
-        :class:`monitor.MonitorOptions` for what it does not set)."""
+        :class:`monitor.MonitorOptions` and the detector's own settings for what it does not set)."""
         from monitor import MonitorOptions
 
-        name = str(options.get("detector", MonitorOptions.detector))
-        every = float(options.get("every", MonitorOptions.every))
-        if name != "cusum":
-            return cls(name, None, every)
-        rate = float(options.get("false_alarm_rate", MonitorOptions.false_alarm_rate))
-        return cls(name, 1.0 / rate, every)
+        opts = MonitorOptions(**{k: tuple(v) if isinstance(v, list) else v for k, v in options.items()})
+        return cls(opts.detector, opts.detector_class.designed_arl0_hours(opts.settings), float(opts.every))
 
     @classmethod
     def inferred(cls, table) -> "DetectorDesign | None":
-        """Without the options: the cusum when a row has a delay-vs-ARL0 value (only the cusum
-        writes them), else unknown (None)."""
+        """Without the options: the first registered detector with delay-vs-ARL0 curves (the
+        cusum) when a row has a delay-vs-ARL0 value (only such detectors write them), else
+        unknown (None)."""
+        from monitor.detectors import detector_class, detector_names
+
         from .scenario import ARL0_HOURS, delay_column
 
         cols = [delay_column(h) for h in ARL0_HOURS if delay_column(h) in table.columns]
         if cols and table[cols].notna().any().any():
-            return cls("cusum")
+            return cls(next(n for n in detector_names() if detector_class(n).arl0_curve))
         return None
 
 
 def _detector_text(design: DetectorDesign | None, threshold: Any, limits, unit: str = "") -> str:
-    """The series' detector: ``CUSUM h 30.86 (ARL0 100 h)``, ``MAE threshold auto``, ..."""
+    """The series' detector (the detector's :meth:`~monitor.detector.Detector.series_text`):
+    ``CUSUM h 30.86 (ARL0 100 h)``, ``MAE threshold auto``, ..."""
     if design is None:
         return f"threshold {threshold}"
-    if design.name == "cusum":
-        h = sorted({round(float(v), 4) for v in limits if v is not None and math.isfinite(float(v))})
-        text = "CUSUM" + (f" h {h[0]:.4g}" if len(h) == 1 else f" h {h[0]:.4g}–{h[-1]:.4g}" if h else "")
-        return text + (f" (ARL0 {design.arl0_hours:.3g} h)" if design.arl0_hours else "")
-    if design.name == "mae":
-        shown = threshold if threshold == "auto" or not unit else f"{threshold} {unit}"
-        return f"MAE threshold {shown}"
-    return f"{design.name}, threshold {threshold}"
+    from monitor.detectors import detector_class, detector_names
+
+    if design.name not in detector_names():
+        return f"{design.name}, threshold {threshold}"
+    return detector_class(design.name).series_text(threshold, list(limits), design.arl0_hours, unit)
 
 
 def _label_parts(key: dict[str, Any], unit: str = "", detector: str | None = None) -> str:

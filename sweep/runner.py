@@ -293,8 +293,7 @@ def _persistence(sweep: Sweep) -> int:
     from .scenario import detector_persistence
 
     opts = sweep.monitor.options
-    return detector_persistence(MonitorOptions(detector=opts.get("detector", MonitorOptions.detector),
-                                               persistence=opts.get("persistence", MonitorOptions.persistence)))
+    return detector_persistence(MonitorOptions(**{k: v for k, v in opts.items() if k in ("detector", "persistence")}))
 
 
 def _limit_ok(row: dict, sweep: Sweep, out: Path) -> bool:

@@ -139,8 +139,10 @@ def delay_column(hours: float) -> str:
 
 
 def delays_at_arl0(times, statistic, design, fault_time: float | None) -> dict[str, Any]:
-    """Detection delay the same run would have had with the CUSUM limit set for each ``ARL0_HOURS``.
+    """Detection delay the same run would have had with the limit set for each ``ARL0_HOURS``.
 
+    ``design`` is the run's fitted rule of a detector with ``arl0_curve`` (the CUSUM's
+    :class:`~monitor.sequential.CusumDesign`): its run's limit ``h`` and ``limit_at_arl0(hours)``.
     The statistic does not depend on the limit until its first crossing, so the first
     evaluation after the fault where it reaches the limit ``h(ARL0)`` (Siegmund, same
     ``k``, sampling step and statistic count as the run's design) is that limit's
@@ -151,7 +153,6 @@ def delays_at_arl0(times, statistic, design, fault_time: float | None) -> dict[s
     """
     import numpy as np
 
-    from monitor.cusum import cusum_threshold
     from monitor.summary import before_fault
 
     out: dict[str, Any] = {delay_column(h): None for h in ARL0_HOURS}
@@ -162,8 +163,7 @@ def delays_at_arl0(times, statistic, design, fault_time: float | None) -> dict[s
     pre = before_fault(t, fault_time)
     pre_max = float(s[pre].max()) if pre.any() else 0.0
     for hours in ARL0_HOURS:
-        arl_each = hours * 3600.0 * design.statistics / design.sample_step
-        h = cusum_threshold(arl_each, design.k)
+        h = design.limit_at_arl0(hours)
         if h > design.h * (1 + 1e-9) or pre_max >= h:
             continue
         hit = np.flatnonzero(~pre & (s >= h))
@@ -248,7 +248,6 @@ def run_scenario(scenario: Scenario, base_case, run_dir: str, monitor_options: M
         m0 = time.perf_counter()
         try:
             from monitor import replay
-            from monitor.sequential import CusumDesign
 
             monitored = replay(result.exchange_path, out_dir=out / "monitor", plots=monitor_plots, **options)
         except MonitorError as exc:
@@ -256,11 +255,11 @@ def run_scenario(scenario: Scenario, base_case, run_dir: str, monitor_options: M
                           monitor_seconds=time.perf_counter() - m0)
         monitor_seconds = time.perf_counter() - m0
         ev = monitored.evaluations
-        alarm_times = [e["time"] for e in monitored.events if e.get("event") == "alarm"]
+        alarm_times = [e.time for e in monitored.summary.alarm_events]          # typed, not re-read by key
         figures = score(ev["time"].to_numpy(), ev["statistic"].to_numpy(), ev["threshold"].to_numpy(), alarm_times,
                         scenario.fault_time, detector_persistence(monitored.options), latency_limit)
         fit = monitored.summary.fit
-        if fit is not None and isinstance(fit.rule, CusumDesign):     # the delay curve needs a CUSUM design
+        if fit is not None and monitored.options.detector_class.arl0_curve:   # a design re-set by its ARL0
             figures.update(delays_at_arl0(ev["time"].to_numpy(), ev["statistic"].to_numpy(), fit.rule,
                                           scenario.fault_time))
         period = monitored.period

@@ -291,12 +291,20 @@ def test_an_option_of_the_other_detector_is_refused_everywhere(native_run, tmp_p
     assert not set(detector_options("cusum")) & set(detector_options("mae"))
     from dataclasses import fields
 
-    for f in fields(MonitorOptions):
-        if f.name == "detector":          # its help describes both
+    from monitor.detectors import detector_class, detector_names
+
+    owner = {f.name: None for f in fields(MonitorOptions)}
+    for name in detector_names():
+        owner.update({f.name: name for f in fields(detector_class(name).Settings)})
+    helps = {f.name: f.metadata.get("help", "") for f in fields(MonitorOptions)}
+    for name in detector_names():
+        helps.update({f.name: f.metadata["help"] for f in fields(detector_class(name).Settings)})
+    for field_name, help_text in helps.items():
+        if field_name == "detector":          # its help describes every detector
             continue
-        prefix = f.metadata["help"].split(":")[0]
-        if prefix in ("cusum", "mae"):
-            assert f.metadata["detector"] == prefix, f.name
+        prefix = help_text.split(":")[0]
+        if prefix in detector_names():
+            assert owner[field_name] == prefix, field_name
 
 
 # -- fourbar-sweep -------------------------------------------------------------------------------------

@@ -146,7 +146,7 @@ def test_refits_name_their_window_and_the_forecast_follows_the_new_model(short_r
     for refit, after, fit in zip(refits, trained[1:], fits[1:]):
         upto = t_ex[t_ex <= refit["time"] + 1e-9]
         assert refit["train_end"] == refit["time"] == after["train_end"] == fit["train_end"]
-        assert refit["train_start"] == upto[-o.refit_samples:][0] == after["train_start"] == fit["train_start"]
+        assert refit["train_start"] == upto[-o.settings.refit_samples:][0] == after["train_start"] == fit["train_start"]
 
     _, rows = read_forecast(out / "forecast.csv")
     t, value, forecast = per_signal(rows, "x2")

@@ -222,3 +222,18 @@ def test_paper_refit_policy_end_to_end(tmp_path_factory, fourbar_fmu):
     assert kinds[:5] == ["trained", "refit", "trained", "refit", "trained"]
     assert r.events[5]["event"] == "alarm" and r.events[5]["reason"] == "refit_limit"
     assert r.summary.fits[1].end == 9.5 and r.summary.fits[1].forecaster.settings()["n_train"] == 951
+
+
+def test_the_default_signal_is_the_runs_first_output(tmp_path, capsys):
+    """No --signal: the run's first output column (x2 for the four-bar), not a four-bar name."""
+    from monitor.cli import main
+
+    t = np.round(np.arange(0.0, 12.0 + 0.005, 0.01), 10)
+    theta = np.sin(2 * np.pi * t / 1.7)
+    path = tmp_path / "exchange.csv"
+    path.write_text("time,theta,omega\n" + "".join(f"{a:.2f},{b:.17g},{c:.17g}\n"
+                                                    for a, b, c in zip(t, theta, np.cos(2 * np.pi * t / 1.7))))
+    result = replay(path, model="harmonic", plots=False)
+    assert result.options.signal == "theta" and result.summary.fit is not None
+    assert main([str(path), "--model", "harmonic", "--no-plots", "--out", str(tmp_path / "m")]) == 0
+    assert "(signal theta, model harmonic" in capsys.readouterr().out

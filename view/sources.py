@@ -30,6 +30,8 @@ import pandas as pd
 
 from fourbar_common import RunRecord, RunRecordError, read_run_record
 from fourbar_common.files import NotRegularFileError, file_kind, open_regular
+from fourbar_common.contract.monitor_events import MonitorEvent
+from fourbar_common.contract.problems import ContractError
 from fourbar_common.run_record import JsonFileError, parse_json, read_json_file
 
 __all__ = ["Diagnosis", "MonitorEvent", "RunFolder", "RunFolderError", "Update", "check_run_folder"]
@@ -68,20 +70,6 @@ def check_run_folder(path: str | os.PathLike[str]) -> Path:
             raise RunFolderError(f"{folder / name}: {file_kind(mode)}, not a regular file; a run folder holds "
                                  "the files fourbar-run, fourbar-monitor and fourbar-diagnose write")
     return folder
-
-
-@dataclass(frozen=True)
-class MonitorEvent:
-    """One line of the monitor's events.jsonl."""
-
-    time: float
-    event: str                     # trained | stable | refit | alarm | clear
-    state: str
-    statistic: float | None
-    threshold: float | None
-    message: str
-    train_start: float | None = None
-    train_end: float | None = None
 
 
 @dataclass(frozen=True)
@@ -266,13 +254,10 @@ class RunFolder:
             except JsonFileError as exc:     # not JSON, or nested too deeply
                 update.warnings.append(f"{exc}; the line was skipped")
                 continue
-            if not isinstance(data, dict) or _number(data.get("time")) is None:
+            try:
+                update.events.append(MonitorEvent.from_dict(data, str(self.events.path)))
+            except ContractError:          # not an event of the monitor's: skipped
                 continue
-            update.events.append(MonitorEvent(
-                time=float(data["time"]), event=str(data.get("event", "")), state=str(data.get("state", "")),
-                statistic=_number(data.get("statistic")), threshold=_number(data.get("threshold")),
-                message=str(data.get("message") or ""), train_start=_number(data.get("train_start")),
-                train_end=_number(data.get("train_end"))))
 
     def _read_diagnosis(self, update: Update) -> None:
         path = self.folder / "diagnosis" / "diagnosis.json"
