@@ -133,7 +133,7 @@ def native_sources(eqs: MechanismEquations, guid: str, replace: Mapping[str, byt
                    fmi_version: int = 2) -> dict[str, bytes]:
     """Every file of the FMU's ``sources/``: generated, hand-written and the FMI headers (the
     FMI 2.0 layer and headers, or the FMI 3.0 ones, over the same model).  ``guid`` is what
-    variables.h's FB_GUID holds: the FMI 2.0 GUID or the FMI 3.0 instantiation token."""
+    variables.h's FMU_GUID holds: the FMI 2.0 GUID or the FMI 3.0 instantiation token."""
     _check_version(fmi_version)
     files = {name: text.encode()
              for name, text in generate_c_sources(eqs, guid, model_identifier(eqs, fmi_version)).items()}
@@ -290,7 +290,7 @@ def model_description(eqs: MechanismEquations, guid: str, source_files, fmi_vers
 def fmi3_model_description(eqs: MechanismEquations, token: str) -> bytes:
     """The FMI 3.0 FMU's modelDescription.xml: the same variables with the same value references
     as Float64 (Real) and String (``integrator``), the independent variable ``time`` after them
-    (value reference FB_N_VARIABLES, as fmi3Functions.c reads it), ``derivative`` naming the
+    (value reference FMU_N_VARIABLES, as fmi3Functions.c reads it), ``derivative`` naming the
     state's value reference, ``<ModelStructure>`` by value reference, and the drawing as an FMI 3.0
     annotation (``<Annotations><Annotation type="fourbar-cosim">``, the same ``<Drawing>`` inside)."""
     mech = eqs.mechanism

@@ -28,10 +28,10 @@
 #include "fmi2Functions.h"
 #include "model.h"
 
-static const int KINDS[FB_N_VARIABLES] = FB_VARIABLE_KINDS;
-static const char *const NAMES[FB_N_VARIABLES] = FB_VARIABLE_NAMES;
-static const char *const INTEGRATORS[FB_N_INTEGRATORS] = FB_INTEGRATOR_NAMES;
-static const int READ_COMPUTED[FB_N_VARIABLES] = FB_READ_COMPUTED;
+static const int KINDS[FMU_N_VARIABLES] = FMU_VARIABLE_KINDS;
+static const char *const NAMES[FMU_N_VARIABLES] = FMU_VARIABLE_NAMES;
+static const char *const INTEGRATORS[FMU_N_INTEGRATORS] = FMU_INTEGRATOR_NAMES;
+static const int READ_COMPUTED[FMU_N_VARIABLES] = FMU_READ_COMPUTED;
 enum { KIND_TUNABLE = 0, KIND_FIXED = 1, KIND_STRING = 2, KIND_OUTPUT = 3, KIND_LOCAL = 4 };
 static const char *const KIND_TEXT[] = {"a tunable Real parameter", "a fixed Real parameter", "a String parameter",
                                         "a Real output", "a Real local variable"};
@@ -164,7 +164,7 @@ static int check_refs(ModelInstance *m, const char *function, const fmi2ValueRef
                       const char *expected)
 {
     for (size_t i = 0; i < nvr; i++) {
-        if (vr[i] >= FB_N_VARIABLES) {
+        if (vr[i] >= FMU_N_VARIABLES) {
             model_log(m, MODEL_ERROR, "logStatusError", "%s: unknown value reference %u", function, (unsigned)vr[i]);
             return 0;
         }
@@ -246,9 +246,9 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                   "or fmi2CoSimulation %d)", (int)fmuType, (int)fmi2ModelExchange, (int)fmi2CoSimulation);
         return NULL;
     }
-    if (!fmuGUID || strcmp(fmuGUID, FB_GUID) != 0) {
+    if (!fmuGUID || strcmp(fmuGUID, FMU_GUID) != 0) {
         model_log(&probe, MODEL_ERROR, "logStatusError", "fmi2Instantiate: GUID '%s' does not match this binary's "
-                  "'%s' (a model description from another build?)", fmuGUID ? fmuGUID : "(null)", FB_GUID);
+                  "'%s' (a model description from another build?)", fmuGUID ? fmuGUID : "(null)", FMU_GUID);
         return NULL;
     }
     ModelInstance *m = (ModelInstance *)allocate(&probe, sizeof(ModelInstance));
@@ -335,7 +335,7 @@ fmi2Status fmi2Reset(fmi2Component c)
 
 /* -- variables ----------------------------------------------------------------------- */
 
-/* The output groups (FB_GROUP_* bits) vr[] reads: computed on first read (model_preview_outputs). */
+/* The output groups (FMU_GROUP_* bits) vr[] reads: computed on first read (model_preview_outputs). */
 static int groups_read(const fmi2ValueReference vr[], size_t nvr)
 {
     int groups = 0;
@@ -386,7 +386,7 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 
 static int integrator_index(const char *name)
 {
-    for (int k = 0; k < FB_N_INTEGRATORS; k++)
+    for (int k = 0; k < FMU_N_INTEGRATORS; k++)
         if (name && strcmp(name, INTEGRATORS[k]) == 0) return k;
     return -1;
 }
@@ -545,7 +545,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
     }
     if (problem) {
         model_log(m, MODEL_ERROR, "logStatusError", "fmi2DeSerializeFMUstate: not a state of this FMU (GUID %s)",
-                  FB_GUID);
+                  FMU_GUID);
         return fmi2Error;
     }
     if (!*FMUstate) {
@@ -718,7 +718,7 @@ fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2Stri
 /* -- model exchange ------------------------------------------------------------------ */
 
 /* The continuous states are the file's independent coordinates, their rates and the drivers' work
-   (dae.h), in the order of FB_STATE_VRS; the FMU has no event indicators and no time events: a
+   (dae.h), in the order of FMU_STATE_VRS; the FMU has no event indicators and no time events: a
    parameter set in event mode is applied by fmi2NewDiscreteStates (re-assembly keeping the
    states).  An evaluation that fails (the loop cannot be closed at the states the host set)
    leaves the instance in the error state. */
@@ -800,7 +800,7 @@ fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t n
     ENTER(MODE_CONTINUOUS);
     ME_ONLY;
     REQUIRE_ARRAY(x, nx);
-    if (!count_is(m, __func__, nx, FB_N_STATES, "states")) return fmi2Error;
+    if (!count_is(m, __func__, nx, FMU_N_STATES, "states")) return fmi2Error;
     if (model_non_finite_states(m, __func__, x, nx)) return fmi2Error;
     model_me_set_states(m, x);
     return fmi2OK;
@@ -811,7 +811,7 @@ fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t n
    fmi2ExitInitializationMode then reports). */
 static fmi2Status from_preview(ModelInstance *m, const int *vrs, fmi2Real value[], size_t n)
 {
-    model_preview_outputs(m, FB_GROUP_STATES);
+    model_preview_outputs(m, FMU_GROUP_STATES);
     for (size_t i = 0; i < n; i++) value[i] = m->state.values[vrs[i]];
     return fmi2OK;
 }
@@ -823,7 +823,7 @@ fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx
     ENTER(MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED);
     ME_ONLY;
     REQUIRE_ARRAY(derivatives, nx);
-    if (!count_is(m, __func__, nx, FB_N_STATES, "derivatives")) return fmi2Error;
+    if (!count_is(m, __func__, nx, FMU_N_STATES, "derivatives")) return fmi2Error;
     if (model_me_derivatives(m, derivatives) != MODEL_OK) {
         m->state.mode = MODE_ERROR;
         return fmi2Error;
@@ -841,11 +841,11 @@ fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real eventIndicators[], s
 
 fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx)
 {
-    static const int STATE_VRS[] = FB_STATE_VRS;
+    static const int STATE_VRS[] = FMU_STATE_VRS;
     ENTER(ME_READABLE);
     ME_ONLY;
     REQUIRE_ARRAY(x, nx);
-    if (!count_is(m, __func__, nx, FB_N_STATES, "states")) return fmi2Error;
+    if (!count_is(m, __func__, nx, FMU_N_STATES, "states")) return fmi2Error;
     if (m->state.mode == MODE_INITIALIZATION) return from_preview(m, STATE_VRS, x, nx);
     model_me_get_states(m, x);
     return fmi2OK;
@@ -856,7 +856,7 @@ fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x_nominal
     ENTER(MODE_INSTANTIATED | MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED);
     ME_ONLY;
     REQUIRE_ARRAY(x_nominal, nx);
-    if (!count_is(m, __func__, nx, FB_N_STATES, "nominals")) return fmi2Error;
+    if (!count_is(m, __func__, nx, FMU_N_STATES, "nominals")) return fmi2Error;
     for (size_t i = 0; i < nx; i++) x_nominal[i] = 1.0;
     return fmi2OK;
 }

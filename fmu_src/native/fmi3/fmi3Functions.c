@@ -23,7 +23,7 @@
  *   FMU-state bookkeeping calls and fmi3SetDebugLogging are accepted.
  * - The status a call returns is the worst status it logged.
  * - The FMU has Float64 variables (the Real ones of variables.h, and the independent variable
- *   `time`, value reference FB_N_VARIABLES) and one String (`integrator`); every value reference
+ *   `time`, value reference FMU_N_VARIABLES) and one String (`integrator`); every value reference
  *   of another type (Float32, the integers, Boolean, Binary, Clock) is refused as unknown.
  * Every message goes through the host's logMessage callback (FMI 3.0 passes no instance name:
  * messages start with it).  Memory is the C library's (FMI 3.0 has no memory callbacks).
@@ -36,17 +36,17 @@
 #include "fmi3Functions.h"
 #include "model.h"
 
-static const int KINDS[FB_N_VARIABLES] = FB_VARIABLE_KINDS;
-static const char *const NAMES[FB_N_VARIABLES] = FB_VARIABLE_NAMES;
-static const char *const INTEGRATORS[FB_N_INTEGRATORS] = FB_INTEGRATOR_NAMES;
-static const int READ_COMPUTED[FB_N_VARIABLES] = FB_READ_COMPUTED;
+static const int KINDS[FMU_N_VARIABLES] = FMU_VARIABLE_KINDS;
+static const char *const NAMES[FMU_N_VARIABLES] = FMU_VARIABLE_NAMES;
+static const char *const INTEGRATORS[FMU_N_INTEGRATORS] = FMU_INTEGRATOR_NAMES;
+static const int READ_COMPUTED[FMU_N_VARIABLES] = FMU_READ_COMPUTED;
 enum { KIND_TUNABLE = 0, KIND_FIXED = 1, KIND_STRING = 2, KIND_OUTPUT = 3, KIND_LOCAL = 4, KIND_TIME = 5 };
 static const char *const KIND_TEXT[] = {"a tunable Float64 parameter", "a fixed Float64 parameter", "a String parameter",
                                         "a Float64 output", "a Float64 local variable",
                                         "the independent variable (Float64)"};
 #define KIND(k) (1 << (k))
 /* The independent variable: FMI 3.0 requires one (causality="independent"). */
-#define VR_TIME FB_N_VARIABLES
+#define VR_TIME FMU_N_VARIABLES
 
 /* -- the FMI 3.0 state machines (co-simulation and model exchange) --------------------- */
 
@@ -267,10 +267,10 @@ static fmi3Instance instantiate(const char *function, fmi3String instanceName, f
         model_log(&probe.model, MODEL_ERROR, "logStatusError", "%s: the instance name must not be empty", function);
         return NULL;
     }
-    if (!instantiationToken || strcmp(instantiationToken, FB_GUID) != 0) {
+    if (!instantiationToken || strcmp(instantiationToken, FMU_GUID) != 0) {
         model_log(&probe.model, MODEL_ERROR, "logStatusError", "%s: instantiation token '%s' does not match this "
                   "binary's '%s' (a model description from another build?)", function,
-                  instantiationToken ? instantiationToken : "(null)", FB_GUID);
+                  instantiationToken ? instantiationToken : "(null)", FMU_GUID);
         return NULL;
     }
     Instance *created = (Instance *)calloc(1, sizeof(Instance));
@@ -489,7 +489,7 @@ fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference valueRe
 
 static int integrator_index(const char *name)
 {
-    for (int k = 0; k < FB_N_INTEGRATORS; k++)
+    for (int k = 0; k < FMU_N_INTEGRATORS; k++)
         if (name && strcmp(name, INTEGRATORS[k]) == 0) return k;
     return -1;
 }
@@ -885,7 +885,7 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte seriali
     }
     if (problem) {
         model_log(m, MODEL_ERROR, "logStatusError", "fmi3DeserializeFMUState: not a state of this FMU (instantiation token %s)",
-                  FB_GUID);
+                  FMU_GUID);
         return fmi3Error;
     }
     if (!*FMUState) {
@@ -961,7 +961,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
 /* -- model exchange ------------------------------------------------------------------ */
 
 /* As fmi2Functions.c: the continuous states are the file's independent coordinates, their rates
-   and the drivers' work, in the order of FB_STATE_VRS; no event indicators, no time events; a
+   and the drivers' work, in the order of FMU_STATE_VRS; no event indicators, no time events; a
    parameter set in event mode is applied by fmi3UpdateDiscreteStates (re-assembly keeping the
    states).  An evaluation that fails leaves the instance in the error state. */
 
@@ -1034,7 +1034,7 @@ fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 cont
     ENTER(MODE_CONTINUOUS);
     ME_ONLY;
     REQUIRE_ARRAY(continuousStates, nContinuousStates);
-    if (!count_is(m, __func__, nContinuousStates, FB_N_STATES, "states")) return fmi3Error;
+    if (!count_is(m, __func__, nContinuousStates, FMU_N_STATES, "states")) return fmi3Error;
     if (model_non_finite_states(m, __func__, continuousStates, nContinuousStates)) return fmi3Error;
     model_me_set_states(m, continuousStates);
     return fmi3OK;
@@ -1045,7 +1045,7 @@ fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 cont
    fmi3ExitInitializationMode then reports). */
 static fmi3Status from_preview(ModelInstance *m, const int *vrs, fmi3Float64 value[], size_t n)
 {
-    model_preview_outputs(m, FB_GROUP_STATES);
+    model_preview_outputs(m, FMU_GROUP_STATES);
     for (size_t i = 0; i < n; i++) value[i] = m->state.values[vrs[i]];
     return fmi3OK;
 }
@@ -1054,11 +1054,11 @@ static fmi3Status from_preview(ModelInstance *m, const int *vrs, fmi3Float64 val
 fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[],
                                              size_t nContinuousStates)
 {
-    static const int DERIVATIVE_VRS[] = FB_DERIVATIVE_VRS;
+    static const int DERIVATIVE_VRS[] = FMU_DERIVATIVE_VRS;
     ENTER(ME_READABLE);
     ME_ONLY;
     REQUIRE_ARRAY(derivatives, nContinuousStates);
-    if (!count_is(m, __func__, nContinuousStates, FB_N_STATES, "derivatives")) return fmi3Error;
+    if (!count_is(m, __func__, nContinuousStates, FMU_N_STATES, "derivatives")) return fmi3Error;
     if (m->state.mode == MODE_INITIALIZATION) return from_preview(m, DERIVATIVE_VRS, derivatives, nContinuousStates);
     if (model_me_derivatives(m, derivatives) != MODEL_OK) {
         m->state.mode = MODE_ERROR;
@@ -1077,11 +1077,11 @@ fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndica
 
 fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[], size_t nContinuousStates)
 {
-    static const int STATE_VRS[] = FB_STATE_VRS;
+    static const int STATE_VRS[] = FMU_STATE_VRS;
     ENTER(ME_READABLE);
     ME_ONLY;
     REQUIRE_ARRAY(continuousStates, nContinuousStates);
-    if (!count_is(m, __func__, nContinuousStates, FB_N_STATES, "states")) return fmi3Error;
+    if (!count_is(m, __func__, nContinuousStates, FMU_N_STATES, "states")) return fmi3Error;
     if (m->state.mode == MODE_INITIALIZATION) return from_preview(m, STATE_VRS, continuousStates, nContinuousStates);
     model_me_get_states(m, continuousStates);
     return fmi3OK;
@@ -1092,7 +1092,7 @@ fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 
     ENTER(ME_READABLE);
     ME_ONLY;
     REQUIRE_ARRAY(nominals, nContinuousStates);
-    if (!count_is(m, __func__, nContinuousStates, FB_N_STATES, "nominals")) return fmi3Error;
+    if (!count_is(m, __func__, nContinuousStates, FMU_N_STATES, "nominals")) return fmi3Error;
     for (size_t i = 0; i < nContinuousStates; i++) nominals[i] = 1.0;
     return fmi3OK;
 }
@@ -1112,6 +1112,6 @@ fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nConti
     ENTER(ALL_STATES);
     ME_ONLY;
     REQUIRE(nContinuousStates);
-    *nContinuousStates = FB_N_STATES;
+    *nContinuousStates = FMU_N_STATES;
     return fmi3OK;
 }
