@@ -112,8 +112,11 @@ int model_deserialize(const unsigned char *bytes, size_t size, const char magic[
    finite, the message terminated.  Else 1 with the first problem in `why` (n bytes). */
 int model_check_state(const ModelState *s, int model_exchange, char *why, size_t n);
 
-/* Logging through the host's callback (defined by the FMI layer). */
+/* Logging through the host's callback, and memory (the host's, when it gives its allocator): defined
+   by the FMI layer. */
 void model_log(ModelInstance *m, ModelStatus status, const char *category, const char *fmt, ...);
+void *model_allocate(const ModelInstance *m, size_t size);
+void model_release(const ModelInstance *m, void *p);
 
 void model_reset(ModelInstance *m);                       /* start values, mode instantiated */
 ModelStatus model_initialize(ModelInstance *m);            /* check, assemble, start (exit init mode) */
