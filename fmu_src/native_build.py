@@ -27,7 +27,7 @@ import uuid
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
+from typing import Callable, Mapping
 from xml.etree import ElementTree as ET
 
 from fourbar_common import replace_atomically
@@ -49,11 +49,12 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 #: The four-bar's model identifier (the default mechanism's); any mechanism's is model_identifier().
 MODEL_IDENTIFIER = "FourBarNative"
-#: The hand-written C: FMI layer, the slave behind it, the DAE algorithm, the Runge-Kutta driver,
-#: linear algebra, and the header that pins glibc symbol versions for binaries/linux64
-#: (force-included there only).  None of it knows a mechanism.
-HAND_WRITTEN = ("fmi2Functions.c", "model.c", "model.h", "saved_state.c", "dae.c", "dae.h", "linalg.h", "rk.c",
-                "rk.h", "glibc_compat.h")
+#: The hand-written C: FMI layer, what it shares with the FMI 3.0 layer (fmi_layer: the state table
+#: and the calls' work; fmi_calls.h: the entry points both standards define alike), the slave behind
+#: it, the DAE algorithm, the Runge-Kutta driver, linear algebra, and the header that pins glibc
+#: symbol versions for binaries/linux64 (force-included there only).  None of it knows a mechanism.
+HAND_WRITTEN = ("fmi2Functions.c", "fmi_calls.h", "fmi_layer.c", "fmi_layer.h", "model.c", "model.h", "saved_state.c",
+                "dae.c", "dae.h", "linalg.h", "rk.c", "rk.h", "glibc_compat.h")
 #: The FMI 3.0 FMU's: the same model, behind the FMI 3.0 layer (fmu_src/native/fmi3/fmi3Functions.c: a
 #: folder of its own, so that fmu_src/native/ holds exactly the FMI 2.0 FMU's hand-written C).
 HAND_WRITTEN_FMI3 = tuple("fmi3/fmi3Functions.c" if name == "fmi2Functions.c" else name for name in HAND_WRITTEN)
@@ -112,15 +113,35 @@ def find_compiler() -> str | None:
     return None
 
 
+@dataclass(frozen=True)
+class _Flavour:
+    """Everything that differs between the FMI 2.0 and the FMI 3.0 native FMU's build (the model
+    and the rest of the C are the same): one of ``_FLAVOURS``, by FMI version."""
+
+    version: int
+    identifier_suffix: str                   # the model identifier's, after <Name>Native
+    hand_written: tuple[str, ...]            # the hand-written C, under fmu_src/native/
+    headers: tuple[str, ...]                 # the standard's headers, as FMPy ships them
+    #: the binary folder by sys.platform's prefix ({machine}: "x86_64" or "aarch64"); "win32"'s is the
+    #: cross-compiled DLL's
+    platform_folders: Mapping[str, str]
+    #: the model description: (equations, GUID or token, the .c files) -> modelDescription.xml
+    describe: Callable[[MechanismEquations, str, list], bytes]
+    braced_token: bool                       # the GUID written in braces (FMI 3.0's instantiation token)
+    build_description: bool                  # sources/buildDescription.xml (FMI 3.0)
+    editor_copies: bool                      # writes build/generated/ (one flavour does: the same files)
+
+
+def _flavour(fmi_version: int) -> _Flavour:
+    if fmi_version not in _FLAVOURS:
+        raise ValueError(f"fmi_version = {fmi_version!r}: must be one of {', '.join(map(str, FMI_VERSIONS))}")
+    return _FLAVOURS[fmi_version]
+
+
 def model_identifier(eqs: MechanismEquations, fmi_version: int = 2) -> str:
     """``<Name>Native`` (FMI 2.0) or ``<Name>Native3`` (FMI 3.0): the native FMU's model identifier,
     its library's name and its file's (``build/<identifier>.fmu``)."""
-    return f"{eqs.mechanism.name}Native" + ("3" if fmi_version == 3 else "")
-
-
-def _check_version(fmi_version: int) -> None:
-    if fmi_version not in FMI_VERSIONS:
-        raise ValueError(f"fmi_version = {fmi_version!r}: must be one of {', '.join(map(str, FMI_VERSIONS))}")
+    return f"{eqs.mechanism.name}Native" + _flavour(fmi_version).identifier_suffix
 
 
 def _fmi_header_dir() -> Path:
@@ -133,14 +154,14 @@ def native_sources(eqs: MechanismEquations, guid: str, replace: Mapping[str, byt
                    fmi_version: int = 2) -> dict[str, bytes]:
     """Every file of the FMU's ``sources/``: generated, hand-written and the FMI headers (the
     FMI 2.0 layer and headers, or the FMI 3.0 ones, over the same model).  ``guid`` is what
-    variables.h's FB_GUID holds: the FMI 2.0 GUID or the FMI 3.0 instantiation token."""
-    _check_version(fmi_version)
+    variables.h's FMU_GUID holds: the FMI 2.0 GUID or the FMI 3.0 instantiation token."""
+    flavour = _flavour(fmi_version)
     files = {name: text.encode()
              for name, text in generate_c_sources(eqs, guid, model_identifier(eqs, fmi_version)).items()}
-    for name in (HAND_WRITTEN_FMI3 if fmi_version == 3 else HAND_WRITTEN):
+    for name in flavour.hand_written:
         files[Path(name).name] = (HERE / "native" / name).read_bytes()     # sources/ is flat
     headers = _fmi_header_dir()
-    for name in (FMI3_HEADERS if fmi_version == 3 else FMI_HEADERS):
+    for name in flavour.headers:
         files[name] = (headers / name).read_bytes()
     files.update(replace or {})
     return files
@@ -156,7 +177,7 @@ def _guid(eqs: MechanismEquations, replace: Mapping[str, bytes] | None = None, f
     digest.update(repr(native_variable_table(eqs)).encode())
     digest.update(ET.tostring(drawing_of(eqs.mechanism).to_annotation()))
     guid = str(uuid.UUID(bytes=digest.digest()[:16], version=5))
-    return "{" + guid + "}" if fmi_version == 3 else guid
+    return "{" + guid + "}" if _flavour(fmi_version).braced_token else guid
 
 
 @dataclass(frozen=True)
@@ -225,11 +246,12 @@ def _variable_attributes(var) -> dict[str, str]:
 
 def model_description(eqs: MechanismEquations, guid: str, source_files, fmi_version: int = 2) -> bytes:
     """The native FMU's modelDescription.xml (FMI 2.0, or FMI 3.0: ``fmi3_model_description``),
-    from the mechanism's variable table, with the drawing annotation (``mechanism.drawing``)
-    between DefaultExperiment and ModelVariables."""
-    _check_version(fmi_version)
-    if fmi_version == 3:
-        return fmi3_model_description(eqs, guid)
+    from the mechanism's variable table, with the drawing annotation (``mechanism.drawing``)."""
+    return _flavour(fmi_version).describe(eqs, guid, source_files)
+
+
+def _fmi2_model_description(eqs: MechanismEquations, guid: str, source_files) -> bytes:
+    """FMI 2.0's, the drawing annotation between DefaultExperiment and ModelVariables."""
     mech = eqs.mechanism
     identifier = model_identifier(eqs)
     root = ET.Element("fmiModelDescription", {
@@ -290,7 +312,7 @@ def model_description(eqs: MechanismEquations, guid: str, source_files, fmi_vers
 def fmi3_model_description(eqs: MechanismEquations, token: str) -> bytes:
     """The FMI 3.0 FMU's modelDescription.xml: the same variables with the same value references
     as Float64 (Real) and String (``integrator``), the independent variable ``time`` after them
-    (value reference FB_N_VARIABLES, as fmi3Functions.c reads it), ``derivative`` naming the
+    (value reference FMU_N_VARIABLES, as fmi3Functions.c reads it), ``derivative`` naming the
     state's value reference, ``<ModelStructure>`` by value reference, and the drawing as an FMI 3.0
     annotation (``<Annotations><Annotation type="fourbar-cosim">``, the same ``<Drawing>`` inside)."""
     mech = eqs.mechanism
@@ -374,15 +396,26 @@ def _compile(compiler: str, source_dir: Path, sources: list[str], output: Path, 
         raise RuntimeError(f"compiling the native FMU failed ({' '.join(command(()))}):\n{proc.stderr.strip()}")
 
 
+#: The shared library's suffix by sys.platform's prefix.
+_LIBRARY_SUFFIXES = {"linux": ".so", "darwin": ".dylib", "win32": ".dll"}
+_FLAVOURS = {
+    2: _Flavour(version=2, identifier_suffix="", hand_written=HAND_WRITTEN, headers=FMI_HEADERS,
+                platform_folders={"linux": "linux64", "darwin": "darwin64", "win32": "win64"},
+                describe=_fmi2_model_description, braced_token=False, build_description=False,
+                editor_copies=True),
+    3: _Flavour(version=3, identifier_suffix="3", hand_written=HAND_WRITTEN_FMI3, headers=FMI3_HEADERS,
+                platform_folders={"linux": "{machine}-linux", "darwin": "{machine}-darwin", "win32": "x86_64-windows"},
+                describe=lambda eqs, token, source_files: fmi3_model_description(eqs, token),
+                braced_token=True, build_description=True, editor_copies=False),
+}
+
+
 def _platform(fmi_version: int = 2) -> tuple[str, str]:
     """The binary folder (FMI 2.0's, or FMI 3.0's platform tuple) and library suffix of this machine."""
     machine = "aarch64" if platform.machine().lower() in ("arm64", "aarch64") else "x86_64"
-    if sys.platform.startswith("linux"):
-        return ("linux64" if fmi_version == 2 else f"{machine}-linux"), ".so"
-    if sys.platform == "darwin":
-        return ("darwin64" if fmi_version == 2 else f"{machine}-darwin"), ".dylib"
-    if sys.platform == "win32":
-        return ("win64" if fmi_version == 2 else "x86_64-windows"), ".dll"
+    for prefix, folder in _flavour(fmi_version).platform_folders.items():
+        if sys.platform.startswith(prefix):
+            return folder.format(machine=machine), _LIBRARY_SUFFIXES[prefix]
     raise RuntimeError(f"no FMI {fmi_version}.0 platform folder for {sys.platform}")
 
 
@@ -422,13 +455,13 @@ def build_native_fmu(dest: str | Path | None = None, mechanism: str | Path | Mec
                                    f"command on PATH; set CC to an installed C compiler, or unset it to use "
                                    f"cc, gcc or clang")
         raise CompilerNotFound("no C compiler found (set CC, or install gcc or clang)")
-    _check_version(fmi_version)
+    flavour = _flavour(fmi_version)
     eqs = prepare_mechanism(mechanism if mechanism is not None else "fourbar").equations
     identifier = model_identifier(eqs, fmi_version)
     dest = Path(dest if dest is not None else Path("build") / f"{identifier}.fmu").resolve()
     guid = _guid(eqs, replace, fmi_version)
     files = native_sources(eqs, guid, replace, fmi_version)
-    if not replace and dest.is_relative_to(REPO) and fmi_version == 2:   # a build for the repository, not a test's
+    if not replace and dest.is_relative_to(REPO) and flavour.editor_copies:   # for the repository, not a test
         _write_editor_copies(identifier, files)
     c_files = sorted(name for name in files if name.endswith(".c"))
     platforms = []
@@ -445,7 +478,7 @@ def build_native_fmu(dest: str | Path | None = None, mechanism: str | Path | Mec
         binaries = [(f"binaries/{folder}/{identifier}{suffix}", library)]
         platforms.append(folder)
         cross = shutil.which(_WIN64_COMPILER)
-        windows = "x86_64-windows" if fmi_version == 3 else "win64"
+        windows = flavour.platform_folders["win32"]
         if cross and folder != windows:
             dll = stage / (identifier + ".dll")
             # -s: no symbol table (the exports stay): 563 -> 285 kB for the Watt six-bar
@@ -453,7 +486,7 @@ def build_native_fmu(dest: str | Path | None = None, mechanism: str | Path | Mec
             binaries.append((f"binaries/{windows}/{identifier}.dll", dll))
             platforms.append(windows)
         sources = dict(files)
-        if fmi_version == 3:
+        if flavour.build_description:
             sources["buildDescription.xml"] = build_description(eqs, c_files)
 
         def write(tmp_dest: Path) -> None:

@@ -11,7 +11,7 @@
   state; every allocation given back.  Each of its cases is a test here, per mechanism.  The cases
   the layer fails for a known, reported deviation from the standard
   (native_host/strict_host3.py: KNOWN_DEVIATIONS) are strict expected failures.
-- The harness fails on layers that break a rule (mutants of fmi3Functions.c, compiled here with the
+- The harness fails on layers that break a rule (mutants of fmi3Functions.c or fmi_layer.c, compiled here with the
   FMU's other shipped sources).
 - The FMU's shipped sources build with -Wall -Wextra -Werror as their buildDescription.xml lists
   them, and that build passes the harness as the shipped binary does.
@@ -143,8 +143,8 @@ def test_every_known_deviation_names_cases_of_the_host(host):
 # -- the harness fails on broken layers -----------------------------------------------------------
 @pytest.fixture(scope="module")
 def fourbar_build(targets, tmp_path_factory):
-    """The four-bar's shipped sources (buildDescription.xml's list), compiled with -Werror: every
-    object but fmi3Functions.c's, to link mutants of it with; and the library from all of them."""
+    """The four-bar's shipped sources (buildDescription.xml's list), compiled with -Werror, one object
+    each, to link a mutant of one of them with the others' objects; and the library from all of them."""
     compiler = find_cc()
     target = targets("fourbar")
     src = target.root / "sources"
@@ -152,19 +152,19 @@ def fourbar_build(targets, tmp_path_factory):
     files = [e.get("name") for e in root.iter("SourceFile")]
     assert "fmi3Functions.c" in files and len(files) >= 5, files
     out = tmp_path_factory.mktemp("fourbar_build")
-    objects = []
+    objects = {}
     for name in files:
-        if name == "fmi3Functions.c":
-            continue
         obj = out / f"{Path(name).stem}.o"
         subprocess.run([compiler, "-std=c99", "-O1", "-fPIC", "-fvisibility=hidden", "-Wall", "-Wextra", "-Werror",
                         "-I", str(src), "-c", str(src / name), "-o", str(obj)], check=True, capture_output=True,
                        text=True)
-        objects.append(obj)
+        objects[name] = obj
 
     def link(layer: Path, output: Path) -> Path:
+        """The library from ``layer`` (a source named as one of the shipped ones) and the others' objects."""
+        others = [str(obj) for name, obj in objects.items() if name != layer.name]
         subprocess.run([compiler, "-std=c99", "-O1", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra",
-                        "-Werror", "-I", str(src), "-o", str(output), str(layer), *map(str, objects), "-lm"],
+                        "-Werror", "-I", str(src), "-o", str(output), str(layer), *others, "-lm"],
                        check=True, capture_output=True, text=True)
         return output
     return target, src, link
@@ -180,42 +180,51 @@ def test_the_shipped_sources_build_with_werror_and_pass(host, fourbar_build, tmp
     assert not unexpected and len(run.cases) == len(list_cases(host)), "\n".join(unexpected) or run.stderr[-2000:]
 
 
-# Each mutant breaks one rule in fmi3Functions.c; the host must say so in the case named.
+# Each mutant breaks one rule in the FMI 3.0 layer (fmi3Functions.c, or the state table and checks it
+# shares with the FMI 2.0 layer: fmi_layer.c); the host must say so in the case named.
 MUTANTS = {
     "an FMU state never freed": (
-        "    free(*FMUState);   /* *FMUState == NULL: nothing to free */",
-        "    /* not freed */",
+        "fmi3Functions.c",
+        "    free(p);   /* p == NULL: nothing to free */",
+        "    (void)p;   /* not freed */",
         "fmi3GetFMUState in state stepMode", "taken from the heap during the case were not given back"),
     "information logged with loggingOn false": (
+        "fmi3Functions.c",
         "    if (status == MODEL_OK && !m->logging_on) return;\n",
         "",
         "fmi3Terminate in state stepMode", "a message below fmi3Error with loggingOn false"),
     "messages without the instance name": (
+        "fmi3Functions.c",
         'used = snprintf(text, sizeof text, "%s: ", m->instance_name ? m->instance_name : "");',
         "used = 0;",
         "fmi3DoStep in state instantiated", "does not start with the instance name"),
     "a NULL instance reaches the logger": (
-        "    if (!m) return 0;\n    if (m->state.mode & states) return 1;",
-        "    if (m->state.mode & states) return 1;",
+        "fmi_layer.c",
+        "    if (!m) return 0;\n    if (m->state.mode & states)",
+        "    if (m->state.mode & states)",
         "fmi3DoStep with a NULL instance", "crashed"),
     "states settable in event mode": (
-        "    ENTER(MODE_CONTINUOUS);\n    ME_ONLY;\n    REQUIRE_ARRAY(continuousStates, nContinuousStates);",
-        "    ENTER(MODE_EVENT | MODE_CONTINUOUS);\n    ME_ONLY;\n"
-        "    REQUIRE_ARRAY(continuousStates, nContinuousStates);",
+        "fmi_layer.c",
+        "[CALL_SET_STATES]           = {{MODE_CONTINUOUS,            MODE_CONTINUOUS},",
+        "[CALL_SET_STATES]           = {{MODE_CONTINUOUS,            MODE_EVENT | MODE_CONTINUOUS},",
         "fmi3SetContinuousStates in state eventMode", "returned fmi3OK, expected fmi3Error"),
     "values readable in the error state": (
-        "#define READABLE (MODE_INITIALIZATION | MODE_STEP_COMPLETE",
-        "#define READABLE (MODE_ERROR | MODE_INITIALIZATION | MODE_STEP_COMPLETE",
+        "fmi_layer.c",
+        "#define FMI3_READABLE (MODE_INITIALIZATION | MODE_STEP_COMPLETE",
+        "#define FMI3_READABLE (MODE_ERROR | MODE_INITIALIZATION | MODE_STEP_COMPLETE",
         "fmi3GetFloat64 in state error after a failed fmi3DoStep", "returned fmi3OK, expected fmi3Error"),
     "an event update that says the states changed": (
+        "fmi3Functions.c",
         "*valuesOfContinuousStatesChanged = fmi3False;   /* a re-assembly keeps the states */",
         "*valuesOfContinuousStatesChanged = fmi3True;",
         "a model-exchange run with an event changing a parameter", "valuesOfContinuousStatesChanged 1"),
     "model-exchange time off by 1e-12 s (only the FMI 2.0 twin tells)": (
+        "fmi_layer.c",
         "    model_me_set_time(m, time);",
         "    model_me_set_time(m, time + 1e-12);",
         "a model-exchange run with an event changing a parameter", "against the FMI 2.0 twin"),
     "no lastSuccessfulTime after a step": (
+        "fmi3Functions.c",
         "    *lastSuccessfulTime = m->state.t;\n    return fmi3OK;",
         "    return fmi3OK;",
         "Case 2 in co-simulation", "lastSuccessfulTime 0 s"),
@@ -225,11 +234,11 @@ MUTANTS = {
 @linux_only
 @pytest.mark.parametrize("mutant", sorted(MUTANTS))
 def test_the_harness_catches_a_layer_that_breaks_a_rule(host, fourbar_build, mutant, tmp_path):
-    before, after, case, says = MUTANTS[mutant]
+    name, before, after, case, says = MUTANTS[mutant]
     target, src, link = fourbar_build
-    text = (src / "fmi3Functions.c").read_text()
-    assert text.count(before) == 1, f"the mutant's target text is no longer in fmi3Functions.c: {before!r}"
-    layer = tmp_path / "fmi3Functions.c"
+    text = (src / name).read_text()
+    assert text.count(before) == 1, f"the mutant's target text is no longer in {name}: {before!r}"
+    layer = tmp_path / name
     layer.write_text(text.replace(before, after))
     run = run_host(host, dataclasses.replace(target, library=link(layer, tmp_path / "mutant.so")), only=case)
     assert run.returncode == 1, run.stdout[-2000:]

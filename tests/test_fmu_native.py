@@ -219,6 +219,27 @@ def test_ships_its_sources_and_needs_no_python(native_fmu):
     assert not md.coSimulation.needsExecutionTool
 
 
+def test_every_fmi_entry_point_checks_the_one_state_table_first():
+    """Both FMI layers (and the entry points they share, fmi_calls.h) check each call against the
+    one state table of fmi_layer.c, first: every function returning a status starts with
+    ENTER(<a row of the table>), and every row is used."""
+    from fmu_src.native_build import HERE
+    native = HERE / "native"
+    table = (native / "fmi_layer.c").read_text()
+    rows = set(re.findall(r"^\s*\[(CALL_\w+)\]\s*=", table, re.M))
+    assert len(rows) >= 20, rows
+    used, functions = set(), []
+    for path in (native / "fmi2Functions.c", native / "fmi3" / "fmi3Functions.c", native / "fmi_calls.h"):
+        code = re.sub(r"/\*.*?\*/", " ", path.read_text(), flags=re.S).replace("\\\n", "\n")
+        for name, first in re.findall(r"^(?:fmi[23]Status|LayerStatus) (\w+)\([^;{]*?\)\s*\{\s*([^;]*;)", code, re.M):
+            functions.append(name)
+            call = re.fullmatch(r"ENTER\((CALL_\w+)\);", first.strip())
+            assert call and call.group(1) in rows, f"{path.name}: {name} starts with {first.strip()!r}"
+            used.add(call.group(1))
+    assert len(functions) >= 70 and "fmi2DoStep" in functions and "NAME" in functions, functions
+    assert used == rows, f"rows no call uses: {sorted(rows - used)}"
+
+
 def test_the_hand_written_c_names_no_mechanism():
     """The equations and tables are generated per mechanism; fmu_src/native/ knows none of them."""
     from fmu_src.native_build import HAND_WRITTEN, HERE

@@ -6,7 +6,7 @@
   reach (the error state after a failed initialization, step or event update included), and
   checks each status, each message and every allocation; it runs a short model-exchange
   integration with an event too.  It must pass, and it must fail on layers that break a rule
-  (six mutants of fmi2Functions.c, compiled here).  It passes on other mechanisms' FMUs (the
+  (six mutants of fmi2Functions.c or fmi_layer.c, compiled here).  It passes on other mechanisms' FMUs (the
   slider-crank's, and the driven four-bar's, whose only state is its driver's work) too.
 - What an FMI host gets after a failed initialization, through FMPy: fmi2Error from every read.
 - binaries/linux64 needs no glibc symbol version newer than 2.17 (read from the ELF file).
@@ -72,31 +72,38 @@ def test_the_layer_is_as_strict_for_another_mechanism(host, tmp_path, mechanism,
     assert target.states == {"slider_crank": 2, "fourbar_driven": 1}[mechanism]
 
 
-# Each mutant breaks one rule in fmi2Functions.c; the host must name the broken call.
+# Each mutant breaks one rule in the FMI 2.0 layer (fmi2Functions.c, or the state table and checks it
+# shares with the FMI 3.0 layer: fmi_layer.c); the host must name the broken call.
 MUTANTS = {
     "outputs readable in the error state": (
-        "#define READABLE (MODE_INITIALIZATION | INITIALIZED)",
-        "#define READABLE (MODE_INITIALIZATION | INITIALIZED | MODE_ERROR)",
+        "fmi_layer.c",
+        "#define FMI2_READABLE (MODE_INITIALIZATION | FMI2_INITIALIZED)",
+        "#define FMI2_READABLE (MODE_INITIALIZATION | FMI2_INITIALIZED | MODE_ERROR)",
         "FAIL fmi2GetReal in state error after a failed fmi2ExitInitializationMode: "
         "fmi2GetReal returned fmi2OK, expected fmi2Error"),
     "a NULL instance reaches the logger": (
-        "    if (!m) return 0;\n    if (m->state.mode & states) return 1;",
-        "    if (m->state.mode & states) return 1;",
+        "fmi_layer.c",
+        "    if (!m) return 0;\n    if (m->state.mode & states)",
+        "    if (m->state.mode & states)",
         "FAIL fmi2CancelStep with a NULL instance: crashed"),
     "a status that is not what the log says": (
+        "fmi2Functions.c",
         'model_log(m, MODEL_DISCARD, "logStatusDiscard", "%s(%s): no such status',
         'model_log(m, MODEL_ERROR, "logStatusError", "%s(%s): no such status',
         "FAIL fmi2GetStatus in state stepComplete: fmi2GetStatus returned fmi2Discard but logged fmi2Error"),
     "a co-simulation status answered by a model-exchange instance": (
-        "    ENTER(STATUS_STATES);\n    CS_ONLY;\n    REQUIRE(value);\n    if (s != fmi2LastSuccessfulTime)",
-        "    ENTER(STATUS_STATES);\n    REQUIRE(value);\n    if (s != fmi2LastSuccessfulTime)",
+        "fmi_layer.c",
+        "[CALL_GET_STATUS]           = {{FMI2_STATUS,                0},                         CS},",
+        "[CALL_GET_STATUS]           = {{FMI2_STATUS,                0},                         BOTH},",
         "FAIL fmi2GetRealStatus in state terminated (model exchange): fmi2GetRealStatus returned fmi2OK, "
         "expected fmi2Error"),
     "states settable in event mode": (
-        "    ENTER(MODE_CONTINUOUS);\n    ME_ONLY;\n    REQUIRE_ARRAY(x, nx);",
-        "    ENTER(MODE_EVENT | MODE_CONTINUOUS);\n    ME_ONLY;\n    REQUIRE_ARRAY(x, nx);",
+        "fmi_layer.c",
+        "[CALL_SET_STATES]           = {{MODE_CONTINUOUS,            MODE_CONTINUOUS},",
+        "[CALL_SET_STATES]           = {{MODE_EVENT | MODE_CONTINUOUS, MODE_CONTINUOUS},",
         "FAIL fmi2SetContinuousStates in state eventMode: fmi2SetContinuousStates returned fmi2OK, expected fmi2Error"),
     "an event update that says the states changed": (
+        "fmi2Functions.c",
         "fmi2eventInfo->valuesOfContinuousStatesChanged = fmi2False;",
         "fmi2eventInfo->valuesOfContinuousStatesChanged = fmi2True;",
         "FAIL a healthy model-exchange run: Euler steps, saved and replayed, an event changing a parameter: "
@@ -115,12 +122,12 @@ def _compile_fmu_sources(unpacked: Path, output: Path, extra=()) -> None:
 @linux_only
 @pytest.mark.parametrize("mutant", sorted(MUTANTS))
 def test_the_harness_catches_a_layer_that_breaks_a_rule(host, target, mutant, tmp_path):
-    before, after, expected = MUTANTS[mutant]
+    name, before, after, expected = MUTANTS[mutant]
     mutated = tmp_path / "unpacked"
     shutil.copytree(target.root / "sources", mutated / "sources")
-    layer = mutated / "sources" / "fmi2Functions.c"
+    layer = mutated / "sources" / name
     text = layer.read_text()
-    assert text.count(before) == 1, f"the mutant's target text is no longer in fmi2Functions.c: {before!r}"
+    assert text.count(before) == 1, f"the mutant's target text is no longer in {name}: {before!r}"
     layer.write_text(text.replace(before, after))
     library = tmp_path / "mutant.so"
     _compile_fmu_sources(mutated, library)

@@ -8,7 +8,7 @@
 #include <string.h>
 #include "model.h"
 
-static const double REAL_STARTS[FB_N_VARIABLES] = FB_REAL_STARTS;
+static const double REAL_STARTS[FMU_N_VARIABLES] = FMU_REAL_STARTS;
 
 void model_reset(ModelInstance *m)
 {
@@ -54,7 +54,7 @@ void model_output_one(ModelInstance *m, unsigned long vr)
 /* Model Exchange: the states are copies, the derivatives zero. */
 void model_me_get_states(ModelInstance *m, double *x)
 {
-    memcpy(x, m->state.me_y, FB_N_STATES * sizeof *x);
+    memcpy(x, m->state.me_y, FMU_N_STATES * sizeof *x);
 }
 
 void model_me_set_time(ModelInstance *m, double t)
@@ -64,13 +64,13 @@ void model_me_set_time(ModelInstance *m, double t)
 
 void model_me_set_states(ModelInstance *m, const double *x)
 {
-    memcpy(m->state.me_y, x, FB_N_STATES * sizeof *x);
+    memcpy(m->state.me_y, x, FMU_N_STATES * sizeof *x);
 }
 
 ModelStatus model_me_derivatives(ModelInstance *m, double *dx)
 {
     (void)m;
-    memset(dx, 0, FB_N_STATES * sizeof *dx);
+    memset(dx, 0, FMU_N_STATES * sizeof *dx);
     return MODEL_OK;
 }
 

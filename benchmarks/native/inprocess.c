@@ -38,7 +38,7 @@ static int run(int fault, int repeat, double tol)
     double best = 1e300, value = 0.0;
     unsigned long evaluations = 0, starts = 0;
     for (int r = 0; r < repeat; r++) {
-        fmi2Component c = fmi2Instantiate("bench", fmi2CoSimulation, FB_GUID, "", &functions, fmi2False, fmi2False);
+        fmi2Component c = fmi2Instantiate("bench", fmi2CoSimulation, FMU_GUID, "", &functions, fmi2False, fmi2False);
         if (!c) return 1;
         double t0 = now();
         fmi2SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2True, 100.0);

@@ -128,7 +128,7 @@ static const char *const ROW_NAMES[MA] = MECH_ROW_NAMES;
 static const int OUTPUT_KINDS[MECH_N_OUTPUTS] = MECH_OUTPUT_KINDS;
 static const int OUTPUT_INDICES[MECH_N_OUTPUTS] = MECH_OUTPUT_INDICES;
 static const int STATE_GROUP[MECH_ALLOC(MECH_N_STATE_GROUP)] = MECH_STATE_GROUP;
-static const char *const INTEGRATOR_NAMES[FB_N_INTEGRATORS] = FB_INTEGRATOR_NAMES;
+static const char *const INTEGRATOR_NAMES[FMU_N_INTEGRATORS] = FMU_INTEGRATOR_NAMES;
 
 static void declared_partition(int *independent, int *dependent);
 static double length_scale(const double *q);
@@ -1224,7 +1224,7 @@ static int follow(ModelState *s, const double *q0, const double *p0, const doubl
 
 int dae_assemble(ModelState *s, double t, const double *guess, const double *rates)
 {
-    static const double STARTS[FB_N_VARIABLES] = FB_REAL_STARTS;
+    static const double STARTS[FMU_N_VARIABLES] = FMU_REAL_STARTS;
     static const int PARAMETER_VRS[MECH_ALLOC(MECH_N_PARAMETERS)] = MECH_PARAMETER_VRS;
     static const int START_POSITION_VRS[KA] = MECH_START_POSITION_VRS;
     static const double GUESS[N] = MECH_GUESS;

@@ -23,13 +23,13 @@
 
 #define MSG MODEL_MESSAGE
 
-static const double REAL_STARTS[FB_N_VARIABLES] = FB_REAL_STARTS;
-static const int KINDS[FB_N_VARIABLES] = FB_VARIABLE_KINDS;
-static const char *const NAMES[FB_N_VARIABLES] = FB_VARIABLE_NAMES;
-static const int POSITIVE[FB_N_VARIABLES] = FB_POSITIVE;
-static const double MINIMUM[FB_N_VARIABLES] = FB_MINIMUM;
-static const double MAXIMUM[FB_N_VARIABLES] = FB_MAXIMUM;
-static const char *const UNITS[FB_N_VARIABLES] = FB_MESSAGE_UNITS;
+static const double REAL_STARTS[FMU_N_VARIABLES] = FMU_REAL_STARTS;
+static const int KINDS[FMU_N_VARIABLES] = FMU_VARIABLE_KINDS;
+static const char *const NAMES[FMU_N_VARIABLES] = FMU_VARIABLE_NAMES;
+static const int POSITIVE[FMU_N_VARIABLES] = FMU_POSITIVE;
+static const double MINIMUM[FMU_N_VARIABLES] = FMU_MINIMUM;
+static const double MAXIMUM[FMU_N_VARIABLES] = FMU_MAXIMUM;
+static const char *const UNITS[FMU_N_VARIABLES] = FMU_MESSAGE_UNITS;
 static const int PARAMETER_VRS[MECH_ALLOC(MECH_N_PARAMETERS)] = MECH_PARAMETER_VRS;
 static const int INDEPENDENT[MECH_ALLOC(MECH_K)] = MECH_INDEPENDENT;
 static const int START_POSITION_VRS[MECH_ALLOC(MECH_K)] = MECH_START_POSITION_VRS;
@@ -39,9 +39,9 @@ static const int OUTPUT_VRS[MECH_N_OUTPUTS] = MECH_OUTPUT_VRS;
 static const int OUTPUT_KINDS[MECH_N_OUTPUTS] = MECH_OUTPUT_KINDS;
 static const int STATE_GROUP[MECH_ALLOC(MECH_N_STATE_GROUP)] = MECH_STATE_GROUP;
 static const char *const COORDINATES[MECH_N] = MECH_COORDINATE_NAMES;
-static const int STATE_VRS[] = FB_STATE_VRS;
-static const int STATE_START_VRS[] = FB_STATE_START_VRS;
-static const int DERIVATIVE_VRS[] = FB_DERIVATIVE_VRS;
+static const int STATE_VRS[] = FMU_STATE_VRS;
+static const int STATE_START_VRS[] = FMU_STATE_START_VRS;
+static const int DERIVATIVE_VRS[] = FMU_DERIVATIVE_VRS;
 enum { KIND_TUNABLE = 0, KIND_FIXED = 1 };
 
 static ModelStatus fail(ModelInstance *m, const char *fmt, ...)
@@ -81,7 +81,7 @@ static int check_parameters(const ModelState *s, char *out, size_t n)
     out[0] = '\0';
 #define ADD(...) do { if (used < n) used += snprintf(out + used, n - used, "%s", count++ ? "; " : ""); \
                       if (used < n) used += snprintf(out + used, n - used, __VA_ARGS__); } while (0)
-    for (int vr = 0; vr < FB_N_VARIABLES; vr++) {
+    for (int vr = 0; vr < FMU_N_VARIABLES; vr++) {
         if (KINDS[vr] != KIND_TUNABLE && KINDS[vr] != KIND_FIXED) continue;
         const double v = s->values[vr];
         const char *gap = UNITS[vr][0] ? " " : "";
@@ -121,7 +121,7 @@ static void start_configuration(const ModelState *s, double *guess, double *rate
    pending, computed when first read (model_preview_outputs), a group at a time. */
 static ModelStatus publish(ModelInstance *m)
 {
-    m->state.outputs_pending = FB_GROUP_STATE | FB_GROUP_RESIDUAL | FB_GROUP_FORCE | FB_GROUP_STATES;
+    m->state.outputs_pending = FMU_GROUP_STATE | FMU_GROUP_RESIDUAL | FMU_GROUP_FORCE | FMU_GROUP_STATES;
     return MODEL_OK;
 }
 
@@ -142,7 +142,7 @@ static void store_states(ModelState *s, const double *f)
 {
     double y[RK_N];
     dae_states(s, y);
-    for (int k = 0; k < FB_N_STATES; k++) {
+    for (int k = 0; k < FMU_N_STATES; k++) {
         s->values[STATE_VRS[k]] = y[k];
         s->values[DERIVATIVE_VRS[k]] = f[k];
     }
@@ -158,7 +158,7 @@ static ModelStatus me_evaluate(ModelInstance *m)
         s->t = t;
         return fail(m, "at t = %.9g s: %s", s->me_t, s->rhs_message);
     }
-    for (int k = 0; k < FB_N_STATES; k++)
+    for (int k = 0; k < FMU_N_STATES; k++)
         if (!isfinite(s->me_f[k])) {       /* states of no physical size (1e308) overflow */
             char a[40];
             return fail(m, "at t = %.9g s: the derivative der(%s) = %s is not finite at the states the host set "
@@ -205,7 +205,7 @@ void model_preview_outputs(ModelInstance *m, int groups)
         if (dae_me_start(&scratch) || dae_derivatives(&scratch, f)) return;
         for (int k = 0; k < MECH_N_OUTPUTS; k++) s->values[OUTPUT_VRS[k]] = out[k];
         store_states(&scratch, f);
-        for (int k = 0; k < FB_N_STATES; k++) {
+        for (int k = 0; k < FMU_N_STATES; k++) {
             s->values[STATE_VRS[k]] = scratch.values[STATE_VRS[k]];
             s->values[DERIVATIVE_VRS[k]] = scratch.values[DERIVATIVE_VRS[k]];
         }
@@ -213,25 +213,25 @@ void model_preview_outputs(ModelInstance *m, int groups)
     }
     if (m->model_exchange && me_evaluate(m) != MODEL_OK) return;
     groups &= s->outputs_pending;
-    if (groups & FB_GROUP_STATE) {
+    if (groups & FMU_GROUP_STATE) {
         dae_outputs_state(s->p, s->d, s->t, s->q, s->tr, s->qd, s->work, out);
         store_outputs(s, out, MECH_OUTPUT_STATE);
-        s->outputs_pending &= ~FB_GROUP_STATE;
+        s->outputs_pending &= ~FMU_GROUP_STATE;
     }
-    if (groups & FB_GROUP_RESIDUAL) {
+    if (groups & FMU_GROUP_RESIDUAL) {
         dae_outputs_residual(s->p, s->d, s->t, s->q, s->qd, out);
         store_outputs(s, out, MECH_OUTPUT_RESIDUAL);
-        s->outputs_pending &= ~FB_GROUP_RESIDUAL;
+        s->outputs_pending &= ~FMU_GROUP_RESIDUAL;
     }
-    if ((groups & FB_GROUP_FORCE) && MECH_N_FORCE_OUTPUTS > 0) {
+    if ((groups & FMU_GROUP_FORCE) && MECH_N_FORCE_OUTPUTS > 0) {
         if (dae_outputs_force(s->p, s->d, s->t, s->q, s->qd, out, s->rhs_message)) {
             fail(m, "at t = %.9g s %s", s->t, s->rhs_message);
             return;
         }
         store_outputs(s, out, MECH_OUTPUT_FORCE);
-        s->outputs_pending &= ~FB_GROUP_FORCE;
+        s->outputs_pending &= ~FMU_GROUP_FORCE;
     }
-    if (groups & FB_GROUP_STATES) {
+    if (groups & FMU_GROUP_STATES) {
         double f[RK_N];
         if (m->model_exchange) {
             memcpy(f, s->me_f, sizeof f);
@@ -240,7 +240,7 @@ void model_preview_outputs(ModelInstance *m, int groups)
             return;
         }
         store_states(s, f);
-        s->outputs_pending &= ~FB_GROUP_STATES;
+        s->outputs_pending &= ~FMU_GROUP_STATES;
     }
 }
 
@@ -250,7 +250,7 @@ void model_preview_outputs(ModelInstance *m, int groups)
    million instructions, Watt six-bar 185.9 -> 176.5). */
 int model_few_outputs(const ModelInstance *m, int groups, size_t nvr)
 {
-    return groups == FB_GROUP_STATE && nvr <= MODEL_FEW_OUTPUTS && !m->model_exchange
+    return groups == FMU_GROUP_STATE && nvr <= MODEL_FEW_OUTPUTS && !m->model_exchange
         && m->state.mode != MODE_INSTANTIATED && m->state.mode != MODE_INITIALIZATION;
 }
 
@@ -361,7 +361,7 @@ ModelStatus model_do_step(ModelInstance *m, double current_time, double step)
 
 void model_me_get_states(ModelInstance *m, double *x)
 {
-    memcpy(x, m->state.me_y, FB_N_STATES * sizeof *x);
+    memcpy(x, m->state.me_y, FMU_N_STATES * sizeof *x);
 }
 
 void model_me_set_time(ModelInstance *m, double t)
@@ -377,17 +377,17 @@ void model_me_set_time(ModelInstance *m, double t)
 void model_me_set_states(ModelInstance *m, const double *x)
 {
     ModelState *s = &m->state;
-    if (memcmp(x, s->me_y, FB_N_STATES * sizeof *x) != 0) {
+    if (memcmp(x, s->me_y, FMU_N_STATES * sizeof *x) != 0) {
         s->me_fresh = 0;
         publish(m);
     }
-    memcpy(s->me_y, x, FB_N_STATES * sizeof *x);
+    memcpy(s->me_y, x, FMU_N_STATES * sizeof *x);
 }
 
 ModelStatus model_me_derivatives(ModelInstance *m, double *dx)
 {
     if (me_evaluate(m) != MODEL_OK) return MODEL_ERROR;
-    memcpy(dx, m->state.me_f, FB_N_STATES * sizeof *dx);
+    memcpy(dx, m->state.me_f, FMU_N_STATES * sizeof *dx);
     return MODEL_OK;
 }
 
@@ -399,7 +399,7 @@ void model_me_directional_start(Directional *d)
 /* A variable's name for a message (value references past the table are named by number). */
 static const char *variable_name(unsigned long vr, char *buf, size_t n)
 {
-    if (vr < FB_N_VARIABLES) return NAMES[vr];
+    if (vr < FMU_N_VARIABLES) return NAMES[vr];
     snprintf(buf, n, "value reference %lu", vr);
     return buf;
 }
@@ -408,7 +408,7 @@ ModelStatus model_me_seed(ModelInstance *m, const char *function, Directional *d
 {
     char buf[40];
     const int initializing = m->state.mode == MODE_INITIALIZATION;
-    for (int k = 0; k < FB_N_STATES; k++)
+    for (int k = 0; k < FMU_N_STATES; k++)
         /* in initialization mode a state's start parameter too: the state is its start value there */
         if ((unsigned long)STATE_VRS[k] == vr || (initializing && STATE_START_VRS[k] >= 0 &&
                                                   (unsigned long)STATE_START_VRS[k] == vr)) {
@@ -478,7 +478,7 @@ int model_non_finite_values(ModelInstance *m, const char *function, const unsign
     for (size_t i = 0; i < n; i++)
         if (!isfinite(value[i])) {
             fail(m, "%s: %s = %s: must be finite (nothing was set)", function,
-                 vr[i] < FB_N_VARIABLES ? NAMES[vr[i]] : "?", real_text(a, sizeof a, value[i]));
+                 vr[i] < FMU_N_VARIABLES ? NAMES[vr[i]] : "?", real_text(a, sizeof a, value[i]));
             return 1;
         }
     return 0;
@@ -487,7 +487,7 @@ int model_non_finite_values(ModelInstance *m, const char *function, const unsign
 int model_non_finite_states(ModelInstance *m, const char *function, const double *x, size_t n)
 {
     char a[40];
-    for (size_t i = 0; i < n && i < FB_N_STATES; i++)
+    for (size_t i = 0; i < n && i < FMU_N_STATES; i++)
         if (!isfinite(x[i])) {
             fail(m, "%s: the continuous state %s = %s: must be finite (nothing was set)", function,
                  NAMES[STATE_VRS[i]], real_text(a, sizeof a, x[i]));
@@ -500,13 +500,13 @@ ModelStatus model_me_sensitivity(ModelInstance *m, const char *function, const D
                                  double *value)
 {
     char buf[40];
-    for (int k = 0; k < FB_N_STATES; k++)
+    for (int k = 0; k < FMU_N_STATES; k++)
         if ((unsigned long)DERIVATIVE_VRS[k] == vr) {
             *value = d->df[k];
             return MODEL_OK;
         }
     if (m->state.mode == MODE_INITIALIZATION)    /* the states are initial unknowns there */
-        for (int k = 0; k < FB_N_STATES; k++)
+        for (int k = 0; k < FMU_N_STATES; k++)
             if ((unsigned long)STATE_VRS[k] == vr) {
                 *value = d->dy[k];
                 return MODEL_OK;

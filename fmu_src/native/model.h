@@ -41,9 +41,9 @@ typedef struct {
 
 typedef struct {
     ModelMode mode;
-    double values[FB_N_VARIABLES];     /* Real variables by value reference: set values and outputs */
-    int integrator;                    /* index of FB_INTEGRATOR_NAMES */
-    int outputs_pending;               /* the output groups (FB_GROUP_*) not yet computed for the current state */
+    double values[FMU_N_VARIABLES];     /* Real variables by value reference: set values and outputs */
+    int integrator;                    /* index of FMU_INTEGRATOR_NAMES */
+    int outputs_pending;               /* the output groups (FMU_GROUP_*) not yet computed for the current state */
     double start_time, stop_time;      /* stop_time = INFINITY when not defined */
     /* The DAE (valid from fmi2ExitInitializationMode on; dae.c). */
     double p[MECH_ALLOC(MECH_N_PARAMETERS)];    /* parameters in use, in equations.h's order */
@@ -112,8 +112,11 @@ int model_deserialize(const unsigned char *bytes, size_t size, const char magic[
    finite, the message terminated.  Else 1 with the first problem in `why` (n bytes). */
 int model_check_state(const ModelState *s, int model_exchange, char *why, size_t n);
 
-/* Logging through the host's callback (defined by the FMI layer). */
+/* Logging through the host's callback, and memory (the host's, when it gives its allocator): defined
+   by the FMI layer. */
 void model_log(ModelInstance *m, ModelStatus status, const char *category, const char *fmt, ...);
+void *model_allocate(const ModelInstance *m, size_t size);
+void model_release(const ModelInstance *m, void *p);
 
 void model_reset(ModelInstance *m);                       /* start values, mode instantiated */
 ModelStatus model_initialize(ModelInstance *m);            /* check, assemble, start (exit init mode) */
@@ -132,7 +135,7 @@ int model_non_finite_values(ModelInstance *m, const char *function, const unsign
                             size_t n);
 /* 1, after logging why, when a continuous state the host sets (Model Exchange) is not finite. */
 int model_non_finite_states(ModelInstance *m, const char *function, const double *x, size_t n);
-/* Model Exchange (dae.h): the states (FB_N_STATES values, value references FB_STATE_VRS), set and
+/* Model Exchange (dae.h): the states (FMU_N_STATES values, value references FMU_STATE_VRS), set and
    evaluated lazily; the derivatives; an accepted integrator step; an event's parameter changes
    (re-assembly keeping the states).  MODEL_ERROR after logging why. */
 void model_me_get_states(ModelInstance *m, double *x);
@@ -158,12 +161,12 @@ ModelStatus model_me_directional(ModelInstance *m, Directional *d);
 ModelStatus model_me_sensitivity(ModelInstance *m, const char *function, const Directional *d, unsigned long vr,
                                  double *value);
 /* Outputs into values[] before fmi2GetReal reads them: in initialization mode all those the start
-   values give; afterwards the groups (FB_GROUP_* bits) of `groups` that outputs_pending says are
+   values give; afterwards the groups (FMU_GROUP_* bits) of `groups` that outputs_pending says are
    not yet the current state's (each fmi2DoStep only marks them all pending: a host that reads one
    output pays for its group only).  A failure (forces) is logged and leaves its group pending. */
 void model_preview_outputs(ModelInstance *m, int groups);
 /* In co-simulation, after the start: a read of at most MODEL_FEW_OUTPUTS value references whose
-   pending groups (`groups`: FB_GROUP_* bits read and pending) are the state's alone computes just
+   pending groups (`groups`: FMU_GROUP_* bits read and pending) are the state's alone computes just
    those outputs (model_output_one, for each), the group left pending; 1 when that applies. */
 #define MODEL_FEW_OUTPUTS 4
 int model_few_outputs(const ModelInstance *m, int groups, size_t nvr);

@@ -32,7 +32,7 @@ void model_serialize(const SavedState *saved, const char magic[8], unsigned char
     memset(&header, 0, sizeof header);
     memcpy(header.magic, magic, sizeof header.magic);
     header.state_size = (unsigned int)sizeof(ModelState);
-    strncpy(header.guid, FB_GUID, sizeof header.guid - 1);
+    strncpy(header.guid, FMU_GUID, sizeof header.guid - 1);
     header.model_exchange = saved->model_exchange;
     memcpy(bytes, &header, sizeof header);
     memcpy(bytes + sizeof header, &saved->state, sizeof(ModelState));
@@ -105,11 +105,11 @@ static int check_point(const DaePoint *p, const char *name, int finite, char *wh
 
 int model_check_state(const ModelState *s, int model_exchange, char *why, size_t n)
 {
-    static const int KINDS[FB_N_VARIABLES] = FB_VARIABLE_KINDS;
+    static const int KINDS[FMU_N_VARIABLES] = FMU_VARIABLE_KINDS;
     const int cs_modes = MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_TERMINATED;
     const int me_modes = MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED;
     const int modes = model_exchange ? me_modes : cs_modes;
-    const int groups = FB_GROUP_STATE | FB_GROUP_RESIDUAL | FB_GROUP_FORCE | FB_GROUP_STATES;
+    const int groups = FMU_GROUP_STATE | FMU_GROUP_RESIDUAL | FMU_GROUP_FORCE | FMU_GROUP_STATES;
     const int mode = (int)s->mode;
     /* the mode: one state of the type's state machine a state can be saved in (not error) */
     int single = 0;
@@ -117,11 +117,11 @@ int model_check_state(const ModelState *s, int model_exchange, char *why, size_t
     if (!single || !(mode & modes))
         BAD("mode = %d: not a state a %s instance saves", mode, model_exchange ? "model-exchange" : "co-simulation");
     const int assembled = mode != MODE_INSTANTIATED && mode != MODE_INITIALIZATION;
-    for (int vr = 0; vr < FB_N_VARIABLES; vr++)
+    for (int vr = 0; vr < FMU_N_VARIABLES; vr++)
         if ((KINDS[vr] == 0 || KINDS[vr] == 1) && !isfinite(s->values[vr]))
             BAD("values[%d] (a parameter) = %g: must be finite", vr, s->values[vr]);
-    if (s->integrator < 0 || s->integrator >= FB_N_INTEGRATORS)
-        BAD("integrator = %d: must be in [0, %d)", s->integrator, FB_N_INTEGRATORS);
+    if (s->integrator < 0 || s->integrator >= FMU_N_INTEGRATORS)
+        BAD("integrator = %d: must be in [0, %d)", s->integrator, FMU_N_INTEGRATORS);
     if (s->outputs_pending & ~groups) BAD("outputs_pending = %d: not a set of output groups", s->outputs_pending);
     FINITE(&s->start_time, 1, "start_time");
     if (isnan(s->stop_time) || s->stop_time < s->start_time)
@@ -145,8 +145,8 @@ int model_check_state(const ModelState *s, int model_exchange, char *why, size_t
     if (!isfinite(s->last_step) || s->last_step < 0.0) BAD("last_step = %g: must be finite, >= 0", s->last_step);
     /* the integrator: started in co-simulation only (model exchange leaves it zero) */
     const RKSolver *r = &s->solver;
-    if (r->method < 0 || r->method >= FB_N_INTEGRATORS)
-        BAD("solver.method = %d: must be in [0, %d)", r->method, FB_N_INTEGRATORS);
+    if (r->method < 0 || r->method >= FMU_N_INTEGRATORS)
+        BAD("solver.method = %d: must be in [0, %d)", r->method, FMU_N_INTEGRATORS);
     if (!is_flag(r->dense_ready)) BAD("solver.dense_ready = %d: must be 0 or 1", r->dense_ready);
     if (!is_flag(r->has_step)) BAD("solver.has_step = %d: must be 0 or 1", r->has_step);
     if ((int)r->status < RK_RUNNING || (int)r->status > RK_FAILED)
@@ -193,7 +193,7 @@ int model_deserialize(const unsigned char *bytes, size_t size, const char magic[
     if (size != model_serialized_size()) return MODEL_WRONG_SIZE;
     memcpy(&header, bytes, sizeof header);
     if (memcmp(header.magic, magic, sizeof header.magic) != 0 || header.state_size != sizeof(ModelState)
-        || strncmp(header.guid, FB_GUID, sizeof header.guid) != 0
+        || strncmp(header.guid, FMU_GUID, sizeof header.guid) != 0
         || (header.model_exchange != 0 && header.model_exchange != 1))
         return MODEL_NOT_OURS;
     memcpy(&read.state, bytes + sizeof header, sizeof(ModelState));

@@ -38,7 +38,7 @@ static double norm_inf(const double *v, int n)
 
 int main(void)
 {
-    static const double STARTS[FB_N_VARIABLES] = FB_REAL_STARTS;
+    static const double STARTS[FMU_N_VARIABLES] = FMU_REAL_STARTS;
     static const int PARAMETER_VRS[MECH_ALLOC(MECH_N_PARAMETERS)] = MECH_PARAMETER_VRS;
     static const int INDEPENDENT[MECH_ALLOC(MECH_K)] = MECH_INDEPENDENT;
     static const int ANGLES[MECH_ALLOC(MECH_N_ANGLES)] = MECH_ANGLES;

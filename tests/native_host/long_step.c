@@ -30,7 +30,7 @@ static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status sta
     fputc('\n', stderr);
 }
 
-static const int KINDS[FB_N_VARIABLES] = FB_VARIABLE_KINDS;
+static const int KINDS[FMU_N_VARIABLES] = FMU_VARIABLE_KINDS;
 
 int main(int argc, char **argv)
 {
@@ -40,7 +40,7 @@ int main(int argc, char **argv)
     }
     const double first_step = atof(argv[1]), tol = atof(argv[2]), stop = atof(argv[3]);
     fmi2CallbackFunctions functions = {logger, calloc, free, NULL, NULL};
-    fmi2Component c = fmi2Instantiate("long_step", fmi2CoSimulation, FB_GUID, "", &functions, fmi2False, fmi2False);
+    fmi2Component c = fmi2Instantiate("long_step", fmi2CoSimulation, FMU_GUID, "", &functions, fmi2False, fmi2False);
     if (!c) return 1;
     const fmi2ValueReference tols[2] = {VR_rtol, VR_atol};
     const double values[2] = {tol, tol};
@@ -57,7 +57,7 @@ int main(int argc, char **argv)
         const double t = k * 0.01;
         if (fmi2DoStep(c, t, (k + 1) * 0.01 - t, fmi2True) != fmi2OK) return 1;
     }
-    for (unsigned vr = 0; vr < FB_N_VARIABLES; vr++) {
+    for (unsigned vr = 0; vr < FMU_N_VARIABLES; vr++) {
         double v;
         if (KINDS[vr] != 3) continue;                 /* outputs only (variables.h: kind 3) */
         if (fmi2GetReal(c, &vr, 1, &v) != fmi2OK) return 1;
