@@ -162,3 +162,25 @@ def test_a_table_with_a_bad_header_or_rows_lists_its_problems(tmp_path, module, 
         reader(path)
     assert [p.field for p in caught.value.problems] == ["line 2", "line 3"]      # every problem, in line order
     assert any("time 'x' is not a finite number" in p.message for p in caught.value.problems)
+
+
+def test_a_bad_header_is_said_again_until_the_file_is_replaced(tmp_path):
+    """A reader that goes on polling (the view) gets the same error, not the next line taken for a header."""
+    path = tmp_path / "exchange.csv"
+    path.write_text("x2\n1.0\n")
+    tail = ExchangeTail(path)
+    with pytest.raises(ExchangeFormatError) as first:
+        tail.poll()
+    append(path, "2.0\n")
+    with pytest.raises(ExchangeFormatError) as again:
+        tail.poll()
+    assert str(again.value) == str(first.value)
+    new = tmp_path / "new.csv"
+    new.write_text("time,x2\n0.0,1.0\n")
+    os.replace(new, path)
+    assert tail.poll().values["x2"].tolist() == [1.0]
+    table = evaluations_csv.EvaluationsTail(tmp_path / "evaluations.csv")
+    (tmp_path / "evaluations.csv").write_text("time,mae\n")
+    for _ in range(2):
+        with pytest.raises(ContractError, match="header: expected 'time,statistic,threshold,state'"):
+            table.poll()
