@@ -43,6 +43,8 @@ from typing import Any
 
 import numpy as np
 
+from fourbar_common.contract.layout import RunFolder
+
 from .changepoint import noise_levels, onset
 from .errors import DiagnoseError
 from .fit import RESOLUTION, Fit, Problem, StepSearch, change_scales, correlation_time, fit_ramp
@@ -433,7 +435,7 @@ def _window(inputs: RunInputs, index: np.ndarray, alarm: int, options: DiagnoseO
     last = min(int(index[-1]), alarm + int(round(horizon / grid.step)))
     rows = np.searchsorted(index, np.arange(first, last + 1))
     if rows.size == 0 or rows[-1] >= index.size or not np.array_equal(index[rows], np.arange(first, last + 1)):
-        raise DiagnoseError(f"{inputs.run_dir / 'exchange.csv'}: rows missing between t = {grid.time(first)} and "
+        raise DiagnoseError(f"{RunFolder(inputs.run_dir).exchange}: rows missing between t = {grid.time(first)} and "
                             f"{grid.time(last)} s (the diagnosis needs every grid point there)")
     return _Window(first=first, fit_from=fit_from, last=last, data=inputs.data[rows])
 

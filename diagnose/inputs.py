@@ -25,11 +25,17 @@ every branch: the same answer, much slower.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
+import numpy as np
+
 from fourbar_common import Event, RunRecord, RunRecordError, read_run_record
+from fourbar_common.contract.exchange import read_exchange
+from fourbar_common.contract.layout import EXCHANGE, RunFolder
+from fourbar_common.contract.problems import ContractError
 from fourbar_common.run_record import JsonFileError, read_json_file
 
 from .errors import DiagnoseError, NoAlarm
@@ -186,12 +192,12 @@ def read_inputs(run_dir: str | Path, *, summary: str | Path | None = None, fmu: 
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise DiagnoseError(f"{run_dir}: not a folder; expected a run folder written by fourbar-run "
-                            "(exchange.csv, run.json, monitor/summary.json)")
+                            f"({EXCHANGE}, run.json, monitor/summary.json)")
     run_json = run_dir / "run.json"
     record = _load_record(run_json)
-    summary_path = Path(summary) if summary is not None else run_dir / "monitor" / "summary.json"
+    summary_path = Path(summary) if summary is not None else RunFolder(run_dir).summary
     info = _load_json(summary_path, "monitor summary",
-                      f"run `fourbar-monitor {run_dir / 'exchange.csv'}` first (it writes monitor/summary.json)")
+                      f"run `fourbar-monitor {RunFolder(run_dir).exchange}` first (it writes monitor/summary.json)")
 
     if info.get("run_id") and record.run_id and info["run_id"] != record.run_id:
         raise DiagnoseError(f"{summary_path}: it belongs to run {info['run_id']}, but {run_json} is run "
@@ -240,14 +246,16 @@ def read_inputs(run_dir: str | Path, *, summary: str | Path | None = None, fmu: 
         raise DiagnoseError(f"columns {', '.join(unknown)}: not outputs of {run_fmu.name} "
                             f"(outputs: {', '.join(sorted(outputs))})")
 
-    from monitor import MonitorError, read_exchange
-
-    exchange = run_dir / "exchange.csv"
+    exchange = RunFolder(run_dir).exchange
     try:
-        frame = read_exchange(exchange, list(wanted))
-    except MonitorError as exc:
+        rows = read_exchange(exchange, wanted)
+    except FileNotFoundError:
+        raise DiagnoseError(f"{exchange}: exchange file not found") from None
+    except ContractError as exc:
         raise DiagnoseError(str(exc)) from None
-    times = frame["time"].to_numpy(dtype=float)
+    if rows.note:           # rows skipped: said as the monitor says it (the CLI prints warnings)
+        warnings.warn(rows.note, UserWarning, stacklevel=2)
+    times = rows.time
     if times.size < 2 or not times[0] <= alarm <= times[-1]:
         raise DiagnoseError(f"{exchange}: rows cover {times[0] if times.size else '?'}..{times[-1] if times.size else '?'}"
                             f" s, which does not contain the alarm at {alarm} s")
@@ -257,7 +265,7 @@ def read_inputs(run_dir: str | Path, *, summary: str | Path | None = None, fmu: 
 
     simulator = _pick_simulator(run_description, set(wanted) | set(parameters), use_run_fmu)
     units = {c: record.units.get(c, "") for c in wanted}
-    return RunInputs(run_dir=run_dir, times=times, data=frame[list(wanted)].to_numpy(dtype=float), columns=wanted,
+    return RunInputs(run_dir=run_dir, times=times, data=np.column_stack([rows.values[c] for c in wanted]), columns=wanted,
                      units=units, alarm_time=float(alarm), parameters=parameters, hypotheses=hypotheses, grid=grid,
                      tolerance=record.experiment.tolerance, run_fmu=run_fmu, guid=guid,
                      simulator_fmu=simulator, case=record.case or run_dir.name, run_id=record.run_id,

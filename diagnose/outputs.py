@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from fourbar_common import replace_atomically, write_json_atomic
+from fourbar_common.contract.layout import EXCHANGE
 
 from .diagnosis import Diagnosis
 from .errors import DiagnoseError
@@ -145,7 +146,7 @@ def diagnosis_figure(d: Diagnosis) -> Any:
     for i, name in enumerate(d.columns):
         ax = axes[i]
         unit = d.units.get(name, "")
-        ax.plot(c.time, c.data[:, i], ".", ms=2, color="0.55", label="data (exchange.csv)")
+        ax.plot(c.time, c.data[:, i], ".", ms=2, color="0.55", label=f"data ({EXCHANGE})")
         ax.plot(c.time, c.healthy[:, i], "-", lw=1.0, color="tab:blue", label="healthy model (run.json)")
         if d.best is not None:
             ax.plot(c.time, c.model[:, i], "-", lw=1.2, color="tab:red", label=f"best explanation: {d.best.parameter}")

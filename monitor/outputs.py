@@ -48,6 +48,9 @@ from typing import TYPE_CHECKING, Any, Iterator
 import numpy as np
 
 from fourbar_common import output_folder_problem, write_json_atomic
+from fourbar_common.contract import evaluations as evaluations_csv
+from fourbar_common.contract import forecast as forecast_csv
+from fourbar_common.contract.layout import EVALUATIONS, EVENTS, FORECAST, SUMMARY, monitor_folder_for
 from fourbar_common.contract.monitor_events import MonitorEvent
 from fourbar_common.files import replace_atomically
 from fourbar_common.files import NotRegularFileError, file_kind
@@ -63,9 +66,9 @@ __all__ = ["FORECAST_HEADER", "OUTPUT_FILES", "OutputWriters", "PLOT_FILES", "ch
 
 PLOT_FILES = ("history.png", "statistic.png", "spectrum.png")
 #: Every file the monitor writes into its output folder.
-OUTPUT_FILES = ("events.jsonl", "evaluations.csv", "forecast.csv", "summary.json", *PLOT_FILES)
+OUTPUT_FILES = (EVENTS, EVALUATIONS, FORECAST, SUMMARY, *PLOT_FILES)
 #: The header of forecast.csv.
-FORECAST_HEADER = "time,signal,value,forecast\n"
+FORECAST_HEADER = forecast_csv.HEADER
 
 
 def default_out_dir(exchange_path: str | os.PathLike[str]) -> Path:
@@ -75,8 +78,7 @@ def default_out_dir(exchange_path: str | os.PathLike[str]) -> Path:
     for any other file (``case2_libcosim.csv`` → ``case2_libcosim.monitor``): a name with
     a dot, which no Python package (so none of this project's source folders) can have.
     """
-    path = Path(exchange_path)
-    return path.parent / ("monitor" if path.name == "exchange.csv" else f"{path.stem}.monitor")
+    return monitor_folder_for(exchange_path)
 
 
 def _not_regular_outputs(out: Path) -> None:
@@ -180,7 +182,7 @@ class OutputWriters:
             for name in ("summary.json", *PLOT_FILES):
                 (self.out_dir / name).unlink(missing_ok=True)
         try:
-            for name in ("events.jsonl", "evaluations.csv", "forecast.csv"):
+            for name in (EVENTS, EVALUATIONS, FORECAST):
                 with self._writing(self.out_dir / name):
                     fh = _open_output(self.out_dir / name)
                     self._files.append(fh)
@@ -206,7 +208,7 @@ class OutputWriters:
             fh.flush()
 
     def _headers(self) -> None:
-        self._put(self._evals, "time,statistic,threshold,state\n")
+        self._put(self._evals, evaluations_csv.HEADER)
         self._put(self._forecast, FORECAST_HEADER)
         self._put(self._events, "")
 
@@ -217,23 +219,11 @@ class OutputWriters:
         self._put(self._events, line + "\n")
 
     def evaluation(self, t: float, statistic: float, threshold: float, state: State) -> None:
-        self._put(self._evals, f"{t!r},{statistic!r},{threshold!r},{state.value}\n")
+        self._put(self._evals, evaluations_csv.format_row(t, statistic, threshold, state.value))
 
     def forecast(self, t: np.ndarray, x: np.ndarray, f: np.ndarray) -> None:
         """Rows of judged samples: times ``t``, values ``x`` and forecasts ``f`` (one column per signal)."""
-        names = self.signals
-        if x.shape[1] != len(names) or f.shape != x.shape:
-            raise ValueError(f"forecast rows: {x.shape[1]} value and {f.shape} forecast columns for "
-                             f"{len(names)} signals")
-        # repr of a Python float is the shortest text that reads back to the same double
-        tt = [repr(v) for v in np.asarray(t, dtype=float).tolist()]
-        lines = []
-        for j, name in enumerate(names):
-            xs = [repr(v) for v in x[:, j].tolist()]
-            fs = ["" if v != v else repr(v) for v in f[:, j].tolist()]     # NaN (v != v): no forecast
-            lines.append([f"{a},{name},{b},{c}\n" for a, b, c in zip(tt, xs, fs)])
-        # sample by sample, each sample's signals together
-        self._put(self._forecast, "".join(lines[0]) if len(lines) == 1 else "".join(map("".join, zip(*lines))))
+        self._put(self._forecast, forecast_csv.format_rows(self.signals, t, x, f))
 
     def restart(self) -> None:
         for fh in (self._events, self._evals, self._forecast):
@@ -246,7 +236,7 @@ class OutputWriters:
         for fh in (self._events, self._evals, self._forecast):
             self._put(fh, "")
         summary = result.summary.as_json()
-        summary["outputs"] = {"events": "events.jsonl", "evaluations": "evaluations.csv", "forecast": "forecast.csv",
+        summary["outputs"] = {"events": EVENTS, "evaluations": EVALUATIONS, "forecast": FORECAST,
                               "plots": list(PLOT_FILES) if plots and result.fits else []}
         path = self.out_dir / "summary.json"
         with self._writing(path):

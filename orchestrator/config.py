@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from fourbar_common import Drawing
+from fourbar_common.contract.layout import EXCHANGE
 
 from .case import (DEFAULT_OUTPUTS, Case, Event, ExchangeSettings, Experiment, FmuDescription, Noise,
                    RampEvent, StepEvent, Value, describe_fmu)
@@ -672,6 +673,6 @@ class _Validator(ProblemReporter):
         size = rows * (1 + len(outputs)) * _BYTES_PER_VALUE
         self.problems.append(
             f"experiment: start = {experiment.start!r}, stop = {experiment.stop!r}, step = {experiment.step!r} s "
-            f"would write {rows:,} rows (about {_show_bytes(size)} of exchange.csv), more than "
+            f"would write {rows:,} rows (about {_show_bytes(size)} of {EXCHANGE}), more than "
             f"{self.field('exchange.max_rows')} = {max_rows:,}; shorten the run, or allow it with "
             f"[exchange] max_rows = {rows} in the case file (or --max-rows {rows})")

@@ -1,8 +1,8 @@
 """The exchange file (CSV rows) and run.json, written so that a concurrent reader is safe.
 
-exchange.csv: one header line, then one line per communication point; floats written with
-``repr`` (the shortest text that reads back to the same double, at most 17 significant
-digits), ``.`` decimal point, ``\\n`` line ends.  Lines are appended in blocks of complete
+exchange.csv: the format is the contract's (:mod:`fourbar_common.contract.exchange`: the
+header, ``time`` first, and each row's text, floats that round-trip exactly, come from
+there); this module owns how the file is written safely.  Lines are appended in blocks of complete
 lines; if an append fails part-way (disk full), the file is cut back to the end of the last
 complete block, so it never ends in a half row that would later be completed.
 
@@ -23,17 +23,14 @@ import stat
 from pathlib import Path
 from typing import Iterable, Sequence
 
+from fourbar_common.contract.exchange import format_header, format_row
+
 __all__ = ["ExchangeRefused", "ExchangeWriter", "format_row"]
 
 
 class ExchangeRefused(OSError):
     """The path exchange.csv is to be written at holds something else than a regular file
     (a symbolic link, a FIFO, a folder): nothing was opened for writing or truncated."""
-
-
-def format_row(values: Sequence[float | int]) -> str:
-    """One CSV line, ``\\n``-terminated; floats round-trip exactly."""
-    return ",".join(map(repr, values)) + "\n"
 
 
 class ExchangeWriter:
@@ -44,6 +41,7 @@ class ExchangeWriter:
     """
 
     def __init__(self, path: str | Path, columns: Iterable[str]):
+        header = format_header(columns)      # checked before anything is opened or truncated
         self.path = Path(path)
         self.rows_written = 0
         self._size = 0
@@ -70,7 +68,7 @@ class ExchangeWriter:
         self.identity = (info.st_dev, info.st_ino)
         try:
             os.ftruncate(fd, 0)
-            self._append_text(",".join(columns) + "\n")
+            self._append_text(header)
         except BaseException:
             self.close()
             raise

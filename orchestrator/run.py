@@ -58,6 +58,8 @@ from fourbar_common import (SCHEMA_VERSION, ParameterStart, RecordedExchange, Re
 from .case import Case, RampEvent, StepEvent, Value
 from .config import apply_overrides, load_case
 from .exchange import ExchangeWriter, format_row
+from fourbar_common.contract.exchange import TIME_COLUMN
+from fourbar_common.contract.layout import DIAGNOSIS, DIAGNOSIS_FOLDER, MONITOR_FOLDER, SUMMARY, RunFolder
 from fourbar_common.formatting import format_time
 from fourbar_common.signals import signal_of, stop_reason
 
@@ -72,7 +74,7 @@ _RUN_JSON_MIN_INTERVAL = 0.2   # s of wall time between two "running" updates of
 HEARTBEAT_INTERVAL = 2.0
 #: Folders of a run folder that tools derive from its exchange.csv, each with the file that
 #: marks it as theirs: a new run removes them when it starts (they describe the old rows).
-DERIVED_OUTPUTS = (("monitor", "summary.json"), ("diagnosis", "diagnosis.json"))
+DERIVED_OUTPUTS = ((MONITOR_FOLDER, SUMMARY), (DIAGNOSIS_FOLDER, DIAGNOSIS))
 #: Bytes set aside in the run folder when the run starts (``.run.json.reserve``) and given
 #: back to write the final run.json when the disk filled up: run.json then says ``failed``
 #: with the error instead of staying ``running``.  A run.json of the shipped cases is 4-8 kB;
@@ -251,7 +253,7 @@ class _Run:
         self.started = False                    # exchange.csv/run.json of this run (re)created
         self.replaced: tuple[str, ...] = ()
         self.out_dir = out_dir
-        self.exchange_path = out_dir / "exchange.csv"
+        self.exchange_path = RunFolder(out_dir).exchange
         self.run_json_path = out_dir / "run.json"
         self.progress = progress
         self.wall0 = wall0
@@ -478,7 +480,7 @@ class _Run:
         except FolderLocked as exc:
             raise OutputRefused(str(exc), exc.holder) from None
         try:
-            self.writer = ExchangeWriter(self.exchange_path, ("time", *self.case.recorded))
+            self.writer = ExchangeWriter(self.exchange_path, (TIME_COLUMN, *self.case.recorded))
         except ExchangeRefused as exc:
             raise OutputRefused(f"{exc.filename}: {exc.strerror}") from None
         self.started = True         # from here on, run.json reports what happens

@@ -29,6 +29,8 @@ from pathlib import Path
 from typing import Any, Callable, Iterator
 
 from fourbar_common import write_json_atomic
+from fourbar_common.contract.evaluations import read_evaluations
+from fourbar_common.contract.layout import EVALUATIONS, SweepFolder
 
 from .config import Sweep, load_sweep
 from .plan import Scenario, plan_scenarios
@@ -238,7 +240,7 @@ def _sweep_locked(sweep: Sweep, out: Path, store: ResultsStore, plan, by_id, not
         elif sid in kept:
             reason = "duplicate row"
         elif not _limit_ok(row, sweep, out):
-            reason = "report.latency_limit changed and the run's evaluations.csv is gone"
+            reason = f"report.latency_limit changed and the run's {EVALUATIONS} is gone"
         elif sweep.diagnose and row.get("status") == "ok" and row.get("alarms") and not row.get("diagnosis"):
             reason = "diagnose.enabled and the row has no diagnosis"
         else:
@@ -304,16 +306,14 @@ def _limit_ok(row: dict, sweep: Sweep, out: Path) -> bool:
     that file is missing (the scenario is then run again)."""
     if row.get("status") != "ok" or row.get("latency_limit") == sweep.latency_limit:
         return True
-    import pandas as pd
-
     from .scenario import early_score
 
-    path = out / "runs" / str(row["scenario_id"]) / "monitor" / "evaluations.csv"
+    path = SweepFolder(out).run(row["scenario_id"]).evaluations
     try:
-        ev = pd.read_csv(path)
-        row["score_early"] = early_score(ev["time"].to_numpy(), ev["statistic"].to_numpy(),
-                                         ev["threshold"].to_numpy(), row.get("fault_time"), _persistence(sweep), sweep.latency_limit)
-    except (OSError, ValueError, KeyError):
+        ev = read_evaluations(path)     # a ContractError is a ValueError
+        row["score_early"] = early_score(ev.time, ev.statistic, ev.threshold, row.get("fault_time"),
+                                         _persistence(sweep), sweep.latency_limit)
+    except (OSError, ValueError):
         return False
     row["latency_limit"] = sweep.latency_limit
     return True

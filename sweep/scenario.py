@@ -32,6 +32,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, Mapping
 
+from fourbar_common.contract.layout import RunFolder
 from fourbar_common.formatting import format_time
 
 from .plan import Scenario
@@ -249,7 +250,7 @@ def run_scenario(scenario: Scenario, base_case, run_dir: str, monitor_options: M
         try:
             from monitor import replay
 
-            monitored = replay(result.exchange_path, out_dir=out / "monitor", plots=monitor_plots, **options)
+            monitored = replay(result.exchange_path, out_dir=RunFolder(out).monitor, plots=monitor_plots, **options)
         except MonitorError as exc:
             return finish(status="failed", error=f"monitor: {' '.join(str(exc).split())}",
                           monitor_seconds=time.perf_counter() - m0)

@@ -37,6 +37,7 @@ import numpy as np
 import pandas as pd
 
 from fourbar_common import Drawing, RampEvent, RunRecord, StepEvent
+from fourbar_common.contract.layout import EXCHANGE, FORECAST
 
 from .geometry import Geometry, faulted_bodies
 from .sources import MonitorEvent, RunFolder
@@ -185,7 +186,7 @@ def _read(folder) -> _Run:
         raise AnimationError(f"{source.folder}: run.json cannot be read: {update.record_problem}")
     rows = update.rows
     if rows is None or not len(rows) or "time" not in rows.columns:
-        raise AnimationError(f"{source.folder}/exchange.csv: no rows yet (the run has not written any); "
+        raise AnimationError(f"{source.folder}/{EXCHANGE}: no rows yet (the run has not written any); "
                              f"animate it once it has")
     rows = rows[np.isfinite(rows["time"].to_numpy(float))].sort_values("time").reset_index(drop=True)
     return _Run(record=source.record, rows=rows, forecast=update.forecast, events=tuple(update.events))
@@ -212,7 +213,7 @@ def _signal(run: _Run) -> _Signal:
         or [c for c in run.record.outputs if c in run.rows.columns] \
         or [c for c in run.rows.columns if c != "time"]
     if not candidates:
-        raise AnimationError("exchange.csv has no column besides time: nothing to show")
+        raise AnimationError(f"{EXCHANGE} has no column besides time: nothing to show")
     name = candidates[0]
     return _Signal(name, run.rows["time"].to_numpy(float), run.rows[name].to_numpy(float), None, "exchange")
 
@@ -224,7 +225,7 @@ def _not_drawn(record: RunRecord, rows: pd.DataFrame) -> str | None:
                 "with [outputs] drawing = false)")
     lacking = Geometry(drawing).lacking(rows.columns)
     if lacking:
-        return f"exchange.csv lacks the drawing's column(s) {', '.join(lacking)}"
+        return f"{EXCHANGE} lacks the drawing's column(s) {', '.join(lacking)}"
     return None
 
 
@@ -391,7 +392,7 @@ class _Picture:
                                 va="bottom", fontsize=7, color=ALARM_COLOUR, visible=False)
                 self.alarms.append((e.time, line, label))
         self.cursor = ax.axvline(start, color=GROUND_COLOUR, lw=1.0)
-        self.fig.text(0.99, 0.01, "monitor forecast.csv" if signal.source == "monitor" else "exchange.csv",
+        self.fig.text(0.99, 0.01, f"monitor {FORECAST}" if signal.source == "monitor" else EXCHANGE,
                       ha="right", va="bottom", fontsize=6, color=GROUND_COLOUR)
 
     def show(self, time: float, row: pd.Series) -> None:
@@ -462,7 +463,7 @@ def animate(folder: str | os.PathLike[str], out_path: str | os.PathLike[str], *,
     for name, value in (("start", start), ("stop", stop)):
         if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
                                   or not first <= value <= last):
-            raise AnimationError(f"{name} = {value!r} s; the run's exchange.csv covers {first:g} to {last:g} s")
+            raise AnimationError(f"{name} = {value!r} s; the run's {EXCHANGE} covers {first:g} to {last:g} s")
     if start is None and stop is None:
         alarm = next((e.time for e in run.events if e.event == "alarm"), None)
         start, stop = default_window(first, last, run.record.fault_time, alarm)

@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fourbar_common.contract.layout import EXCHANGE
+
 from .geometry import Geometry, faulted_bodies
 from .sources import RunFolder
 from .timeline import Timeline
@@ -264,7 +266,7 @@ class RunPage:
         if last is None:
             self.banner.object = ('<div id="state" data-state="WAITING" style="background:#6c757d;color:white;'
                                   'padding:8px 12px;border-radius:4px;font-size:16px">waiting for the first rows '
-                                  'of exchange.csv</div>')
+                                  f'of {EXCHANGE}</div>')
             return
         if self.geometry is None and tl.record is not None and tl.record.drawing is not None and tl.rows is not None:
             geometry = Geometry(tl.record.drawing)
@@ -461,7 +463,7 @@ class RunPage:
             return "run.json could not be read"
         if r.drawing is None:
             return "the run recorded no joint positions (its FMU declares no drawing, or [outputs] drawing = false)"
-        return "exchange.csv lacks the drawing's columns"
+        return f"{EXCHANGE} lacks the drawing's columns"
 
     def _set_facts(self) -> None:
         r = self.timeline.record

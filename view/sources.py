@@ -11,13 +11,12 @@ killed writer is never read).  A FIFO, device or folder in place of a file is re
 warning naming the file, not a traceback.  A file replaced by a new
 run (shorter, or another ``run_id``) starts again from its top, and the update says so.
 
-The formats are the contracts of docs/contracts.md; this module reads them with pandas and
-the shared run record (:mod:`fourbar_common`), not with the monitor's or the orchestrator's
-code.
+The formats are the contracts of docs/contracts.md; this module reads them with the contract
+package (:mod:`fourbar_common.contract`: the one tail reader of exchange.csv, the monitor's
+tables) and the shared run record, not with the monitor's or the orchestrator's code.
 """
 from __future__ import annotations
 
-import io
 import math
 import os
 import stat
@@ -29,9 +28,14 @@ from typing import Any
 import pandas as pd
 
 from fourbar_common import RunRecord, RunRecordError, read_run_record
-from fourbar_common.files import NotRegularFileError, file_kind, open_regular
+from fourbar_common.contract.evaluations import EvaluationsTail
+from fourbar_common.contract.exchange import TIME_COLUMN, ExchangeTail, LineTail
+from fourbar_common.contract.forecast import ForecastTail
+from fourbar_common.contract.layout import EXCHANGE, RUN_RECORD
+from fourbar_common.contract.layout import RunFolder as RunPaths
 from fourbar_common.contract.monitor_events import MonitorEvent
 from fourbar_common.contract.problems import ContractError
+from fourbar_common.files import file_kind
 from fourbar_common.run_record import JsonFileError, parse_json, read_json_file
 
 __all__ = ["Diagnosis", "MonitorEvent", "RunFolder", "RunFolderError", "Update", "check_run_folder"]
@@ -49,25 +53,25 @@ class RunFolderError(ValueError):
 def check_run_folder(path: str | os.PathLike[str]) -> Path:
     """``path`` as a run folder, or :class:`RunFolderError` saying what is missing."""
     folder = Path(path)
+    paths = RunPaths(folder)
     if not folder.exists():
         raise RunFolderError(f"{folder}: no such folder; expected a run folder written by fourbar-run "
                              f"(e.g. out/case2_fault_L2)")
     if not folder.is_dir():
-        raise RunFolderError(f"{folder}: is a file; expected the run folder that holds exchange.csv and run.json")
-    if not (folder / "run.json").exists() and not (folder / "exchange.csv").exists():
-        raise RunFolderError(f"{folder}: not a run folder: it holds neither run.json nor exchange.csv "
+        raise RunFolderError(f"{folder}: is a file; expected the run folder that holds {EXCHANGE} and {RUN_RECORD}")
+    if not paths.run_record.exists() and not paths.exchange.exists():
+        raise RunFolderError(f"{folder}: not a run folder: it holds neither {RUN_RECORD} nor {EXCHANGE} "
                              f"(fourbar-run writes both; run one with `fourbar-run CASE --out {folder}`)")
-    if not (folder / "run.json").exists():
-        raise RunFolderError(f"{folder}: has exchange.csv but no run.json; the view needs the run's record "
+    if not paths.run_record.exists():
+        raise RunFolderError(f"{folder}: has {EXCHANGE} but no {RUN_RECORD}; the view needs the run's record "
                              f"(written by fourbar-run beside the exchange file)")
-    for name in ("run.json", "exchange.csv", "monitor/events.jsonl", "monitor/evaluations.csv",
-                 "monitor/forecast.csv", "diagnosis/diagnosis.json"):
+    for file in (paths.run_record, paths.exchange, paths.events, paths.evaluations, paths.forecast, paths.diagnosis):
         try:
-            mode = (folder / name).stat().st_mode
+            mode = file.stat().st_mode
         except OSError:
             continue
         if not stat.S_ISREG(mode):
-            raise RunFolderError(f"{folder / name}: {file_kind(mode)}, not a regular file; a run folder holds "
+            raise RunFolderError(f"{file}: {file_kind(mode)}, not a regular file; a run folder holds "
                                  "the files fourbar-run, fourbar-monitor and fourbar-diagnose write")
     return folder
 
@@ -102,82 +106,6 @@ class Update:
 
 
 
-class _LineTail:
-    """The complete lines appended to a text file since the last read; notices a file that
-    was replaced (shorter than what was read, or another inode) and starts it again."""
-
-    def __init__(self, path: Path, has_header: bool = True):
-        self.path = path
-        self.has_header = has_header
-        self.offset = 0
-        self.inode: int | None = None
-        self.header: str | None = None
-
-    def reset(self) -> None:
-        self.offset, self.inode, self.header = 0, None, None
-
-    def read(self) -> tuple[list[str], bool]:
-        """(new complete lines without the header, whether the file started again)."""
-        try:
-            st = self.path.stat()
-        except FileNotFoundError:
-            restarted = self.offset > 0
-            self.reset()
-            return [], restarted
-        if not stat.S_ISREG(st.st_mode):       # a FIFO or a folder put in its place: never opened
-            restarted = self.offset > 0
-            self.reset()
-            return [], restarted
-        restarted = False
-        if (self.inode is not None and st.st_ino != self.inode) or st.st_size < self.offset:
-            self.reset()
-            restarted = True
-        self.inode = st.st_ino
-        if st.st_size == self.offset:
-            return [], restarted
-        try:
-            f = open_regular(self.path)
-        except (FileNotFoundError, NotRegularFileError):
-            return [], restarted
-        with f:
-            f.seek(self.offset)
-            # only up to the size seen: bytes appended since are read at the next poll
-            chunk = f.read(min(st.st_size - self.offset, MAX_READ_BYTES))
-        end = chunk.rfind(b"\n")
-        if end < 0:
-            return [], restarted
-        self.offset += end + 1
-        lines = chunk[:end].decode("utf-8", errors="replace").split("\n")
-        if self.has_header and self.header is None and lines:
-            self.header = lines.pop(0).strip()
-        return [line for line in lines if line.strip()], restarted
-
-
-class _CsvTail(_LineTail):
-    """New rows of a CSV file with a header, as a DataFrame (rows that do not parse are skipped
-    and counted)."""
-
-    def __init__(self, path: Path, numeric: tuple[str, ...] | None = None):
-        super().__init__(path)
-        self.numeric = numeric
-        self.skipped = 0
-
-    def frame(self) -> tuple[pd.DataFrame | None, bool]:
-        lines, restarted = self.read()
-        if not lines or not self.header:
-            return None, restarted
-        names = self.header.split(",")
-        frame = pd.read_csv(io.StringIO("\n".join(lines)), header=None, names=names, on_bad_lines="skip",
-                            engine="c", dtype=str)
-        columns = [c for c in names if self.numeric is None or c in self.numeric]
-        for c in columns:
-            frame[c] = pd.to_numeric(frame[c], errors="coerce")
-        bad = frame[columns].isna().all(axis=1) if "time" not in columns else frame["time"].isna()
-        self.skipped += int(bad.sum()) + max(0, len(lines) - len(frame))
-        frame = frame[~bad]
-        return (frame if len(frame) else None), restarted
-
-
 def _number(value: Any) -> float | None:
     return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) \
         and math.isfinite(value) else None
@@ -188,14 +116,18 @@ class RunFolder:
 
     def __init__(self, folder: str | os.PathLike[str]):
         self.folder = check_run_folder(folder)
-        self.exchange = _CsvTail(self.folder / "exchange.csv")
-        monitor = self.folder / "monitor"
-        self.evaluations = _CsvTail(monitor / "evaluations.csv", ("time", "statistic", "threshold"))
-        self.forecast = _CsvTail(monitor / "forecast.csv", ("time", "value", "forecast"))
-        self.events = _LineTail(monitor / "events.jsonl", has_header=False)       # JSON lines
+        paths = RunPaths(self.folder)
+        # time decides whether a row is read; the other columns are NaN where they do not parse
+        self.exchange = ExchangeTail(paths.exchange, (), others=True, max_chunk_bytes=MAX_READ_BYTES,
+                                     refuse_other_files=False)
+        self.evaluations = EvaluationsTail(paths.evaluations, max_chunk_bytes=MAX_READ_BYTES)
+        self.forecast = ForecastTail(paths.forecast, max_chunk_bytes=MAX_READ_BYTES)
+        self.events = LineTail(paths.events, max_chunk_bytes=MAX_READ_BYTES, refuse_other_files=False)  # JSON lines
         self.record: RunRecord | None = None
         self._stamps: dict[Path, tuple[int, int]] = {}
+        self._skipped = 0                  # exchange rows skipped, over every file read
         self._warned_skips = 0
+        self._warned: dict[Path, str] = {}         # the last problem said of a file (said once)
 
     def _changed(self, path: Path) -> bool | None:
         """Whether ``path`` changed since the last call that saw it (None: there is no such file)."""
@@ -246,8 +178,9 @@ class RunFolder:
 
     # -- the monitor and the diagnosis ---------------------------------------------------
     def _read_events(self, update: Update) -> None:
-        lines, restarted = self.events.read()
-        update.monitor_restarted = update.monitor_restarted or restarted
+        chunk = self.events.read()
+        update.monitor_restarted = update.monitor_restarted or chunk.restarted
+        lines = [line for line in chunk.data.decode("utf-8", errors="replace").split("\n") if line.strip()]
         for line in lines:
             try:
                 data = parse_json(line, str(self.events.path))
@@ -273,23 +206,60 @@ class RunFolder:
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
             update.warnings.append(f"{path}: cannot be read ({exc}); the diagnosis is not shown")
 
+    # -- the CSV files ------------------------------------------------------------------
+    def _problem(self, update: Update, path: Path, exc: ContractError, what: str) -> None:
+        """Say a file's problem once (not at every poll while it lasts)."""
+        text = f"{exc}; {what}"
+        if self._warned.get(path) != text:
+            self._warned[path] = text
+            update.warnings.append(text)
+
+    def _read_rows(self, update: Update) -> None:
+        before = self.exchange.stats.skipped
+        try:
+            batch = self.exchange.poll()
+        except ContractError as exc:           # a header that is not an exchange file's
+            self._problem(update, self.exchange.path, exc, "its rows are not shown")
+            return
+        self._warned.pop(self.exchange.path, None)
+        self._skipped += self.exchange.stats.skipped - (0 if batch.restarted else before)
+        update.restarted = update.restarted or batch.restarted
+        if len(batch):
+            update.rows = pd.DataFrame({TIME_COLUMN: batch.time, **batch.values})
+
+    def _read_tables(self, update: Update) -> None:
+        try:
+            evaluations, again = self.evaluations.poll()
+            if len(evaluations):
+                update.evaluations = pd.DataFrame({"time": evaluations.time, "statistic": evaluations.statistic,
+                                                   "threshold": evaluations.threshold,
+                                                   "state": list(evaluations.state)})
+        except ContractError as exc:
+            self._problem(update, self.evaluations.path, exc, "the detector statistic is not shown")
+            again = False
+        try:
+            forecast, again2 = self.forecast.poll()
+            if len(forecast):
+                update.forecast = pd.DataFrame({"time": forecast.time, "signal": list(forecast.signal),
+                                                "value": forecast.value, "forecast": forecast.forecast})
+        except ContractError as exc:
+            self._problem(update, self.forecast.path, exc, "the forecast is not shown")
+            again2 = False
+        update.monitor_restarted = update.monitor_restarted or again or again2
+
     # -- one poll -----------------------------------------------------------------------
     def poll(self) -> Update:
         """Everything new since the previous poll."""
         update = Update()
         self._read_record(update)
-        rows, restarted = self.exchange.frame()
-        update.restarted = update.restarted or restarted
-        update.rows = rows
-        update.evaluations, again = self.evaluations.frame()
-        update.forecast, again2 = self.forecast.frame()
-        update.monitor_restarted = again or again2
+        self._read_rows(update)
+        self._read_tables(update)
         self._read_events(update)
         self._read_diagnosis(update)
-        if self.exchange.skipped > self._warned_skips:
-            update.warnings.append(f"{self.exchange.path}: {self.exchange.skipped - self._warned_skips} row(s) that "
+        if self._skipped > self._warned_skips:
+            update.warnings.append(f"{self.exchange.path}: {self._skipped - self._warned_skips} row(s) that "
                                    f"do not parse were skipped")
-            self._warned_skips = self.exchange.skipped
+            self._warned_skips = self._skipped
         update.writer_gone = self.writer_gone()
         return update
 
