@@ -29,8 +29,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
-from fourbar_common import Event, RunRecord, RunRecordError, read_run_record
-from fourbar_common.run_record import JsonFileError, read_json_file
+from fourbar_common import Event
+from fourbar_common.contract.json_files import JsonFileError, read_json_file
+from fourbar_common.contract.run_record import RunRecord, RunRecordError, read_run_record
 
 from .errors import DiagnoseError, NoAlarm
 from .simulator import Grid

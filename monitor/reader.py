@@ -38,9 +38,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fourbar_common import Event, RunRecord, RunRecordError, read_run_record
+from fourbar_common import Event
+from fourbar_common.contract.layout import EXCHANGE as EXCHANGE_NAME
+from fourbar_common.contract.run_record import RunRecord, RunRecordError, read_run_record
 from fourbar_common.files import NotRegularFileError, file_kind, open_regular
-from fourbar_common.run_record import EXCHANGE_NAME
 
 from .errors import ExchangeFormatError, ExchangeMissingError
 

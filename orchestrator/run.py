@@ -52,8 +52,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Mapping
 
-from fourbar_common import (SCHEMA_VERSION, ParameterStart, RecordedExchange, RecordedExperiment, RecordedFmu,
-                            RecordedNoise, RecordedWriter, RunRecord, write_run_record)
+from fourbar_common.contract.run_record import (SCHEMA_VERSION, ParameterStart, RecordedExchange, RecordedExperiment,
+                                               RecordedFmu, RecordedNoise, RecordedWriter, RunRecord, write_run_record)
 
 from .case import Case, RampEvent, StepEvent, Value
 from .config import apply_overrides, load_case

@@ -28,9 +28,9 @@ from typing import Any
 
 import pandas as pd
 
-from fourbar_common import RunRecord, RunRecordError, read_run_record
+from fourbar_common.contract.json_files import JsonFileError, parse_json, read_json_file
+from fourbar_common.contract.run_record import RunRecord, RunRecordError, read_run_record
 from fourbar_common.files import NotRegularFileError, file_kind, open_regular
-from fourbar_common.run_record import JsonFileError, parse_json, read_json_file
 
 __all__ = ["Diagnosis", "MonitorEvent", "RunFolder", "RunFolderError", "Update", "check_run_folder"]
 
