@@ -39,7 +39,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from fourbar_common import Event
-from fourbar_common.contract.layout import EXCHANGE as EXCHANGE_NAME
+from fourbar_common.contract.layout import EXCHANGE as EXCHANGE_NAME, RUN_RECORD
 from fourbar_common.contract.run_record import RunRecord, RunRecordError, read_run_record
 from fourbar_common.files import NotRegularFileError, file_kind, open_regular
 
@@ -634,7 +634,7 @@ def read_run_info(exchange_path: str | os.PathLike[str]) -> RunInfo | None:
     ``"unreadable"`` with the reason (naming the field) in ``error``; it is replaced
     atomically, so this means a foreign or damaged file.
     """
-    path = Path(exchange_path).parent / "run.json"
+    path = Path(exchange_path).parent / RUN_RECORD
     try:
         return RunInfo(path, read_run_record(path))
     except FileNotFoundError:

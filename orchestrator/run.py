@@ -52,6 +52,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Mapping
 
+from fourbar_common.contract.layout import DIAGNOSIS, DIAGNOSIS_FOLDER, MONITOR_FOLDER, SUMMARY, RunFolder
 from fourbar_common.contract.run_record import (SCHEMA_VERSION, ParameterStart, RecordedExchange, RecordedExperiment,
                                                RecordedFmu, RecordedNoise, RecordedWriter, RunRecord, write_run_record)
 
@@ -72,7 +73,7 @@ _RUN_JSON_MIN_INTERVAL = 0.2   # s of wall time between two "running" updates of
 HEARTBEAT_INTERVAL = 2.0
 #: Folders of a run folder that tools derive from its exchange.csv, each with the file that
 #: marks it as theirs: a new run removes them when it starts (they describe the old rows).
-DERIVED_OUTPUTS = (("monitor", "summary.json"), ("diagnosis", "diagnosis.json"))
+DERIVED_OUTPUTS = ((MONITOR_FOLDER, SUMMARY), (DIAGNOSIS_FOLDER, DIAGNOSIS))
 #: Bytes set aside in the run folder when the run starts (``.run.json.reserve``) and given
 #: back to write the final run.json when the disk filled up: run.json then says ``failed``
 #: with the error instead of staying ``running``.  A run.json of the shipped cases is 4-8 kB;
@@ -174,7 +175,7 @@ def remove_derived_outputs(out_dir: Path) -> tuple[str, ...]:
     removed: ``--out`` pointed at a folder of something else (a source tree has a
     ``monitor/`` package) loses nothing.  Returns the names removed.
     """
-    if not (out_dir / "run.json").is_file():
+    if not RunFolder(out_dir).run_record.is_file():
         return ()
     removed = []
     for name, marker in DERIVED_OUTPUTS:
@@ -252,7 +253,7 @@ class _Run:
         self.replaced: tuple[str, ...] = ()
         self.out_dir = out_dir
         self.exchange_path = out_dir / "exchange.csv"
-        self.run_json_path = out_dir / "run.json"
+        self.run_json_path = RunFolder(out_dir).run_record
         self.progress = progress
         self.wall0 = wall0
         self.status = "running"

@@ -28,7 +28,10 @@ from typing import Any
 
 import pandas as pd
 
-from fourbar_common.contract.json_files import JsonFileError, parse_json, read_json_file
+from fourbar_common.contract.diagnosis import read_diagnosis
+from fourbar_common.contract.json_files import JsonFileError, parse_json
+from fourbar_common.contract.layout import RunFolder as RunFolderLayout
+from fourbar_common.contract.problems import ContractError
 from fourbar_common.contract.run_record import RunRecord, RunRecordError, read_run_record
 from fourbar_common.files import NotRegularFileError, file_kind, open_regular
 
@@ -47,25 +50,27 @@ class RunFolderError(ValueError):
 def check_run_folder(path: str | os.PathLike[str]) -> Path:
     """``path`` as a run folder, or :class:`RunFolderError` saying what is missing."""
     folder = Path(path)
+    record = RunFolderLayout(folder).run_record
     if not folder.exists():
         raise RunFolderError(f"{folder}: no such folder; expected a run folder written by fourbar-run "
                              f"(e.g. out/case2_fault_L2)")
     if not folder.is_dir():
         raise RunFolderError(f"{folder}: is a file; expected the run folder that holds exchange.csv and run.json")
-    if not (folder / "run.json").exists() and not (folder / "exchange.csv").exists():
+    if not record.exists() and not (folder / "exchange.csv").exists():
         raise RunFolderError(f"{folder}: not a run folder: it holds neither run.json nor exchange.csv "
                              f"(fourbar-run writes both; run one with `fourbar-run CASE --out {folder}`)")
-    if not (folder / "run.json").exists():
+    if not record.exists():
         raise RunFolderError(f"{folder}: has exchange.csv but no run.json; the view needs the run's record "
                              f"(written by fourbar-run beside the exchange file)")
-    for name in ("run.json", "exchange.csv", "monitor/events.jsonl", "monitor/evaluations.csv",
-                 "monitor/forecast.csv", "diagnosis/diagnosis.json"):
+    layout = RunFolderLayout(folder)
+    for file in (layout.run_record, layout.exchange, layout.events, layout.evaluations, layout.forecast,
+                 layout.diagnosis):
         try:
-            mode = (folder / name).stat().st_mode
+            mode = file.stat().st_mode
         except OSError:
             continue
         if not stat.S_ISREG(mode):
-            raise RunFolderError(f"{folder / name}: {file_kind(mode)}, not a regular file; a run folder holds "
+            raise RunFolderError(f"{file}: {file_kind(mode)}, not a regular file; a run folder holds "
                                  "the files fourbar-run, fourbar-monitor and fourbar-diagnose write")
     return folder
 
@@ -86,7 +91,8 @@ class MonitorEvent:
 
 @dataclass(frozen=True)
 class Diagnosis:
-    """What diagnosis.json says, as a view shows it."""
+    """What diagnosis.json says, as a view shows it: the verdict and the best explanation of the
+    contract's :class:`~fourbar_common.contract.diagnosis.DiagnosisRecord`."""
 
     verdict: str                   # explained | ambiguous | unexplained | no_change
     message: str
@@ -224,7 +230,7 @@ class RunFolder:
 
     # -- run.json -----------------------------------------------------------------------
     def _read_record(self, update: Update) -> None:
-        path = self.folder / "run.json"
+        path = RunFolderLayout(self.folder).run_record
         changed = self._changed(path)
         if changed is None:
             update.record_problem = f"{path}: missing (the run folder was emptied)"
@@ -251,7 +257,7 @@ class RunFolder:
         if alive is False:
             return True
         try:
-            age = max(0.0, time.time() - (self.folder / "run.json").stat().st_mtime)
+            age = max(0.0, time.time() - RunFolderLayout(self.folder).run_record.stat().st_mtime)
         except FileNotFoundError:
             return True
         return alive is None and age > STALE_HEARTBEATS * r.writer.heartbeat_s
@@ -275,18 +281,20 @@ class RunFolder:
                 train_end=_number(data.get("train_end"))))
 
     def _read_diagnosis(self, update: Update) -> None:
-        path = self.folder / "diagnosis" / "diagnosis.json"
+        path = RunFolderLayout(self.folder).diagnosis
         if not self._changed(path):
             return
         try:
-            data = read_json_file(path)
-            best = data.get("best") or {}
-            update.diagnosis = Diagnosis(verdict=str(data["verdict"]), message=str(data.get("message", "")),
-                                         parameter=best.get("parameter"), before=_number(best.get("before")),
-                                         value=_number(best.get("value")),
-                                         change_time=_number(best.get("change_time")))
-        except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+            record = read_diagnosis(path)
+        except (OSError, JsonFileError, ContractError) as exc:
             update.warnings.append(f"{path}: cannot be read ({exc}); the diagnosis is not shown")
+            return
+        best = record.best
+        update.diagnosis = Diagnosis(verdict=record.verdict, message=record.message,
+                                     parameter=best.parameter if best is not None else None,
+                                     before=best.before if best is not None else None,
+                                     value=best.value if best is not None else None,
+                                     change_time=best.change_time if best is not None else None)
 
     # -- one poll -----------------------------------------------------------------------
     def poll(self) -> Update:

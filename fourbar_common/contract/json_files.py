@@ -157,8 +157,8 @@ class FieldReader:
 
     def number(self, key: str, *, nullable: bool = True, required: bool = False,
                default: float | None = None) -> float | None:
-        value = self.value(key, is_number, "a finite number", nullable=nullable, required=required, default=default)
-        return float(value) if value is not None else None
+        """A finite number as written (an integer stays one, so a file reads back to its own bytes)."""
+        return self.value(key, is_number, "a finite number", nullable=nullable, required=required, default=default)
 
     def integer(self, key: str, *, nullable: bool = True, required: bool = False,
                 default: int | None = None) -> int | None:
@@ -188,7 +188,7 @@ class FieldReader:
         expected = f"an array of {length} finite numbers" if length is not None else "an array of finite numbers"
         value = self.value(key, lambda v: isinstance(v, list) and all(is_number(x) for x in v)
                            and (length is None or len(v) == length), expected, nullable=nullable, required=required)
-        return tuple(float(x) for x in value) if value is not None else None
+        return tuple(value) if value is not None else None
 
     def mapping(self, key: str, *, nullable: bool = True, required: bool = False) -> dict | None:
         """A JSON object kept as it is (a section whose keys belong to another part)."""
