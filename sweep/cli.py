@@ -12,6 +12,7 @@ import argparse
 import sys
 
 from fourbar_common import package_version
+from fourbar_common.contract.layout import SweepFolder
 
 __all__ = ["main"]
 
@@ -170,7 +171,7 @@ def _sweep(path: str, *, scheduler, workers, out, limit, retry_failed: bool, dry
             return
         where = f"the Dask scheduler at {scheduler}" if scheduler else \
             f"a local cluster of {workers or default_workers()} worker process(es)"
-        text = f"{sweep.name}: {done} scenario(s) already in {directory / 'results.csv'}, {to_run} to run"
+        text = f"{sweep.name}: {done} scenario(s) already in {SweepFolder(directory).results}, {to_run} to run"
         _err(text + (f" on {where}" if to_run else ""))
 
     try:
@@ -191,7 +192,7 @@ def _sweep(path: str, *, scheduler, workers, out, limit, retry_failed: bool, dry
         return exit_code(signum)
     except KeyboardInterrupt as exc:     # before the first scenario, or a second signal while writing the table
         signum = signal_of(exc)
-        csv = (Path(out) if out else Path("out") / "sweeps" / sweep.name) / "results.csv"
+        csv = SweepFolder(Path(out) if out else Path("out") / "sweeps" / sweep.name).results
         kept = (f"the rows of finished scenarios are kept in {csv}; run the same command again to resume"
                 if csv.is_file() else "nothing was run")
         _err(f"{sweep.name}: {stop_reason(signum)}; {kept}")
@@ -229,7 +230,7 @@ def _dry_run(sweep, out) -> int:
     for s in plan:
         kinds[s.kind] = kinds.get(s.kind, 0) + 1
     detail = ", ".join(f"{n} {k}" for k, n in kinds.items())
-    print(f"{sweep.name}: {len(plan)} scenarios ({detail}); {len(done)} already in {directory / 'results.csv'}, "
+    print(f"{sweep.name}: {len(plan)} scenarios ({detail}); {len(done)} already in {SweepFolder(directory).results}, "
           f"{len(plan) - len(done)} to run")
     return 0
 

@@ -160,11 +160,7 @@ class DiagnosisRecord:
         ``source`` and listing every problem (field, message) when it is not one."""
         problems: list[Problem] = []
         r = FieldReader(data, "", problems)
-        schema = r.integer("schema", nullable=False, default=READABLE_SCHEMAS[0])
-        if schema not in READABLE_SCHEMAS:
-            r.problem("schema", f"= {schema}: this reader reads schema {', '.join(map(str, READABLE_SCHEMAS))}"
-                      + ("; the file was written by a newer fourbar-cosim: update this one"
-                         if schema > max(READABLE_SCHEMAS) else ""))
+        schema = r.schema(READABLE_SCHEMAS)
         fits = {key: r.object(key) for key in ("best", "ramp", "first_fit")}
         settled = r.object("settled")
         units = r.value("units", lambda v: isinstance(v, dict) and all(isinstance(x, str) for x in v.values()),

@@ -22,7 +22,7 @@ from ..files import open_regular, write_json_atomic
 from .problems import Problem
 
 __all__ = ["FieldReader", "JsonFileError", "MAX_JSON_BYTES", "is_int", "is_number", "kind_of", "parse_json",
-           "read_json_file", "read_text_file", "show_json", "write_json_file"]
+           "plain_json", "read_json_file", "read_text_file", "show_json", "write_json_file"]
 
 #: Largest JSON file of a run folder read (run.json, summary.json): fourbar-run's run.json of a
 #: mechanism with hundreds of parameters is tens of kB.
@@ -74,6 +74,12 @@ def write_json_file(path: str | os.PathLike[str], data: Any, *, default: Callabl
     """Replace ``path`` by ``data`` as indented JSON, atomically (no NaN or infinity: they are
     not JSON; ``default`` converts what JSON has no type for)."""
     write_json_atomic(path, data, default=default)
+
+
+def plain_json(data: Any, *, default: Callable[[Any], Any] | None = None) -> Any:
+    """``data`` as the JSON file written from it reads back: tuples as lists, what JSON has no
+    type for converted by ``default`` (ValueError for NaN or infinity, as when writing)."""
+    return json.loads(json.dumps(data, allow_nan=False, default=default))
 
 
 def show_json(value: Any, width: int = 60) -> str:
@@ -151,9 +157,20 @@ class FieldReader:
         if value is None and nullable:
             return None
         if not check(value):
-            self.problem(self.where(key), f"= {show_json(value)}: expected {expected}{' or null' if nullable else ''}")
+            self.problem(self.where(key),
+                         f"got {show_json(value)}, expected {expected}{' or null' if nullable else ''}")
             return default
         return value
+
+    def schema(self, readable: Sequence[int]) -> int:
+        """The file's ``schema`` (absent: the first of ``readable``, for files written before it
+        was recorded); a schema not in ``readable`` is a problem (a newer one: update)."""
+        schema = self.integer("schema", nullable=False, default=readable[0])
+        if schema not in readable:
+            self.problem(self.where("schema"), f"got {schema}: this reader reads schema "
+                         f"{', '.join(map(str, readable))}" + ("; the file was written by a newer fourbar-cosim: "
+                                                                "update this one" if schema > max(readable) else ""))
+        return schema
 
     def number(self, key: str, *, nullable: bool = True, required: bool = False,
                default: float | None = None) -> float | None:

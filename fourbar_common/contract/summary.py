@@ -41,16 +41,6 @@ READABLE_SCHEMAS = (1,)
 JsonValue = Any
 
 
-def _schema(r: FieldReader, readable: tuple[int, ...]) -> int:
-    """The file's ``schema`` (absent: the first readable one), a problem when not readable."""
-    schema = r.integer("schema", nullable=False, default=readable[0])
-    if schema not in readable:
-        r.problem("schema", f"= {schema}: this reader reads schema {', '.join(map(str, readable))}"
-                  + ("; the file was written by a newer fourbar-cosim: update this one"
-                     if schema > max(readable) else ""))
-    return schema
-
-
 @dataclass(frozen=True)
 class RowCounts:
     """The exchange file's lines and rows read, and the rows skipped by reason."""
@@ -329,7 +319,7 @@ class MonitorSummary:
         ``source`` and listing every problem (field, message) when it is not one."""
         problems: list[Problem] = []
         r = FieldReader(data, "", problems)
-        schema = _schema(r, READABLE_SCHEMAS)
+        schema = r.schema(READABLE_SCHEMAS)
         rows, grid, period, timing, outputs = (r.object(k) for k in ("rows", "grid", "period", "timing_s", "outputs"))
         summary = cls(
             status=r.text("status"), error=r.text("error"), exchange=r.text("exchange"), case=r.text("case"),
