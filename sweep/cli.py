@@ -236,7 +236,7 @@ def _dry_run(sweep, out) -> int:
 
 
 def _report(result) -> None:
-    s = result.summary
+    s = result.record
     r = result
     print(f"{r.sweep.name}: {len(r.table)} of {r.planned} scenarios in the table ({r.ran} run now, "
           f"{r.skipped} already done), {r.failed} failed, {r.wall_seconds:.1f} s")
@@ -249,18 +249,18 @@ def _report(result) -> None:
               f"): {row['error']}")
     if len(failed) > 5:
         print(f"  ... {len(failed) - 5} more failed rows")
-    variable, limit = s.get("variable"), s["latency_limit"]
+    variable, limit = s.variable, s.latency_limit
     size = f"|Δ{variable}|/{variable}" if variable else "relative change"
     print(f"smallest {size} detected within {limit:g} s with no false alarm "
           f"(in every scenario of that size and above):")
-    for g in s["series"]:
+    for g in s.series:
         nf = g["no_fault"]
         clean = f"; fault-free runs with an alarm: {nf['runs_with_alarms']}/{nf['n']}" if nf["n"] else ""
         print(f"  {g['series']}: {_percent(g['smallest_reliable_change'])}{clean}")
-    if s.get("classification"):
+    if s.classification:
         print("diagnosis (fourbar-diagnose after each alarm): right parameter / detected faults")
         print(f"  {'parameter':<9} {'change':>8} {'noise':>7} {'right':>9} {'value err':>10} {'time err':>9}")
-        for c in s["classification"]:
+        for c in s.classification:
             value = "-" if c["value_error"] is None else f"{100 * c['value_error']:.2g} %"
             when = "-" if c["time_error"] is None else f"{c['time_error']:.2f} s"
             print(f"  {c['variable']:<9} {_percent(c['relative_change']):>8} {c['noise_std']:>7g} "

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterator
 
 from fourbar_common.contract.layout import SweepFolder
-from fourbar_common.contract.sweep_results import write_sweep_record, write_sweep_summary
+from fourbar_common.contract.sweep_results import SweepSummary, write_sweep_record, write_sweep_summary
 
 from .config import Sweep, load_sweep
 from .plan import Scenario, plan_scenarios
@@ -59,6 +59,8 @@ class SweepResult:
     wall_seconds: float
     files: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    #: summary.json as written, typed (``summary`` is the same as the report's dict)
+    record: SweepSummary | None = None
 
     @property
     def failed(self) -> int:
@@ -389,7 +391,7 @@ def _finish(sweep: Sweep, out: Path, store: ResultsStore, rows: list[dict], plan
     summary.update(name=sweep.name, planned=len(plan), skipped=skipped, ran=ran, interrupted=interrupted,
                    wall_seconds=time.perf_counter() - wall0, finished_at=_now())
     files["summary"] = SweepFolder(out).summary
-    write_sweep_summary(files["summary"], summary)
+    record = write_sweep_summary(files["summary"], summary)
     return SweepResult(sweep=sweep, out_dir=out, table=table, summary=summary, planned=len(plan), skipped=skipped,
                        ran=ran, interrupted=interrupted, wall_seconds=time.perf_counter() - wall0, files=files,
-                       notes=tuple(notes))
+                       notes=tuple(notes), record=record)
