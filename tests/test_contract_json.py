@@ -289,3 +289,53 @@ def test_a_sweep_file_names_each_bad_monitor_option_with_its_value(tmp_path, nat
         load_sweep(tmp_path / "bad.toml")
     assert "monitor.window = -1.0: expected a positive number of seconds, got -1.0" in str(info.value)
     assert "monitor.every = 0.0: " in str(info.value)
+
+
+# -- no part parses or dumps a run folder's JSON file itself -------------------------------------------------------
+
+#: Calls of the JSON parsers and writers the parts still make, and why: none reads or writes a
+#: JSON file of a run or sweep folder but events.jsonl (its contract module is another
+#: engineer's, issue 38: the view's tail of it and the monitor's writer of it move there).
+ALLOWED_JSON_CALLS = {
+    ("orchestrator/validation.py", "json.dumps"),   # a value shown in a message
+    ("sweep/plan.py", "json.dumps"),                # a scenario's canonical text, hashed into its id
+    ("monitor/outputs.py", "json.dumps"),           # events.jsonl lines
+    ("view/sources.py", "parse_json"),              # events.jsonl lines
+}
+
+
+def test_the_parts_read_and_write_json_files_only_through_the_contract():
+    import ast
+
+    found = set()
+    for part in ("orchestrator", "monitor", "view", "diagnose", "sweep"):
+        for path in sorted((REPO / part).glob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if not isinstance(node, ast.Call):
+                    continue
+                f = node.func
+                name = (f"{f.value.id}.{f.attr}" if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name)
+                        else f.id if isinstance(f, ast.Name) else "")
+                if name in ("json.loads", "json.load", "json.dumps", "json.dump", "read_json_file", "parse_json",
+                            "write_json_atomic", "write_json_file"):
+                    found.add((f"{part}/{path.name}", name))
+    assert found <= ALLOWED_JSON_CALLS, sorted(found - ALLOWED_JSON_CALLS)
+
+
+def test_the_parts_join_no_contract_file_name_into_a_path():
+    """``folder / "summary.json"`` and the like are spelled once, in contract/layout.py."""
+    import ast
+
+    from fourbar_common.contract import layout
+
+    names = {layout.RUN_RECORD, layout.SUMMARY, layout.DIAGNOSIS, layout.DIAGNOSIS_FOLDER, layout.SWEEP_RECORD,
+             layout.SWEEP_RESULTS, layout.SWEEP_SUMMARY}
+    joined = []
+    for part in ("orchestrator", "monitor", "view", "diagnose", "sweep"):
+        for path in sorted((REPO / part).glob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                right = node.right if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Div) else None
+                parts = str(right.value).split("/") if isinstance(right, ast.Constant) else []
+                if parts and (parts[0] in names or parts[-1] in names):
+                    joined.append(f"{part}/{path.name}:{node.lineno}: / {right.value!r}")
+    assert not joined, joined
