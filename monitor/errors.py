@@ -49,6 +49,10 @@ class OptionError(MonitorError, ValueError):
         self.problems: tuple[Problem, ...] = (tuple(problems) if problems is not None
                                               else _problems_of(message))
 
+    def __reduce__(self):
+        # pickled (a Dask worker's error) with its problems as given
+        return self.__class__, (str(self), self.problems)
+
     @classmethod
     def listing(cls, what: str, problems: Iterable[Problem]) -> "OptionError":
         """``invalid <what>:`` then one indented line ``<option>: <message>`` per problem."""

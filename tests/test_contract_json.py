@@ -238,6 +238,21 @@ def test_not_json_and_not_an_object_are_refused_naming_the_file(tmp_path):
     assert info.value.problems[0].field == "" and "an array; expected a JSON object" in str(info.value)
 
 
+def test_contract_errors_cross_processes_whole():
+    """A Dask worker's error reaches the sweep pickled: its source, problems and text survive."""
+    import pickle
+
+    from fourbar_common.contract.problems import Problem
+    from monitor import OptionError
+
+    errors = [ContractError("summary.json", [Problem("alarms", "got 1.5, expected an integer")]),
+              RunRecordError("run.json", Problem("status", "bad"), "run.json: field 'status' = 1: expected a string"),
+              OptionError("a message in no known form", [Problem("window", "expected a positive number")])]
+    for error in errors:
+        again = pickle.loads(pickle.dumps(error))
+        assert type(again) is type(error) and str(again) == str(error) and again.problems == error.problems
+
+
 # -- schema versions --------------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("reader, build", [

@@ -50,7 +50,8 @@ class RunFolderError(ValueError):
 def check_run_folder(path: str | os.PathLike[str]) -> Path:
     """``path`` as a run folder, or :class:`RunFolderError` saying what is missing."""
     folder = Path(path)
-    record = RunFolderLayout(folder).run_record
+    layout = RunFolderLayout(folder)
+    record = layout.run_record
     if not folder.exists():
         raise RunFolderError(f"{folder}: no such folder; expected a run folder written by fourbar-run "
                              f"(e.g. out/case2_fault_L2)")
@@ -62,7 +63,6 @@ def check_run_folder(path: str | os.PathLike[str]) -> Path:
     if not record.exists():
         raise RunFolderError(f"{folder}: has exchange.csv but no run.json; the view needs the run's record "
                              f"(written by fourbar-run beside the exchange file)")
-    layout = RunFolderLayout(folder)
     for file in (layout.run_record, layout.exchange, layout.events, layout.evaluations, layout.forecast,
                  layout.diagnosis):
         try:

@@ -81,6 +81,9 @@ class RunRecordError(ContractError):
         super().__init__(source, (problem,))
         self.args = (message,)
 
+    def __reduce__(self):
+        return self.__class__, (self.source, self.problems[0], self.args[0])
+
 
 def _file_error(path: Any, message: str) -> RunRecordError:
     """A problem of the file as a whole; ``message`` is the whole text, naming the file."""
