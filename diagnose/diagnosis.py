@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from fourbar_common.contract.diagnosis import DiagnosedFit, DiagnosisRecord, SeparatingColumn, Settlement
+from fourbar_common.contract import diagnosis as contract
 
 from .changepoint import noise_levels, onset
 from .errors import DiagnoseError
@@ -187,23 +187,23 @@ class Diagnosis:
     def runner_up(self) -> Fit | None:
         return _runner_up(self.ranking, self.best)
 
-    def record(self) -> DiagnosisRecord:
+    def record(self) -> contract.DiagnosisRecord:
         """diagnosis.json's content, typed (the contract's :class:`DiagnosisRecord`: what the
         file holds of this diagnosis, without the curves): every non-finite number (an infinite
         standard error, say) as None, a relative change None where the healthy value is 0."""
         def pair(p: tuple[float, float] | None) -> tuple[float, float] | None:
             return None if p is None else (_finite(p[0]), _finite(p[1]))
 
-        return DiagnosisRecord(
+        return contract.DiagnosisRecord(
             case=self.case, run_id=self.run_id, verdict=self.verdict, message=self.message,
             best=_fit_record(self.best), ramp=_fit_record(self.ramp),
             ranking=tuple(_fit_record(f) for f in self.ranking), alarm_time=_finite(self.alarm_time),
             onset_time=_finite(self.onset_time), window=pair(self.window), rows=_finite(self.rows),
             columns=tuple(self.columns), units=dict(self.units), noise=_finite(dict(self.noise)),
             value_window=pair(self.value_window), first_fit=_fit_record(self.first_fit),
-            separating=tuple(SeparatingColumn(**_finite(asdict(c))) for c in self.separating),
+            separating=tuple(contract.SeparatingColumn(**_finite(asdict(c))) for c in self.separating),
             distinct_gap=_finite(self.distinct_gap),
-            settled=None if self.settled is None else Settlement(
+            settled=None if self.settled is None else contract.Settlement(
                 window=pair(self.settled.window), runner_up=_fit_record(self.settled.runner_up),
                 first_gap=_finite(self.settled.first_gap), distinct_gap=_finite(self.settled.gap)),
             healthy_chi2=_finite(self.healthy_chi2), reduced_chi2=_finite(self.reduced_chi2),
@@ -215,11 +215,12 @@ class Diagnosis:
         return self.record().to_json()
 
 
-def _fit_record(f: Fit | None) -> DiagnosedFit | None:
+def _fit_record(f: Fit | None) -> contract.DiagnosedFit | None:
     """A fit as diagnosis.json holds it: its fields and its change (non-finite numbers None)."""
     if f is None:
         return None
-    return DiagnosedFit(**_finite(asdict(f)), change=_finite(f.change), relative_change=_finite(f.relative_change))
+    return contract.DiagnosedFit(**_finite(asdict(f)), change=_finite(f.change),
+                                 relative_change=_finite(f.relative_change))
 
 
 def _finite(value: Any) -> Any:

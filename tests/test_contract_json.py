@@ -129,6 +129,33 @@ def test_the_view_reads_the_diagnosis_through_the_contract(run):
     assert update.diagnosis.value == best.value and update.diagnosis.change_time == best.change_time
 
 
+def test_an_ambiguous_settled_diagnosis_is_written_whole(tmp_path):
+    """The parts a clean run's diagnosis leaves empty (``separating``, ``settled``), from the
+    diagnosis's own types: an infinite standard error and a zero healthy value written as null."""
+    from diagnose.diagnosis import Diagnosis, Separation, Settlement
+    from diagnose.fit import Fit
+    from diagnose.outputs import write_outputs
+
+    def fit(parameter: str, value: float, stderr: float, before: float = 1.0) -> Fit:
+        return Fit(parameter=parameter, kind="step", before=before, value=value, stderr=stderr, change_time=10.0,
+                   end_time=10.0, chi2=812.5, rows=800, rms=0.005, evaluations=9)
+
+    best, other = fit("m3", 1.1, 0.009), fit("g", 9.79, float("inf"), before=0.0)
+    d = Diagnosis(verdict="explained", message="m3 changed", best=best, ranking=(best, other), ramp=None,
+                  alarm_time=14.35, onset_time=10.4, window=(9.35, 17.35), rows=800, columns=("x2",),
+                  noise={"x2": 0.005}, healthy_chi2=5e4, reduced_chi2=1.02, simulator="FourBarNative.fmu (snapshot)",
+                  branches=4838, seconds=40.6, units={"x2": "m"},
+                  separating=(Separation("x2", 1e-4, "m", 0.02),),
+                  settled=Settlement(window=(9.35, 26.35), runner_up=other, first_gap=5.7, gap=13.5))
+    write_outputs(d, tmp_path, plot=False)
+    data = json.loads((tmp_path / "diagnosis.json").read_text())
+    assert list(data) == DIAGNOSIS_KEYS and data["settled"]["distinct_gap"] == 13.5
+    assert data["settled"]["runner_up"]["stderr"] is None and data["settled"]["runner_up"]["relative_change"] is None
+    assert data["separating"] == [{"column": "x2", "difference": 1e-4, "unit": "m", "share": 0.02}]
+    record = read_diagnosis(tmp_path / "diagnosis.json")
+    assert record == d.record() and record.settled.runner_up.parameter == "g" and record.settled.window == (9.35, 26.35)
+
+
 # -- the sweep's files ------------------------------------------------------------------------------------------
 
 def test_sweep_json_of_a_real_sweep_file_reads_back(tmp_path, native_fmu):
