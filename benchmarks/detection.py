@@ -45,6 +45,10 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 BIN = Path(sys.executable).parent
+
+from fourbar_common.contract.layout import SweepFolder  # noqa: E402  (after the path)
+from fourbar_common.contract.sweep_results import read_sweep_summary  # noqa: E402
+
 NATIVE = REPO / "build" / "FourBarNative.fmu"
 CASES = REPO / "cases"
 SEEDS10 = list(range(1, 11))
@@ -193,11 +197,11 @@ def case3(out: Path) -> list[str]:
 
 def l2_step(out: Path) -> list[str]:
     shipped_sweep(out, "l2_step")
-    summary = json.loads((out / "l2_step" / "summary.json").read_text())
+    summary = read_sweep_summary(SweepFolder(out / "l2_step").summary)
     rows = ["| noise on x2 | model | smallest L2 step detected within 2 s, no false alarm | slowest at that size | "
             "fault-free runs with an alarm |", "|---|---|---:|---:|---:|"]
     verdict = []
-    for s in summary["series"]:
+    for s in summary.series:
         size = s["smallest_reliable_change"]
         at = next((e for e in s["sizes"] if size is not None and math.isclose(e["relative_change"], size)), None)
         noise = "none" if s["noise_std"] == 0 else f"σ = {1000 * s['noise_std']:g} mm"
@@ -218,14 +222,14 @@ def percent(x) -> str:
 
 def parameters(out: Path) -> list[str]:
     t = shipped_sweep(out, "parameters")
-    summary = json.loads((out / "parameters" / "summary.json").read_text())
+    summary = read_sweep_summary(SweepFolder(out / "parameters").summary)
     rows = ["| parameter | smallest step within 2 s, noise-free | smallest step within 2 s, σ = 3 mm | "
             "latency of +1 % (σ = 3 mm) | latency of +10 % (σ = 3 mm) | episodes per run |",
             "|---|---:|---:|---:|---:|---:|"]
     verdict = []
     faults = t[t["has_fault"]]
-    for variable in summary["variables"]:
-        by = {s["noise_std"]: s for s in summary["series"] if s.get("variable") == variable}
+    for variable in summary.variables:
+        by = {s["noise_std"]: s for s in summary.series if s.get("variable") == variable}
         v = faults[faults["variable"] == variable]
         noisy = v[v["noise_std"] > 0]
         one = Spread.of(noisy[(noisy["relative_change"] - 0.01).abs() < 1e-9]["latency"])

@@ -581,7 +581,7 @@ def printed(cwd: Path, command: list[str]) -> str:
 def exchange_size(exchange: Path) -> dict[str, str]:
     """docs/orchestrator.md's size of the longest run allowed by default: the default
     ``exchange.max_rows`` rows of Case 1's exchange file (its mean bytes per row)."""
-    from fourbar_common import read_run_record
+    from fourbar_common.contract.run_record import read_run_record
     from orchestrator.case import DEFAULT_MAX_ROWS
 
     record = read_run_record(exchange.parent / "run.json")

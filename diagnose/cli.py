@@ -14,6 +14,7 @@ import warnings
 from pathlib import Path
 
 from fourbar_common import package_version
+from fourbar_common.contract.layout import RunFolder
 
 __all__ = ["AMBIGUOUS", "OUTPUTS_NOT_WRITTEN", "build_parser", "main"]
 
@@ -131,7 +132,7 @@ def _main(argv: list[str] | None) -> int:
     from .outputs import OutputError, prepare_out_dir, remove_empty, write_outputs
 
     columns = [c.strip() for c in args.columns.split(",") if c.strip()] if args.columns else None
-    out = Path(args.out) if args.out else Path(args.run_dir) / "diagnosis"
+    out = Path(args.out) if args.out else RunFolder(args.run_dir).diagnosis_folder
     options = DiagnoseOptions(lookback=args.lookback, horizon=args.horizon, max_horizon=args.max_horizon,
                               noise_span=args.noise_span, ramp=not args.no_ramp)
     created: list[Path] = []

@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from fourbar_common.contract.layout import RunFolder
+from fourbar_common.contract import diagnosis as contract
 
 from .changepoint import noise_levels, onset
 from .errors import DiagnoseError
@@ -187,32 +188,40 @@ class Diagnosis:
     def runner_up(self) -> Fit | None:
         return _runner_up(self.ranking, self.best)
 
-    def to_json(self) -> dict:
-        """diagnosis.json's content: plain JSON types, every non-finite number (an infinite
-        standard error, say) as null, a relative change null where the healthy value is 0."""
-        def fit(f: Fit | None):
-            if f is None:
-                return None
-            d = asdict(f)
-            d["change"] = f.change
-            d["relative_change"] = f.relative_change
-            return d
+    def record(self) -> contract.DiagnosisRecord:
+        """diagnosis.json's content, typed (the contract's :class:`DiagnosisRecord`: what the
+        file holds of this diagnosis, without the curves): every non-finite number (an infinite
+        standard error, say) as None, a relative change None where the healthy value is 0."""
+        def pair(p: tuple[float, float] | None) -> tuple[float, float] | None:
+            return None if p is None else (_finite(p[0]), _finite(p[1]))
 
-        return _finite({
-            "schema": 1, "case": self.case, "run_id": self.run_id, "verdict": self.verdict,
-            "message": self.message, "best": fit(self.best), "ramp": fit(self.ramp),
-            "ranking": [fit(f) for f in self.ranking], "alarm_time": self.alarm_time,
-            "onset_time": self.onset_time, "window": list(self.window), "rows": self.rows,
-            "columns": list(self.columns), "units": self.units, "noise": self.noise,
-            "value_window": None if self.value_window is None else list(self.value_window),
-            "first_fit": fit(self.first_fit),
-            "separating": [asdict(c) for c in self.separating], "distinct_gap": self.distinct_gap,
-            "settled": None if self.settled is None else {
-                "window": list(self.settled.window), "runner_up": fit(self.settled.runner_up),
-                "first_gap": self.settled.first_gap, "distinct_gap": self.settled.gap},
-            "healthy_chi2": self.healthy_chi2, "reduced_chi2": self.reduced_chi2, "simulator": self.simulator,
-            "branches": self.branches, "seconds": self.seconds,
-        })
+        return contract.DiagnosisRecord(
+            case=self.case, run_id=self.run_id, verdict=self.verdict, message=self.message,
+            best=_fit_record(self.best), ramp=_fit_record(self.ramp),
+            ranking=tuple(_fit_record(f) for f in self.ranking), alarm_time=_finite(self.alarm_time),
+            onset_time=_finite(self.onset_time), window=pair(self.window), rows=_finite(self.rows),
+            columns=tuple(self.columns), units=dict(self.units), noise=_finite(dict(self.noise)),
+            value_window=pair(self.value_window), first_fit=_fit_record(self.first_fit),
+            separating=tuple(contract.SeparatingColumn(**_finite(asdict(c))) for c in self.separating),
+            distinct_gap=_finite(self.distinct_gap),
+            settled=None if self.settled is None else contract.Settlement(
+                window=pair(self.settled.window), runner_up=_fit_record(self.settled.runner_up),
+                first_gap=_finite(self.settled.first_gap), distinct_gap=_finite(self.settled.gap)),
+            healthy_chi2=_finite(self.healthy_chi2), reduced_chi2=_finite(self.reduced_chi2),
+            simulator=self.simulator, branches=_finite(self.branches), seconds=_finite(self.seconds),
+        )
+
+    def to_json(self) -> dict:
+        """diagnosis.json's content as plain JSON types (:meth:`record`'s)."""
+        return self.record().to_json()
+
+
+def _fit_record(f: Fit | None) -> contract.DiagnosedFit | None:
+    """A fit as diagnosis.json holds it: its fields and its change (non-finite numbers None)."""
+    if f is None:
+        return None
+    return contract.DiagnosedFit(**_finite(asdict(f)), change=_finite(f.change),
+                                 relative_change=_finite(f.relative_change))
 
 
 def _finite(value: Any) -> Any:

@@ -24,7 +24,6 @@ every branch: the same answer, much slower.
 """
 from __future__ import annotations
 
-import math
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,11 +31,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fourbar_common import Event, RunRecord, RunRecordError, read_run_record
+from fourbar_common import Event
 from fourbar_common.contract.exchange import read_exchange
-from fourbar_common.contract.layout import EXCHANGE, RunFolder
+from fourbar_common.contract.json_files import JsonFileError
+from fourbar_common.contract.layout import RunFolder
 from fourbar_common.contract.problems import ContractError
-from fourbar_common.run_record import JsonFileError, read_json_file
+from fourbar_common.contract.run_record import RunRecord, RunRecordError, read_run_record
+from fourbar_common.contract.summary import MonitorSummary, read_summary
 
 from .errors import DiagnoseError, NoAlarm
 from .simulator import Grid
@@ -73,22 +74,25 @@ class RunInputs:
         return not _can_save_state(self.simulator_fmu)
 
 
-def _load_json(path: Path, what: str, fix: str) -> dict:
-    """A JSON object file of the run folder (a regular file; deep nesting, a huge file or a
-    FIFO give a :class:`DiagnoseError` naming the file, never a traceback or a hang)."""
+def _load_summary(path: Path, fix: str) -> MonitorSummary:
+    """The monitor's summary.json (a regular file; deep nesting, a huge file or a FIFO give a
+    :class:`DiagnoseError` naming the file, never a traceback or a hang)."""
+    what = "monitor summary"
     if not path.exists():
         raise DiagnoseError(f"{path}: no {what}; {fix}")
     try:
-        data = read_json_file(path)
+        return read_summary(path)
     except FileNotFoundError:
         raise DiagnoseError(f"{path}: no {what}; {fix}") from None
-    except (OSError, JsonFileError) as exc:
+    except (OSError, JsonFileError, ContractError) as exc:
         text = " ".join(str(exc).split())
         text = text[len(str(path)) + 2:] if text.startswith(f"{path}: ") else text
         raise DiagnoseError(f"{path}: not a readable {what} ({text}); {fix}") from None
-    if not isinstance(data, dict):
-        raise DiagnoseError(f"{path}: expected a JSON object, got {type(data).__name__}; {fix}")
-    return data
+
+
+def _or_unknown(value: Any) -> Any:
+    """A summary's figure for a message: ``?`` when the summary does not say."""
+    return "?" if value is None else value
 
 
 def _load_record(path: Path) -> RunRecord:
@@ -192,22 +196,21 @@ def read_inputs(run_dir: str | Path, *, summary: str | Path | None = None, fmu: 
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise DiagnoseError(f"{run_dir}: not a folder; expected a run folder written by fourbar-run "
-                            f"({EXCHANGE}, run.json, monitor/summary.json)")
-    run_json = run_dir / "run.json"
+                            "(exchange.csv, run.json, monitor/summary.json)")
+    folder = RunFolder(run_dir)
+    run_json = folder.run_record
     record = _load_record(run_json)
-    summary_path = Path(summary) if summary is not None else RunFolder(run_dir).summary
-    info = _load_json(summary_path, "monitor summary",
-                      f"run `fourbar-monitor {RunFolder(run_dir).exchange}` first (it writes monitor/summary.json)")
+    summary_path = Path(summary) if summary is not None else folder.summary
+    info = _load_summary(summary_path, f"run `fourbar-monitor {folder.exchange}` first (it writes "
+                                       f"{folder.summary.relative_to(folder.root)})")
 
-    if info.get("run_id") and record.run_id and info["run_id"] != record.run_id:
-        raise DiagnoseError(f"{summary_path}: it belongs to run {info['run_id']}, but {run_json} is run "
+    if info.run_id and record.run_id and info.run_id != record.run_id:
+        raise DiagnoseError(f"{summary_path}: it belongs to run {info.run_id}, but {run_json} is run "
                             f"{record.run_id} (the case was run again); monitor the new run first")
-    alarm = info.get("first_alarm_time")
+    alarm = info.first_alarm_time
     if alarm is None:
         raise NoAlarm(f"no fault to classify: the monitor raised no alarm in {summary_path} "
-                      f"({info.get('evaluations', '?')} evaluations up to t = {info.get('last_time', '?')} s)")
-    if not isinstance(alarm, (int, float)) or not math.isfinite(alarm):
-        raise DiagnoseError(f"{summary_path}: first_alarm_time = {alarm!r}; expected a time in s")
+                      f"({_or_unknown(info.evaluations)} evaluations up to t = {_or_unknown(info.last_time)} s)")
 
     if record.fmu is None:
         raise DiagnoseError(f"{run_json}: no fmu (path, guid, model_name); expected run.json written by fourbar-run")
@@ -236,7 +239,7 @@ def read_inputs(run_dir: str | Path, *, summary: str | Path | None = None, fmu: 
         raise DiagnoseError(f"{run_json}: records no tunable Real parameter of {run_fmu.name} with a start value, "
                             f"so no parameter can be fitted as the cause")
 
-    monitored = info.get("signals") or [s.strip() for s in str(info.get("signal", "")).split(",") if s.strip()]
+    monitored = info.monitored
     wanted = tuple(columns) if columns else tuple(monitored)
     if not wanted:
         raise DiagnoseError(f"{summary_path}: names no monitored column; pass --columns")

@@ -15,8 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from fourbar_common import replace_atomically, write_json_atomic
-from fourbar_common.contract.layout import EXCHANGE
+from fourbar_common import replace_atomically
+from fourbar_common.contract.diagnosis import write_diagnosis
+from fourbar_common.contract.layout import DIAGNOSIS, EXCHANGE
 
 from .diagnosis import Diagnosis
 from .errors import DiagnoseError
@@ -24,7 +25,7 @@ from .errors import DiagnoseError
 __all__ = ["OUTPUT_FILES", "OutputError", "diagnosis_figure", "prepare_out_dir", "remove_empty", "write_outputs"]
 
 #: The files a diagnosis writes into its output folder (the plot unless --no-plot).
-OUTPUT_FILES = ("diagnosis.json", "diagnosis.png")
+OUTPUT_FILES = (DIAGNOSIS, "diagnosis.png")
 
 
 class OutputError(OSError):
@@ -117,7 +118,7 @@ def write_outputs(diagnosis: Diagnosis, out_dir: str | Path, plot: bool = True) 
         try:
             if i == 0:
                 out.mkdir(parents=True, exist_ok=True)
-                write_json_atomic(path, diagnosis.to_json())
+                write_diagnosis(path, diagnosis.record())
             else:
                 _plot(diagnosis, path)
         except OSError as exc:

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any, Sequence, TextIO
 
 from fourbar_common import package_version
+from fourbar_common.contract.layout import SUMMARY
 
 from .options import FollowOptions, MonitorOptions, add_arguments, option_names
 
@@ -334,7 +335,7 @@ def _stopped(signum: int, printer: "_Printer", out_dir: Path | None, err: TextIO
     old = [name for name, stamp in now.items() if earlier.get(name) == stamp]
     where = f" at t = {printer.last_time:g} s of data" if printer.last_time is not None else ""
     if ours:
-        what = (f"kept {', '.join(ours)} in {out_dir}" + ("" if "summary.json" in ours else
+        what = (f"kept {', '.join(ours)} in {out_dir}" + ("" if SUMMARY in ours else
                                                           " (up to then; no summary.json: the replay did not end)"))
     else:
         what = "nothing was written this time"

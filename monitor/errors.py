@@ -5,6 +5,10 @@ the CLI can print it as is (exit code 2) instead of a traceback.
 """
 from __future__ import annotations
 
+from typing import Iterable
+
+from fourbar_common.contract.problems import Problem
+
 __all__ = [
     "MonitorError",
     "ExchangeFormatError",
@@ -30,7 +34,41 @@ class ExchangeMissingError(MonitorError, FileNotFoundError):
 
 
 class OptionError(MonitorError, ValueError):
-    """An option of the monitor has an invalid value; the message names the option."""
+    """An option of the monitor has an invalid value; the message names the option.
+
+    :attr:`problems` are the same complaints, structured: one :class:`Problem` per option
+    (``field`` the option's name, ``message`` what is wrong with its value), so a caller that
+    shows them its own way (the sweep names ``monitor.<option>`` and the value in its file)
+    needs no parsing of the text.  Raise one with :meth:`listing`, or with the message alone
+    in the form every option error has (``"<option>: <what is wrong>"``, or a first line and
+    then one such line per problem), from which the problems are taken.
+    """
+
+    def __init__(self, message: str, problems: Iterable[Problem] | None = None):
+        super().__init__(message)
+        self.problems: tuple[Problem, ...] = (tuple(problems) if problems is not None
+                                              else _problems_of(message))
+
+    def __reduce__(self):
+        # pickled (a Dask worker's error) with its problems as given
+        return self.__class__, (str(self), self.problems)
+
+    @classmethod
+    def listing(cls, what: str, problems: Iterable[Problem]) -> "OptionError":
+        """``invalid <what>:`` then one indented line ``<option>: <message>`` per problem."""
+        problems = tuple(problems)
+        return cls(f"invalid {what}:\n  " + "\n  ".join(str(p) for p in problems), problems)
+
+
+def _problems_of(message: str) -> tuple[Problem, ...]:
+    """The problems of an option error's text: its lines ``<option>: <message>`` (the lines
+    after the first when there are several; the text itself when it is one line)."""
+    lines = message.splitlines()[1:] or [message]
+    problems = []
+    for line in lines:
+        name, _, rest = line.strip().partition(":")
+        problems.append(Problem(name, rest.strip()))
+    return tuple(problems)
 
 
 class TrainingError(MonitorError, ValueError):

@@ -18,14 +18,13 @@ file (:meth:`MonitorOptions.validated`; :func:`detector_options` lists a detecto
 """
 from __future__ import annotations
 
-import argparse
 from dataclasses import MISSING, Field, dataclass, field, fields, replace
 from typing import Any, Mapping
 
 from .detectors import detector_class, detector_names
 from .errors import OptionError
 from .forecasters import forecaster_names
-from .option_rules import (FRACTION, NON_NEGATIVE, RATE, Checked, Rule, at_least, choice, is_number, option,
+from .option_rules import (FRACTION, Checked, Rule, at_least, choice, is_number, option,
                            positive)
 
 __all__ = ["DETECTOR", "FollowOptions", "MonitorOptions", "Rule", "add_arguments", "check_every", "detector_options",

@@ -38,7 +38,6 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import errno
-import json
 import math
 import os
 import stat
@@ -47,11 +46,12 @@ from typing import TYPE_CHECKING, Any, Iterator
 
 import numpy as np
 
-from fourbar_common import output_folder_problem, write_json_atomic
+from fourbar_common import output_folder_problem
 from fourbar_common.contract import evaluations as evaluations_csv
 from fourbar_common.contract import forecast as forecast_csv
 from fourbar_common.contract.layout import EVALUATIONS, EVENTS, FORECAST, SUMMARY, monitor_folder_for
 from fourbar_common.contract.monitor_events import MonitorEvent
+from fourbar_common.contract.summary import MonitorSummary, SummaryOutputs, write_summary
 from fourbar_common.files import replace_atomically
 from fourbar_common.files import NotRegularFileError, file_kind
 
@@ -179,7 +179,7 @@ class OutputWriters:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             # The summary and plots of an earlier session here describe other data: removed, so a
             # session that is stopped before its own summary does not leave them beside its events.
-            for name in ("summary.json", *PLOT_FILES):
+            for name in (SUMMARY, *PLOT_FILES):
                 (self.out_dir / name).unlink(missing_ok=True)
         try:
             for name in (EVENTS, EVALUATIONS, FORECAST):
@@ -235,12 +235,14 @@ class OutputWriters:
     def finish(self, result: "MonitorResult", plots: bool = True) -> None:
         for fh in (self._events, self._evals, self._forecast):
             self._put(fh, "")
-        summary = result.summary.as_json()
-        summary["outputs"] = {"events": EVENTS, "evaluations": EVALUATIONS, "forecast": FORECAST,
-                              "plots": list(PLOT_FILES) if plots and result.fits else []}
-        path = self.out_dir / "summary.json"
+        outputs = SummaryOutputs(events=EVENTS, evaluations=EVALUATIONS, forecast=FORECAST,
+                                 plots=PLOT_FILES if plots and result.fits else ())
+        path = self.out_dir / SUMMARY
+        # through the contract's reader: a summary it would refuse is never written
+        record = MonitorSummary.from_json(jsonable({**result.summary.as_json(), "outputs": outputs.to_json()}),
+                                          str(path))
         with self._writing(path):
-            write_json_atomic(path, jsonable(summary))
+            write_summary(path, record)
         if plots and result.fits:
             write_plots(result, self.out_dir)
 

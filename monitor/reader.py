@@ -15,17 +15,21 @@ import stat
 import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from fourbar_common import Event, RunRecord, RunRecordError, read_run_record
+from fourbar_common import Event
 from fourbar_common.contract import exchange as contract
 from fourbar_common.contract.exchange import TIME_COLUMN, ReadBatch, ReaderStats, RowIssue
-from fourbar_common.contract.layout import EXCHANGE
+from fourbar_common.contract.layout import EXCHANGE, RUN_RECORD
+from fourbar_common.contract.run_record import RunRecord, RunRecordError, read_run_record
 from fourbar_common.files import file_kind
 
 from .errors import ExchangeFormatError, ExchangeMissingError
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = [
     "ExchangeReader",
@@ -259,7 +263,7 @@ def read_run_info(exchange_path: str | os.PathLike[str]) -> RunInfo | None:
     ``"unreadable"`` with the reason (naming the field) in ``error``; it is replaced
     atomically, so this means a foreign or damaged file.
     """
-    path = Path(exchange_path).parent / "run.json"
+    path = Path(exchange_path).parent / RUN_RECORD
     try:
         return RunInfo(path, read_run_record(path))
     except FileNotFoundError:

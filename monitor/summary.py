@@ -4,7 +4,8 @@ Fault scoring has one home, :func:`score_alarms` (the sweep scores its scenarios
 The row written at the fault time still shows the healthy state (the change is visible from
 the next row on), so an alarm at ``t <= fault_time`` cannot have been caused by the fault:
 it is a false alarm.  The detection latency is measured to the first alarm after the fault.
-``summary.json`` is :meth:`Summary.as_json`.
+``summary.json`` is :meth:`Summary.as_json`, written (and read by everyone) as the contract's
+:class:`fourbar_common.contract.summary.MonitorSummary`.
 """
 from __future__ import annotations
 
@@ -13,6 +14,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from fourbar_common.contract.summary import SCHEMA_VERSION as SUMMARY_SCHEMA
 
 from .detector import ALARM_MESSAGE, Event, Fit, State
 from .options import MonitorOptions
@@ -27,8 +30,8 @@ __all__ = ["INDETERMINATE_EXIT", "OUTPUT_ERROR_EXIT", "FaultScore", "MonitorResu
 OUTPUT_ERROR_EXIT = 4
 #: Exit status of a session whose data allow no verdict (no alarm, broken time grid).
 INDETERMINATE_EXIT = 5
-#: Version of summary.json's layout.
-SCHEMA = 1
+#: Version of summary.json's layout (the contract's).
+SCHEMA = SUMMARY_SCHEMA
 #: Times within this of the fault time count as "at the fault time" (evaluation times are sums of floats).
 FAULT_TIME_TOLERANCE = 1e-9
 
@@ -167,7 +170,8 @@ class Summary:
         return self.score.false_alarms if self.score is not None else None
 
     def as_json(self) -> dict[str, Any]:
-        """The summary.json object (layout ``SCHEMA``; keys in docs/monitor.md)."""
+        """The summary.json object (layout ``SCHEMA``, the contract's
+        :data:`~fourbar_common.contract.summary.SCHEMA_VERSION`; keys in docs/monitor.md)."""
         fit = self.fit
         first = self.first_alarm
         t = self.timing

@@ -19,7 +19,8 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any, Mapping
 
-from fourbar_common import Drawing, DrawingError, Event, ParameterStart, RampEvent, StepEvent, Value
+from fourbar_common import Drawing, DrawingError, Event, RampEvent, StepEvent, Value
+from fourbar_common.contract.run_record import ParameterStart
 
 from .validation import grid_steps
 

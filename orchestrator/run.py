@@ -52,14 +52,14 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Mapping
 
-from fourbar_common import (SCHEMA_VERSION, ParameterStart, RecordedExchange, RecordedExperiment, RecordedFmu,
-                            RecordedNoise, RecordedWriter, RunRecord, write_run_record)
+from fourbar_common.contract.exchange import TIME_COLUMN
+from fourbar_common.contract.layout import DIAGNOSIS, DIAGNOSIS_FOLDER, MONITOR_FOLDER, SUMMARY, RunFolder
+from fourbar_common.contract.run_record import (SCHEMA_VERSION, ParameterStart, RecordedExchange, RecordedExperiment,
+                                               RecordedFmu, RecordedNoise, RecordedWriter, RunRecord, write_run_record)
 
 from .case import Case, RampEvent, StepEvent, Value
 from .config import apply_overrides, load_case
 from .exchange import ExchangeWriter, format_row
-from fourbar_common.contract.exchange import TIME_COLUMN
-from fourbar_common.contract.layout import DIAGNOSIS, DIAGNOSIS_FOLDER, MONITOR_FOLDER, SUMMARY, RunFolder
 from fourbar_common.formatting import format_time
 from fourbar_common.signals import signal_of, stop_reason
 
@@ -176,7 +176,7 @@ def remove_derived_outputs(out_dir: Path) -> tuple[str, ...]:
     removed: ``--out`` pointed at a folder of something else (a source tree has a
     ``monitor/`` package) loses nothing.  Returns the names removed.
     """
-    if not (out_dir / "run.json").is_file():
+    if not RunFolder(out_dir).run_record.is_file():
         return ()
     removed = []
     for name, marker in DERIVED_OUTPUTS:
@@ -254,7 +254,7 @@ class _Run:
         self.replaced: tuple[str, ...] = ()
         self.out_dir = out_dir
         self.exchange_path = RunFolder(out_dir).exchange
-        self.run_json_path = out_dir / "run.json"
+        self.run_json_path = RunFolder(out_dir).run_record
         self.progress = progress
         self.wall0 = wall0
         self.status = "running"

@@ -17,12 +17,14 @@ Usage: python scripts/demo.py [--speedup 10] [--case cases/case2_fault_L2.toml] 
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+from fourbar_common.contract.layout import SUMMARY
+from fourbar_common.contract.summary import read_summary
 
 REPO = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
@@ -108,21 +110,21 @@ def _finish(runner: subprocess.Popen, monitor: subprocess.Popen, out: Path, moni
     run_code = runner.wait()
     monitor_code = monitor.wait(timeout=300)
 
-    summary_path = monitor_out / "summary.json"
+    summary_path = monitor_out / SUMMARY
     if run_code != 0 or not summary_path.exists():
         print(f"demo: failed (fourbar-run exit {run_code}, fourbar-monitor exit {monitor_code})", file=sys.stderr)
         return 1
-    summary = json.loads(summary_path.read_text())
+    summary = read_summary(summary_path)
     print()
     print("== verdict ==")
-    fault = summary.get("fault_time")
-    alarm = summary.get("first_alarm_time")
-    latency = summary.get("detection_latency_s")
+    fault = summary.fault_time
+    alarm = summary.first_alarm_time
+    latency = summary.detection_latency_s
     print(f"fault injected at      : {fault if fault is not None else 'none'} s (from run.json)")
     print(f"first alarm at         : {alarm if alarm is not None else 'none'} s")
     if latency is not None:
         print(f"detection latency      : {latency:.2f} s   (paper: fault at 10 s, detected at 14 s -> 4 s)")
-    print(f"false alarms before it : {summary.get('false_alarms_before_fault', 'n/a')}")
+    print(f"false alarms before it : {summary.false_alarms_before_fault}")
     plots = sorted(monitor_out.glob("*.png"))
     print(f"plots                  : {', '.join(_shown(p) for p in plots)}")
     if alarm is None:

@@ -12,6 +12,7 @@ import argparse
 import sys
 
 from fourbar_common import package_version
+from fourbar_common.contract.layout import SweepFolder
 
 __all__ = ["main"]
 
@@ -170,7 +171,7 @@ def _sweep(path: str, *, scheduler, workers, out, limit, retry_failed: bool, dry
             return
         where = f"the Dask scheduler at {scheduler}" if scheduler else \
             f"a local cluster of {workers or default_workers()} worker process(es)"
-        text = f"{sweep.name}: {done} scenario(s) already in {directory / 'results.csv'}, {to_run} to run"
+        text = f"{sweep.name}: {done} scenario(s) already in {SweepFolder(directory).results}, {to_run} to run"
         _err(text + (f" on {where}" if to_run else ""))
 
     try:
@@ -191,7 +192,7 @@ def _sweep(path: str, *, scheduler, workers, out, limit, retry_failed: bool, dry
         return exit_code(signum)
     except KeyboardInterrupt as exc:     # before the first scenario, or a second signal while writing the table
         signum = signal_of(exc)
-        csv = (Path(out) if out else Path("out") / "sweeps" / sweep.name) / "results.csv"
+        csv = SweepFolder(Path(out) if out else Path("out") / "sweeps" / sweep.name).results
         kept = (f"the rows of finished scenarios are kept in {csv}; run the same command again to resume"
                 if csv.is_file() else "nothing was run")
         _err(f"{sweep.name}: {stop_reason(signum)}; {kept}")
@@ -229,13 +230,13 @@ def _dry_run(sweep, out) -> int:
     for s in plan:
         kinds[s.kind] = kinds.get(s.kind, 0) + 1
     detail = ", ".join(f"{n} {k}" for k, n in kinds.items())
-    print(f"{sweep.name}: {len(plan)} scenarios ({detail}); {len(done)} already in {directory / 'results.csv'}, "
+    print(f"{sweep.name}: {len(plan)} scenarios ({detail}); {len(done)} already in {SweepFolder(directory).results}, "
           f"{len(plan) - len(done)} to run")
     return 0
 
 
 def _report(result) -> None:
-    s = result.summary
+    s = result.record
     r = result
     print(f"{r.sweep.name}: {len(r.table)} of {r.planned} scenarios in the table ({r.ran} run now, "
           f"{r.skipped} already done), {r.failed} failed, {r.wall_seconds:.1f} s")
@@ -248,18 +249,18 @@ def _report(result) -> None:
               f"): {row['error']}")
     if len(failed) > 5:
         print(f"  ... {len(failed) - 5} more failed rows")
-    variable, limit = s.get("variable"), s["latency_limit"]
+    variable, limit = s.variable, s.latency_limit
     size = f"|Δ{variable}|/{variable}" if variable else "relative change"
     print(f"smallest {size} detected within {limit:g} s with no false alarm "
           f"(in every scenario of that size and above):")
-    for g in s["series"]:
+    for g in s.series:
         nf = g["no_fault"]
         clean = f"; fault-free runs with an alarm: {nf['runs_with_alarms']}/{nf['n']}" if nf["n"] else ""
         print(f"  {g['series']}: {_percent(g['smallest_reliable_change'])}{clean}")
-    if s.get("classification"):
+    if s.classification:
         print("diagnosis (fourbar-diagnose after each alarm): right parameter / detected faults")
         print(f"  {'parameter':<9} {'change':>8} {'noise':>7} {'right':>9} {'value err':>10} {'time err':>9}")
-        for c in s["classification"]:
+        for c in s.classification:
             value = "-" if c["value_error"] is None else f"{100 * c['value_error']:.2g} %"
             when = "-" if c["time_error"] is None else f"{c['time_error']:.2f} s"
             print(f"  {c['variable']:<9} {_percent(c['relative_change']):>8} {c['noise_std']:>7g} "

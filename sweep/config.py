@@ -493,13 +493,11 @@ class _Validator(ProblemReporter):
                 trial["threshold"] = level
             MonitorOptions(**trial).validated()
         except OptionError as exc:
-            lines = str(exc).splitlines()[1:] or [str(exc)]
-            for line in lines:
-                line = line.strip()
-                key, _, rest = line.partition(":")
+            for problem in exc.problems:
+                key = problem.field
                 shown = show_value(options.get(key)) if key in options else \
                     show_value(table["threshold"]) if key == "threshold" and level is not None else "(default)"
-                self.problems.append(f"monitor.{key} = {shown}:{rest}")
+                self.problems.append(f"monitor.{key} = {shown}: {problem.message}")
             ok = False
         except TypeError as exc:       # a wrong type the dataclass could not even take
             self.problems.append(f"monitor: {exc}")

@@ -16,41 +16,22 @@ A last line without ``\\n`` (the sweep was killed while writing it) is dropped o
 """
 from __future__ import annotations
 
-import csv
 import io
 import math
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
 from fourbar_common import output_folder_problem, replace_atomically
+from fourbar_common.contract.layout import SWEEP_RESULTS, SWEEP_SUMMARY, SweepFolder
+from fourbar_common.contract.sweep_results import (RESULT_COLUMNS, RUNTIME_COLUMNS, format_cell, format_row,
+                                                   results_header)
 
 from .scenario import RESULT_FIELDS
 
 __all__ = ["COLUMNS", "RUNTIME_COLUMNS", "ResultsError", "ResultsStore", "table_from_rows"]
 
-#: Every column of the table and its type: str, float, int (nullable), bool (nullable).
-COLUMNS: dict[str, str] = {
-    # inputs
-    "scenario_id": "str", "index": "int", "variable": "str", "kind": "str", "relative_change": "float",
-    "fault_value": "float", "base_value": "float", "fault_time": "float", "ramp_duration": "float",
-    "noise_std": "float", "noise_seed": "int", "signal": "str", "model": "str", "threshold": "str",
-    "stop": "float", "has_fault": "bool",
-    # results
-    "status": "str", "error": "str", "detected": "bool", "detection_time": "float", "latency": "float",
-    "first_alarm_time": "float", "alarms": "int", "false_alarms": "int", "threshold_base": "float",
-    "period": "float", "evaluations": "int", "statistic_max_pre": "float", "statistic_mean_pre": "float",
-    "statistic_max_post": "float", "statistic_mean_post": "float", "score_pre": "float", "score_post": "float",
-    "score_early": "float", "latency_limit": "float", "delay_arl0_0.1h": "float", "delay_arl0_1h": "float",
-    "delay_arl0_10h": "float", "delay_arl0_100h": "float", "delay_arl0_1000h": "float", "delay_arl0_10000h": "float",
-    "rows_written": "int", "fmu_guid": "str",
-    "diagnosis": "str", "diagnosed_variable": "str", "diagnosed_kind": "str", "diagnosed_value": "float",
-    "diagnosed_time": "float", "diagnosed_end_time": "float", "diagnosed_runner_up": "str",
-    # how it ran (differ between otherwise identical runs)
-    "run_seconds": "float", "monitor_seconds": "float", "diagnosis_seconds": "float", "wall_seconds": "float",
-    "cpu_seconds": "float", "worker": "str",
-}
-#: Columns that describe how a row was computed (time, place), not what it found.
-RUNTIME_COLUMNS = ("run_seconds", "monitor_seconds", "diagnosis_seconds", "wall_seconds", "cpu_seconds", "worker")
+#: Every column of the table and its type: str, float, int (nullable), bool (nullable) (the contract's).
+COLUMNS: dict[str, str] = RESULT_COLUMNS
 _DTYPES = {"str": "str", "float": "float64", "int": "Int64", "bool": "boolean"}
 
 assert set(RESULT_FIELDS) <= set(COLUMNS), "scenario fields missing from the table schema"
@@ -58,32 +39,6 @@ assert set(RESULT_FIELDS) <= set(COLUMNS), "scenario fields missing from the tab
 
 class ResultsError(RuntimeError):
     """An existing results file cannot be used (other columns, unreadable)."""
-
-
-def _cell(value: Any) -> str:
-    """One CSV field: '' for missing, repr for floats, True/False for booleans."""
-    if value is None or value is _NA():
-        return ""
-    if isinstance(value, bool) or type(value).__name__ == "bool_":
-        return "True" if value else "False"
-    if isinstance(value, float) or type(value).__name__.startswith("float"):
-        v = float(value)
-        return "" if math.isnan(v) else repr(v)
-    if isinstance(value, int) or type(value).__name__.startswith(("int", "uint")):
-        return str(int(value))
-    return str(value)
-
-
-def _NA():
-    import pandas as pd
-
-    return pd.NA
-
-
-def _line(row: dict[str, Any]) -> str:
-    buf = io.StringIO()
-    csv.writer(buf, lineterminator="\n").writerow([_cell(row.get(name)) for name in COLUMNS])
-    return buf.getvalue()
 
 
 def table_from_rows(rows: Iterable[dict[str, Any]]) -> "Any":
@@ -107,7 +62,7 @@ class ResultsStore:
 
     def __init__(self, out_dir: str | Path):
         self.out_dir = Path(out_dir)
-        self.csv_path = self.out_dir / "results.csv"
+        self.csv_path = SweepFolder(self.out_dir).results
         self.parquet_path = self.out_dir / "results.parquet"
         self.stale_path = self.out_dir / "stale.csv"
         self._fh = None
@@ -145,8 +100,8 @@ class ResultsStore:
 
         def write(tmp: Path) -> None:
             with open(tmp, "w", encoding="utf-8", newline="") as fh:
-                fh.write(",".join(COLUMNS) + "\n")
-                fh.writelines(_line(r) for r in rows)
+                fh.write(results_header())
+                fh.writelines(format_row(r) for r in rows)
 
         replace_atomically(self.csv_path, write)
 
@@ -154,7 +109,7 @@ class ResultsStore:
         """Append one row to ``results.csv`` and flush it to the OS."""
         if self._fh is None:
             self._fh = open(self.csv_path, "a", encoding="utf-8", newline="")
-        self._fh.write(_line(row))
+        self._fh.write(format_row(row))
         self._fh.flush()
 
     def move_to_stale(self, rows: Sequence[dict[str, Any]], reason: str) -> None:
@@ -164,9 +119,9 @@ class ResultsStore:
         new = not self.stale_path.exists()
         with open(self.stale_path, "a", encoding="utf-8", newline="") as fh:
             if new:
-                fh.write(",".join(COLUMNS) + ",stale_reason\n")
+                fh.write(results_header(("stale_reason",)))
             for r in rows:
-                fh.write(_line(r)[:-1] + "," + _cell(reason) + "\n")
+                fh.write(format_row(r)[:-1] + "," + format_cell(reason) + "\n")
 
     def write_parquet(self, table) -> None:
         replace_atomically(self.parquet_path, lambda tmp: table.to_parquet(tmp, index=False))
@@ -179,7 +134,8 @@ class ResultsStore:
     def check_dir(self) -> None:
         """Raise :class:`ResultsError` naming the path when the output directory cannot be
         used: it (or a parent) is a file, or it cannot be created or written.  Creates nothing."""
-        problem = output_folder_problem(self.out_dir, "results.csv, results.parquet, summary.json, plots/ and runs/")
+        problem = output_folder_problem(self.out_dir, f"{SWEEP_RESULTS}, results.parquet, {SWEEP_SUMMARY}, plots/ and "
+                                                      "runs/")
         if problem is not None:
             raise ResultsError(f"--out {self.out_dir}: {problem}")
 

@@ -28,9 +28,9 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
-from fourbar_common import write_json_atomic
 from fourbar_common.contract.evaluations import read_evaluations
 from fourbar_common.contract.layout import EVALUATIONS, SweepFolder
+from fourbar_common.contract.sweep_results import SweepSummary, write_sweep_record, write_sweep_summary
 
 from .config import Sweep, load_sweep
 from .plan import Scenario, plan_scenarios
@@ -60,6 +60,8 @@ class SweepResult:
     wall_seconds: float
     files: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    #: summary.json as written, typed (``summary`` is the same as the report's dict)
+    record: SweepSummary | None = None
 
     @property
     def failed(self) -> int:
@@ -181,10 +183,6 @@ def _now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
-def _write_json(path: Path, data: dict) -> None:
-    write_json_atomic(path, data, default=str)
-
-
 def run_sweep(sweep: Sweep | str | Path, out_dir: str | Path | None = None, *, scheduler: str | None = None,
               workers: int | None = None, client: Any = None, progress: bool = False, limit: int | None = None,
               retry_failed: bool = False, on_start: Callable[[int, int, Path], None] | None = None,
@@ -257,10 +255,10 @@ def _sweep_locked(sweep: Sweep, out: Path, store: ResultsStore, plan, by_id, not
     pending = [s for s in plan if s.id not in kept]
     if limit is not None:
         pending = pending[:max(0, int(limit))]
-    _write_json(out / "sweep.json", {**sweep.as_dict(), "scenarios": len(plan), "out_dir": str(out),
-                                     "cluster": scheduler or ("client" if client is not None else
-                                                              f"LocalCluster({workers or default_workers()})"),
-                                     "started_at": _now()})
+    write_sweep_record(SweepFolder(out).record, {
+        **sweep.as_dict(), "scenarios": len(plan), "out_dir": str(out),
+        "cluster": scheduler or ("client" if client is not None else f"LocalCluster({workers or default_workers()})"),
+        "started_at": _now()})
     if on_start is not None:
         on_start(len(pending), len(kept), out)
     new_rows: list[dict] = []
@@ -328,11 +326,11 @@ def _run_on(client, sweep: Sweep, pending: list[Scenario], out: Path, store: Res
     from dask.distributed import as_completed
     from tqdm import tqdm
 
-    runs = out / "runs"
+    folder = SweepFolder(out)
     options = dict(sweep.monitor.options)
     futures = {}
     for i, s in enumerate(pending):
-        fut = client.submit(run_scenario, s, sweep.case, str(runs / s.id), options, fmu_guid=sweep.fmu_guid,
+        fut = client.submit(run_scenario, s, sweep.case, str(folder.run(s.id).root), options, fmu_guid=sweep.fmu_guid,
                             keep_exchange=sweep.keep_exchange, monitor_plots=sweep.monitor_plots,
                             latency_limit=sweep.latency_limit, diagnose=sweep.diagnose,
                             pure=False, priority=len(pending) - i, key=f"scenario-{s.id}-{os.urandom(4).hex()}")
@@ -390,8 +388,8 @@ def _finish(sweep: Sweep, out: Path, store: ResultsStore, rows: list[dict], plan
         summary["classification"] = classification(table)
     summary.update(name=sweep.name, planned=len(plan), skipped=skipped, ran=ran, interrupted=interrupted,
                    wall_seconds=time.perf_counter() - wall0, finished_at=_now())
-    files["summary"] = out / "summary.json"
-    _write_json(files["summary"], summary)
+    files["summary"] = SweepFolder(out).summary
+    record = write_sweep_summary(files["summary"], summary)
     return SweepResult(sweep=sweep, out_dir=out, table=table, summary=summary, planned=len(plan), skipped=skipped,
                        ran=ran, interrupted=interrupted, wall_seconds=time.perf_counter() - wall0, files=files,
-                       notes=tuple(notes))
+                       notes=tuple(notes), record=record)

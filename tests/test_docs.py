@@ -586,10 +586,10 @@ def test_readme_commands_write_into_out_not_the_repository():
 # --- run.json: docs/orchestrator.md's table and docs/contracts.md's block against RunRecord ------
 
 def _record_keys() -> tuple[set[str], dict[str, set[str]]]:
-    """run.json's top-level keys and the keys of its nested objects, from fourbar_common/run_record.py."""
+    """run.json's top-level keys and the keys of its nested objects, from fourbar_common/contract/run_record.py."""
     import dataclasses
 
-    from fourbar_common import run_record as rr
+    from fourbar_common.contract import run_record as rr
 
     top = {f.name for f in dataclasses.fields(rr.RunRecord)}
     nested = {name: {f.name for f in dataclasses.fields(kind)}
@@ -602,7 +602,7 @@ def _record_keys() -> tuple[set[str], dict[str, set[str]]]:
 
 
 def test_orchestrator_doc_lists_every_run_json_field():
-    from fourbar_common.run_record import SCHEMA_VERSION
+    from fourbar_common.contract.run_record import SCHEMA_VERSION
 
     text = (REPO / "docs" / "orchestrator.md").read_text(encoding="utf-8")
     start = text.index("| field | meaning |", text.index("`DIR/run.json`"))
@@ -618,7 +618,7 @@ def test_orchestrator_doc_lists_every_run_json_field():
 
 
 def test_contracts_block_lists_every_run_json_field():
-    from fourbar_common.run_record import SCHEMA_VERSION
+    from fourbar_common.contract.run_record import SCHEMA_VERSION
 
     text = (REPO / "docs" / "contracts.md").read_text(encoding="utf-8")
     block = re.search(r'(?s)```\n\s*(\{"schema": (\d+), "status".*?)\n\s*```', text)

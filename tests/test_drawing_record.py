@@ -13,8 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from fourbar_common import (Drawing, DrawingError, DrawnBody, DrawnJoint, RecordedExchange, RecordedExperiment,
-                            RecordedFmu, RecordedWriter, RunRecord, RunRecordError, read_run_record)
+from fourbar_common import Drawing, DrawingError, DrawnBody, DrawnJoint
+from fourbar_common.contract.run_record import (RecordedExchange, RecordedExperiment, RecordedFmu, RecordedWriter,
+                                               RunRecord, RunRecordError, read_run_record)
 
 FOURBAR = Drawing(
     mechanism="FourBar",

@@ -1,5 +1,5 @@
-"""run.json as one typed record (fourbar_common.RunRecord): every parameter's start value
-with its source, read back by the monitor and the diagnosis; case files that name no
+"""run.json as one typed record (fourbar_common.contract.run_record.RunRecord): every
+parameter's start value with its source, read back by the monitor and the diagnosis; case files that name no
 parameter, or only some, run, monitor and diagnose (issue 23, item 1).
 
 The FMU's parameters are read here with FMPy directly (not through the orchestrator's
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from fourbar_common import RunRecord, RunRecordError, read_run_record
+from fourbar_common.contract.run_record import RunRecord, RunRecordError, read_run_record
 from support import FOURBAR_MONITOR, FOURBAR_RUN
 
 FOURBAR_DIAGNOSE = str(Path(sys.executable).parent / "fourbar-diagnose")
@@ -216,7 +216,7 @@ def test_what_is_not_a_record_is_refused(tmp_path, text, expected):
 
 
 def test_a_huge_run_json_is_refused(tmp_path, monkeypatch):
-    import fourbar_common.run_record as rr
+    import fourbar_common.contract.json_files as rr
 
     path = tmp_path / "run.json"
     path.write_text('{"schema": 2, "pad": "' + "x" * 2000 + '"}')

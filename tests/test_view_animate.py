@@ -17,7 +17,7 @@ from matplotlib.colors import to_rgb
 from PIL import Image
 from support import FOURBAR_MONITOR, FOURBAR_RUN, case_file
 
-from fourbar_common import read_run_record
+from fourbar_common.contract.run_record import read_run_record
 from view.animate import (ALARM_COLOUR, BODY_COLOUR, FAULT_COLOUR, AnimationError, animate, default_window,
                           frame_times)
 from view.sources import RunFolderError

@@ -21,7 +21,7 @@ import pytest
 from matplotlib.colors import to_rgb
 from PIL import Image
 
-from fourbar_common import read_run_record
+from fourbar_common.contract.run_record import read_run_record
 from support import FOURBAR_RUN, REPO
 from view.animate import FIGURE_INCHES, GROUND_COLOUR, animate, frame_times, mechanism_axes
 from view.geometry import Geometry

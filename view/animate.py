@@ -36,8 +36,9 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from fourbar_common import Drawing, RampEvent, RunRecord, StepEvent
+from fourbar_common import Drawing, RampEvent, StepEvent
 from fourbar_common.contract.layout import EXCHANGE, FORECAST
+from fourbar_common.contract.run_record import RunRecord
 
 from .geometry import Geometry, faulted_bodies
 from .sources import MonitorEvent, RunFolder

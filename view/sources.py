@@ -27,16 +27,17 @@ from typing import Any
 
 import pandas as pd
 
-from fourbar_common import RunRecord, RunRecordError, read_run_record
+from fourbar_common.contract.diagnosis import read_diagnosis
 from fourbar_common.contract.evaluations import EvaluationsTail
 from fourbar_common.contract.exchange import TIME_COLUMN, ExchangeTail, LineTail
 from fourbar_common.contract.forecast import ForecastTail
+from fourbar_common.contract.json_files import JsonFileError, parse_json
 from fourbar_common.contract.layout import EXCHANGE, RUN_RECORD
 from fourbar_common.contract.layout import RunFolder as RunPaths
 from fourbar_common.contract.monitor_events import MonitorEvent
 from fourbar_common.contract.problems import ContractError
+from fourbar_common.contract.run_record import RunRecord, RunRecordError, read_run_record
 from fourbar_common.files import file_kind
-from fourbar_common.run_record import JsonFileError, parse_json, read_json_file
 
 __all__ = ["Diagnosis", "MonitorEvent", "RunFolder", "RunFolderError", "Update", "check_run_folder"]
 
@@ -78,7 +79,8 @@ def check_run_folder(path: str | os.PathLike[str]) -> Path:
 
 @dataclass(frozen=True)
 class Diagnosis:
-    """What diagnosis.json says, as a view shows it."""
+    """What diagnosis.json says, as a view shows it: the verdict and the best explanation of the
+    contract's :class:`~fourbar_common.contract.diagnosis.DiagnosisRecord`."""
 
     verdict: str                   # explained | ambiguous | unexplained | no_change
     message: str
@@ -144,7 +146,7 @@ class RunFolder:
 
     # -- run.json -----------------------------------------------------------------------
     def _read_record(self, update: Update) -> None:
-        path = self.folder / "run.json"
+        path = RunPaths(self.folder).run_record
         changed = self._changed(path)
         if changed is None:
             update.record_problem = f"{path}: missing (the run folder was emptied)"
@@ -171,7 +173,7 @@ class RunFolder:
         if alive is False:
             return True
         try:
-            age = max(0.0, time.time() - (self.folder / "run.json").stat().st_mtime)
+            age = max(0.0, time.time() - RunPaths(self.folder).run_record.stat().st_mtime)
         except FileNotFoundError:
             return True
         return alive is None and age > STALE_HEARTBEATS * r.writer.heartbeat_s
@@ -193,18 +195,20 @@ class RunFolder:
                 continue
 
     def _read_diagnosis(self, update: Update) -> None:
-        path = self.folder / "diagnosis" / "diagnosis.json"
+        path = RunPaths(self.folder).diagnosis
         if not self._changed(path):
             return
         try:
-            data = read_json_file(path)
-            best = data.get("best") or {}
-            update.diagnosis = Diagnosis(verdict=str(data["verdict"]), message=str(data.get("message", "")),
-                                         parameter=best.get("parameter"), before=_number(best.get("before")),
-                                         value=_number(best.get("value")),
-                                         change_time=_number(best.get("change_time")))
-        except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+            record = read_diagnosis(path)
+        except (OSError, JsonFileError, ContractError) as exc:
             update.warnings.append(f"{path}: cannot be read ({exc}); the diagnosis is not shown")
+            return
+        best = record.best
+        update.diagnosis = Diagnosis(verdict=record.verdict, message=record.message,
+                                     parameter=best.parameter if best is not None else None,
+                                     before=best.before if best is not None else None,
+                                     value=best.value if best is not None else None,
+                                     change_time=best.change_time if best is not None else None)
 
     # -- the CSV files ------------------------------------------------------------------
     def _problem(self, update: Update, path: Path, exc: ContractError, what: str) -> None:

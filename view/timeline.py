@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from fourbar_common import RunRecord
+from fourbar_common.contract.run_record import RunRecord
 
 from .sources import Diagnosis, MonitorEvent, Update
 

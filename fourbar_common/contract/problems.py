@@ -31,3 +31,7 @@ class ContractError(ValueError):
         self.source = str(source)
         self.problems: tuple[Problem, ...] = tuple(problems) or (Problem("", "unreadable"),)
         super().__init__(f"{self.source}: " + "; ".join(str(p) for p in self.problems))
+
+    def __reduce__(self):
+        # pickled (a Dask worker's error) with its source and problems, not its message alone
+        return self.__class__, (self.source, self.problems)

@@ -1,7 +1,7 @@
 """run.json, typed: :class:`RunRecord`, the record ``fourbar-run`` writes beside each exchange file.
 
-One home for the file's schema: the orchestrator writes through :meth:`RunRecord.to_json`
-and every reader (monitor, diagnose) goes through :func:`read_run_record` /
+One home for the file's schema: the orchestrator writes through :func:`write_run_record`
+and every reader (monitor, diagnose, view) goes through :func:`read_run_record` /
 :meth:`RunRecord.from_json`, so no reader looks up dict keys of its own.
 
 Schema 2 (written now) records the start value of *every* parameter the FMU declares
@@ -16,7 +16,8 @@ Schema 1 (written before) is still read: its flat ``"parameters"`` held only the
 case set, with no source (:attr:`ParameterStart.source` ``"unknown"``), and any field may be
 absent (the fields it lacks are None).  :meth:`RunRecord.completed_with` adds the FMU's
 defaults to such a record.  A schema 2 record is checked in full: every field present and of
-its type; any problem raises :class:`RunRecordError` naming the file and the field.  Keys this
+its type; a problem raises :class:`RunRecordError` (a
+:class:`~.problems.ContractError` whose one problem names the field) naming the file and the field.  Keys this
 reader does not know are ignored (a newer writer may add some).  The one optional field is
 ``drawing`` (:class:`~fourbar_common.drawing.Drawing`, or null): records written before
 drawings lack it and read as None.
@@ -25,20 +26,19 @@ Standard library only.
 """
 from __future__ import annotations
 
-import json
-import math
 import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Iterable, Mapping, NoReturn
 
-from .drawing import Drawing, DrawingError
-from .events import Event, RampEvent, StepEvent, Value
-from .files import open_regular, write_json_atomic
+from ..drawing import Drawing, DrawingError
+from ..events import Event, RampEvent, StepEvent, Value
+from .json_files import (JsonFileError, is_int, is_number, kind_of, parse_json, read_text_file, show_json,
+                         write_json_file)
+from .layout import RUN_RECORD
+from .problems import ContractError, Problem
 
 __all__ = [
-    "JsonFileError",
-    "MAX_JSON_BYTES",
     "PARAMETER_SOURCES",
     "ParameterStart",
     "READABLE_SCHEMAS",
@@ -51,17 +51,12 @@ __all__ = [
     "RunRecord",
     "RunRecordError",
     "SCHEMA_VERSION",
-    "parse_json",
-    "read_json_file",
     "read_run_record",
-    "read_text_file",
     "write_run_record",
 ]
 
 #: The schema :meth:`RunRecord.to_json` writes.
 SCHEMA_VERSION = 2
-#: The exchange file's name in a run folder (beside run.json).
-EXCHANGE_NAME = "exchange.csv"
 #: The schemas :meth:`RunRecord.from_json` reads.
 READABLE_SCHEMAS = (1, 2)
 #: ``status``: ``running`` while the writer lives, then one of the other three.
@@ -74,11 +69,27 @@ _VARIABILITIES = ("fixed", "tunable")
 
 
 
-class RunRecordError(ValueError):
+class RunRecordError(ContractError):
     """run.json is unreadable or not a run record this reader understands.
 
-    The message names the file, the field, the value found and what was expected.
+    The message names the file, the field, the value found and what was expected;
+    :attr:`problems` holds that one problem as (field, message) (field ``""``: the file as a
+    whole).
     """
+
+    def __init__(self, source: str, problem: Problem, message: str):
+        super().__init__(source, (problem,))
+        self.args = (message,)
+
+    def __reduce__(self):
+        return self.__class__, (self.source, self.problems[0], self.args[0])
+
+
+def _file_error(path: Any, message: str) -> RunRecordError:
+    """A problem of the file as a whole; ``message`` is the whole text, naming the file."""
+    prefix = f"{path}: "
+    return RunRecordError(str(path), Problem("", message[len(prefix):] if message.startswith(prefix) else message),
+                          message)
 
 
 # ------------------------------------------------------------------------------------ the parts
@@ -295,7 +306,7 @@ class RunRecord:
         }
 
     @classmethod
-    def from_json(cls, data: Any, source: str = "run.json") -> "RunRecord":
+    def from_json(cls, data: Any, source: str = RUN_RECORD) -> "RunRecord":
         """The record in ``data`` (a parsed run.json); :class:`RunRecordError` naming
         ``source`` and the field when it is not a record of a readable schema."""
         return _Parser(source).record(data)
@@ -303,52 +314,8 @@ class RunRecord:
 
 # ------------------------------------------------------------------------------------ reading files
 
-#: Largest JSON file of a run folder read (run.json, summary.json): fourbar-run's run.json of a
-#: mechanism with hundreds of parameters is tens of kB.
-MAX_JSON_BYTES = 16 << 20
 #: The fields a record of every schema has: a JSON object with none of them is not a run record.
 _RECORD_FIELDS = ("schema", "status", "run_id", "case", "experiment", "rows_written")
-
-
-class JsonFileError(ValueError):
-    """A JSON file of a run folder cannot be used: not JSON, nested too deeply, too large."""
-
-
-def read_text_file(path: str | os.PathLike[str], *, max_bytes: int | None = None) -> str:
-    """The UTF-8 text of the regular file ``path``, at most ``max_bytes`` long (default
-    :data:`MAX_JSON_BYTES`).
-
-    Raises ``FileNotFoundError``, :class:`NotRegularFileError`, :class:`JsonFileError` (too
-    large, not UTF-8) naming the file, or ``OSError``.
-    """
-    if max_bytes is None:
-        max_bytes = MAX_JSON_BYTES
-    with open_regular(path) as handle:
-        data = handle.read(max_bytes + 1)
-    if len(data) > max_bytes:
-        raise JsonFileError(f"{path}: larger than {max_bytes} bytes; not a file fourbar-cosim writes")
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise JsonFileError(f"{path}: not UTF-8 text: {exc.reason} at byte {exc.start}") from None
-
-
-def parse_json(text: str, source: str) -> Any:
-    """``json.loads(text)`` with every failure a :class:`JsonFileError` naming ``source``:
-    invalid JSON, and JSON nested deeper than Python's parser can follow (a RecursionError)."""
-    try:
-        return json.loads(text)
-    except RecursionError:
-        raise JsonFileError(f"{source}: JSON nested too deeply (arrays or objects inside each other more than "
-                            "about a thousand levels); not a file fourbar-cosim writes") from None
-    except ValueError as exc:
-        raise JsonFileError(f"{source}: not valid JSON: {exc}") from None
-
-
-def read_json_file(path: str | os.PathLike[str], *, max_bytes: int | None = None) -> Any:
-    """The parsed JSON file ``path`` (regular, at most ``max_bytes``); errors as
-    :func:`read_text_file` and :func:`parse_json`."""
-    return parse_json(read_text_file(path, max_bytes=max_bytes), str(path))
 
 
 def read_run_record(path: str | os.PathLike[str]) -> RunRecord:
@@ -365,48 +332,24 @@ def read_run_record(path: str | os.PathLike[str]) -> RunRecord:
     except FileNotFoundError:
         raise
     except (OSError, JsonFileError) as exc:
-        raise RunRecordError(f"{path}: cannot read: {exc}" if not str(exc).startswith(str(path))
-                             else str(exc)) from None
+        raise _file_error(path, f"{path}: cannot read: {exc}" if not str(exc).startswith(str(path))
+                          else str(exc)) from None
     if not text.strip():
-        raise RunRecordError(f"{path}: is empty ({len(text.encode())} bytes): not a run record; expected the JSON "
-                             f"object fourbar-run writes, with fields {', '.join(_RECORD_FIELDS)}, ...")
+        raise _file_error(path, f"{path}: is empty ({len(text.encode())} bytes): not a run record; expected the "
+                          f"JSON object fourbar-run writes, with fields {', '.join(_RECORD_FIELDS)}, ...")
     try:
         data = parse_json(text, str(path))
     except JsonFileError as exc:
-        raise RunRecordError(str(exc)) from None
+        raise _file_error(path, str(exc)) from None
     return RunRecord.from_json(data, str(path))
 
 
 def write_run_record(path: str | os.PathLike[str], record: RunRecord) -> None:
     """Replace ``path`` by ``record`` atomically (a reader sees the old record or the new one)."""
-    write_json_atomic(path, record.to_json())
+    write_json_file(path, record.to_json())
 
 
 # ------------------------------------------------------------------------------------ checking
-
-def _kind(value: Any) -> str:
-    if value is None:
-        return "null"
-    if isinstance(value, bool):
-        return "a boolean"
-    if isinstance(value, (int, float)):
-        return "a number"
-    if isinstance(value, str):
-        return "a string"
-    if isinstance(value, list):
-        return "an array"
-    if isinstance(value, dict):
-        return "an object"
-    return type(value).__name__
-
-
-def _show(value: Any) -> str:
-    try:
-        text = json.dumps(value, allow_nan=True, default=str)
-    except (RecursionError, ValueError):
-        return f"<{_kind(value)} nested too deeply to show>"
-    return text if len(text) <= 60 else text[:57] + "..."
-
 
 class _Parser:
     """Checks one parsed run.json; every complaint names ``source`` and the dotted field."""
@@ -416,8 +359,15 @@ class _Parser:
         self.lenient = False       # schema 1: absent fields are None
 
     # -- primitives -------------------------------------------------------------------
+    def error(self, where: str, text: str) -> RunRecordError:
+        """The error of field ``where`` (``""``: the record as a whole); ``text`` follows the
+        file's name in the message."""
+        lead = f"field '{where}' "
+        return RunRecordError(self.source, Problem(where, text[len(lead):] if text.startswith(lead) else text),
+                              f"{self.source}: {text}")
+
     def fail(self, where: str, value: Any, expected: str) -> NoReturn:
-        raise RunRecordError(f"{self.source}: field '{where}' = {_show(value)}: expected {expected}")
+        raise self.error(where, f"field '{where}' = {show_json(value)}: expected {expected}")
 
     def get(self, obj: dict, key: str, prefix: str, check, expected: str, *, nullable: bool = False,
             default: Any = None) -> Any:
@@ -425,7 +375,7 @@ class _Parser:
         if key not in obj:
             if self.lenient:
                 return default
-            raise RunRecordError(f"{self.source}: field '{where}' is missing: expected {expected}"
+            raise self.error(where, f"field '{where}' is missing: expected {expected}"
                                  f"{' or null' if nullable else ''} (every run.json of schema {SCHEMA_VERSION} "
                                  f"that fourbar-run writes has it)")
         value = obj[key]
@@ -435,13 +385,8 @@ class _Parser:
             self.fail(where, value, expected + (" or null" if nullable else ""))
         return value
 
-    @staticmethod
-    def is_number(v: Any) -> bool:
-        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-    @staticmethod
-    def is_int(v: Any) -> bool:
-        return isinstance(v, int) and not isinstance(v, bool)
+    is_number = staticmethod(is_number)
+    is_int = staticmethod(is_int)
 
     @staticmethod
     def is_text(v: Any) -> bool:
@@ -464,17 +409,17 @@ class _Parser:
     # -- the record -------------------------------------------------------------------
     def record(self, data: Any) -> RunRecord:
         if not isinstance(data, dict):
-            raise RunRecordError(f"{self.source}: the top level is {_kind(data)}; expected a JSON object written "
+            raise self.error("", f"the top level is {kind_of(data)}; expected a JSON object written "
                                  f"by fourbar-run")
         if not any(name in data for name in _RECORD_FIELDS):
-            raise RunRecordError(f"{self.source}: not a run record: fields {', '.join(_RECORD_FIELDS)} are missing"
+            raise self.error("", f"not a run record: fields {', '.join(_RECORD_FIELDS)} are missing"
                                  + (" (the object is empty)" if not data else
                                     f" (it has {', '.join(map(repr, list(data)[:5]))}"
                                     + (", ..." if len(data) > 5 else "") + ")"))
         schema = self.get(data, "schema", "", self.is_int, f"an integer schema version ({' or '.join(map(str, READABLE_SCHEMAS))})")
         if schema not in READABLE_SCHEMAS:
             newer = schema > max(READABLE_SCHEMAS)
-            raise RunRecordError(f"{self.source}: field 'schema' = {schema}: this reader reads schemas "
+            raise self.error("schema", f"field 'schema' = {schema}: this reader reads schemas "
                                  f"{', '.join(map(str, READABLE_SCHEMAS))}"
                                  + ("; the file was written by a newer fourbar-cosim: update this one" if newer else ""))
         self.lenient = schema == 1
@@ -519,7 +464,8 @@ class _Parser:
         try:
             return Drawing.from_json(value, f"{self.source}: field 'drawing'")
         except DrawingError as exc:
-            raise RunRecordError(str(exc)) from None
+            prefix = f"{self.source}: "
+            raise self.error("drawing", str(exc)[len(prefix):] if str(exc).startswith(prefix) else str(exc)) from None
 
     def fmu(self, data: dict) -> RecordedFmu | None:
         table = self.obj(data, "fmu", "")
@@ -530,7 +476,7 @@ class _Parser:
             return None
         fmi_type = table.get("fmi_type", "CoSimulation")   # optional: runs written before it are co-simulation
         if fmi_type not in ("CoSimulation", "ModelExchange"):
-            raise RunRecordError(f"{self.source}: field 'fmu.fmi_type' = {fmi_type!r}: expected 'CoSimulation' or "
+            raise self.error("fmu.fmi_type", f"field 'fmu.fmi_type' = {fmi_type!r}: expected 'CoSimulation' or "
                                  f"'ModelExchange'")
         return RecordedFmu(*values, fmi_type=fmi_type)
 
