@@ -34,7 +34,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+
 import numpy as np
+
+from fourbar_common.contract.layout import RUN_RECORD
 
 __all__ = ["GRID_TOLERANCE", "Grid", "GridChecker", "GridIssue", "GridPiece", "GridStats", "LEARN_ROWS",
            "MAX_ISSUES", "grid_of"]
@@ -295,4 +298,4 @@ def grid_of(experiment: object | None) -> Grid | None:
     start, step, stop = (getattr(experiment, name, None) for name in ("start", "step", "stop"))
     if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in (start, step, stop)) or step <= 0:
         return None
-    return Grid(float(start), float(step), float(stop), "run.json")
+    return Grid(float(start), float(step), float(stop), RUN_RECORD)

@@ -336,13 +336,10 @@ def test_a_sweep_file_names_each_bad_monitor_option_with_its_value(tmp_path, nat
 # -- no part parses or dumps a run folder's JSON file itself -------------------------------------------------------
 
 #: Calls of the JSON parsers and writers the parts still make, and why: none reads or writes a
-#: JSON file of a run or sweep folder but events.jsonl (its contract module is another
-#: engineer's, issue 38: the view's tail of it and the monitor's writer of it move there).
+#: JSON file of a run or sweep folder.
 ALLOWED_JSON_CALLS = {
     ("orchestrator/validation.py", "json.dumps"),   # a value shown in a message
     ("sweep/plan.py", "json.dumps"),                # a scenario's canonical text, hashed into its id
-    ("monitor/outputs.py", "json.dumps"),           # events.jsonl lines
-    ("view/sources.py", "parse_json"),              # events.jsonl lines
 }
 
 
@@ -370,8 +367,9 @@ def test_the_parts_join_no_contract_file_name_into_a_path():
 
     from fourbar_common.contract import layout
 
-    names = {layout.RUN_RECORD, layout.SUMMARY, layout.DIAGNOSIS, layout.DIAGNOSIS_FOLDER, layout.SWEEP_RECORD,
-             layout.SWEEP_RESULTS, layout.SWEEP_SUMMARY}
+    names = {layout.EXCHANGE, layout.RUN_RECORD, layout.MONITOR_FOLDER, layout.EVENTS, layout.EVALUATIONS,
+             layout.FORECAST, layout.SUMMARY, layout.DIAGNOSIS, layout.DIAGNOSIS_FOLDER, layout.SWEEP_RECORD,
+             layout.SWEEP_RESULTS, layout.SWEEP_SUMMARY, layout.SWEEP_RUNS}
     joined = []
     for part in ("orchestrator", "monitor", "view", "diagnose", "sweep"):
         for path in sorted((REPO / part).glob("*.py")):

@@ -31,10 +31,10 @@ from fourbar_common.contract.diagnosis import read_diagnosis
 from fourbar_common.contract.evaluations import EvaluationsTail
 from fourbar_common.contract.exchange import TIME_COLUMN, ExchangeTail, LineTail
 from fourbar_common.contract.forecast import ForecastTail
-from fourbar_common.contract.json_files import JsonFileError, parse_json
+from fourbar_common.contract.json_files import JsonFileError
 from fourbar_common.contract.layout import EXCHANGE, RUN_RECORD
 from fourbar_common.contract.layout import RunFolder as RunPaths
-from fourbar_common.contract.monitor_events import MonitorEvent
+from fourbar_common.contract.monitor_events import MonitorEvent, read_growing_events
 from fourbar_common.contract.problems import ContractError
 from fourbar_common.contract.run_record import RunRecord, RunRecordError, read_run_record
 from fourbar_common.files import file_kind
@@ -182,17 +182,9 @@ class RunFolder:
     def _read_events(self, update: Update) -> None:
         chunk = self.events.read()
         update.monitor_restarted = update.monitor_restarted or chunk.restarted
-        lines = [line for line in chunk.data.decode("utf-8", errors="replace").split("\n") if line.strip()]
-        for line in lines:
-            try:
-                data = parse_json(line, str(self.events.path))
-            except JsonFileError as exc:     # not JSON, or nested too deeply
-                update.warnings.append(f"{exc}; the line was skipped")
-                continue
-            try:
-                update.events.append(MonitorEvent.from_dict(data, str(self.events.path)))
-            except ContractError:          # not an event of the monitor's: skipped
-                continue
+        events, warnings = read_growing_events(chunk.data.decode("utf-8", errors="replace"), str(self.events.path))
+        update.events += events
+        update.warnings += warnings
 
     def _read_diagnosis(self, update: Update) -> None:
         path = RunPaths(self.folder).diagnosis

@@ -37,9 +37,10 @@ import math
 from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar, Mapping
 
+from .json_files import JsonFileError, parse_json
 from .problems import ContractError, Problem
 
-__all__ = ["ChangeAlarm", "CusumTrained", "EVENT_KINDS", "MaeTrained", "ModelFitted", "MonitorEvent", "NoPayload",
+__all__ = ["ChangeAlarm", "CusumTrained", "EVENT_KINDS", "MaeTrained", "ModelFitted", "MonitorEvent", "NoPayload", "read_growing_events",
            "OtherPayload", "PageHinkleyTrained", "Payload", "RefitWindow", "RuleAlarm", "SCHEMA_VERSION", "STATES",
            "TYPED_DETECTORS", "read_events"]
 
@@ -340,6 +341,26 @@ def read_events(text: str, source: str = "events.jsonl") -> list[MonitorEvent]:
         if line.strip():
             out.append(MonitorEvent.from_json(line, f"{source}:{n}"))
     return out
+
+
+def read_growing_events(text: str, source: str = "events.jsonl") -> tuple[list[MonitorEvent], list[str]]:
+    """The events of the complete lines of an events.jsonl that is still being written, for a live
+    reader that must go on: a line that is not JSON is skipped with a warning naming it (returned
+    second), and a JSON line that is not one of the monitor's events is skipped silently."""
+    events, warnings = [], []
+    for line in text.split("\n"):
+        if not line.strip():
+            continue
+        try:
+            data = parse_json(line, source)
+        except JsonFileError as exc:       # not JSON, or nested too deeply
+            warnings.append(f"{exc}; the line was skipped")
+            continue
+        try:
+            events.append(MonitorEvent.from_dict(data, source))
+        except ContractError:              # not an event of the monitor's
+            continue
+    return events, warnings
 
 
 def _finite(value: Any) -> Any:
