@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import signal
 import subprocess
 import threading
 import time
@@ -215,12 +216,26 @@ def _rows(path: Path) -> int:
         return -1
 
 
+def _wait_for(condition, seconds: float) -> bool:
+    """Poll ``condition`` until it holds (True) or ``seconds`` pass (False): a hang guard only."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        if condition():
+            return True
+        time.sleep(0.05)
+    return condition()
+
+
 @pytest.mark.slow
 @pytest.mark.timeout(600)
 def test_forecast_csv_grows_while_a_live_run_is_followed(tmp_path, native_fmu):
     """fourbar-monitor --follow (x2 and y2) on Case 2 run at 5x real time (20 s of data in 4 s,
     a block of 1 s of data every 0.2 s): forecast.csv appears when the training ends (9 s of
-    data) and grows block by block; in the end it is what a replay of the finished file writes."""
+    data) and grows block by block; in the end it is what a replay of the finished file writes.
+
+    The test holds the run (SIGSTOP; its process stays alive, so the follower does not call it
+    lost) after 11, 14 and 17 s of data until the monitor has written forecast rows for what it
+    has read, so the growth is seen while the run is still writing however slow the machine is."""
     case = case_file("case2_fault_L2", native_fmu, tmp_path / "case2.toml")
     run_dir = tmp_path / "live"
     mon_dir = tmp_path / "followed"
@@ -239,11 +254,23 @@ def test_forecast_csv_grows_while_a_live_run_is_followed(tmp_path, native_fmu):
                 waiting.set()
 
     threading.Thread(target=read_out, daemon=True).start()
+    counts = []
     try:
         assert waiting.wait(120), printed
         run = subprocess.Popen([FOURBAR_RUN, str(case), "--out", str(run_dir), "--realtime", "5", "--stop", str(STOP),
                                 "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        counts = []
+        try:
+            for hold in (11.0, 14.0, 17.0):       # s of data: after the training window (9 s)
+                rows = int(hold / 0.01) + 1
+                assert _wait_for(lambda: _rows(run_dir / "exchange.csv") >= rows or run.poll() is not None, 120)
+                run.send_signal(signal.SIGSTOP)
+                before = max(counts, default=0)
+                # 120 s: a hang guard; the monitor catches up with what was written in well under 1 s idle
+                grew = _wait_for(lambda: counts.append(_rows(mon_dir / "forecast.csv")) or counts[-1] > before, 120)
+                run.send_signal(signal.SIGCONT)
+                assert grew and run.poll() is None, (hold, counts[-5:], printed)
+        finally:
+            run.send_signal(signal.SIGCONT)
         while run.poll() is None:
             counts.append(_rows(mon_dir / "forecast.csv"))
             time.sleep(0.05)
@@ -256,7 +283,7 @@ def test_forecast_csv_grows_while_a_live_run_is_followed(tmp_path, native_fmu):
         err.close()
     assert "Traceback" not in (tmp_path / "monitor.err").read_text()
     growing = sorted({c for c in counts if c > 0})
-    # rows came in several steps while the run was still writing (20 blocks; a busy machine may merge some)
+    # rows came in several steps while the run was still writing (at least one per hold)
     assert len(growing) >= 3, counts
     assert counts == sorted(counts)                                # never shrinks
     replay(run_dir / "exchange.csv", out_dir=tmp_path / "replayed", plots=False, model="harmonic", signal="x2,y2")
