@@ -41,9 +41,10 @@ import os
 import stat
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Callable, Iterable, Sequence
 
-import numpy as np
+if TYPE_CHECKING:             # numpy is imported where rows are read: fourbar-run's writer needs none
+    import numpy as np
 
 from fourbar_common.files import NotRegularFileError, file_kind, open_regular
 
@@ -306,6 +307,7 @@ BlockParser = Callable[[bytes, int], "np.ndarray | None"]
 def numpy_block(body: bytes, ncols: int) -> np.ndarray | None:
     """The default :data:`BlockParser` (numpy's C reader; pandas' is about 5x faster and is
     what the monitor passes, as the contract package may not use pandas)."""
+    import numpy as np
     try:
         return np.loadtxt(io.BytesIO(body), delimiter=",", dtype=float, ndmin=2, comments=None, encoding=None)
     except ValueError:
@@ -313,6 +315,7 @@ def numpy_block(body: bytes, ncols: int) -> np.ndarray | None:
 
 
 def _empty_batch(columns: Sequence[str], **flags: bool) -> ReadBatch:
+    import numpy as np
     return ReadBatch(np.empty(0), {c: np.empty(0) for c in columns}, **flags)
 
 
@@ -503,6 +506,7 @@ class ExchangeTail:
         the required columns are finite and time increases strictly from the last row, so
         the result is the same as the row-by-row path.
         """
+        import numpy as np
         arr = self.parse_block(body, self._ncols)
         if arr is None:
             return None
@@ -521,6 +525,7 @@ class ExchangeTail:
         return self._batch(t, sub, arr[:, list(self._extra)])
 
     def _parse_each(self, lines: list[bytes], line_no: int) -> ReadBatch:
+        import numpy as np
         names = self.header
         index = self._index
         extra = self._extra
@@ -582,6 +587,7 @@ class ExchangeTail:
 
     def read_to_end(self) -> ReadBatch:
         """Poll until the file gives nothing more; return all rows read (a finished file)."""
+        import numpy as np
         batches = []
         issues: list[RowIssue] = []
         restarted = False
