@@ -15,7 +15,7 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Any, Sequence, TextIO
 
-from fourbar_common import package_version
+from fourbar_common.version import VersionAction
 
 from .options import FollowOptions, MonitorOptions, add_arguments
 
@@ -120,7 +120,7 @@ def build_parser() -> argparse.ArgumentParser:
     v = g.add_mutually_exclusive_group()
     v.add_argument("--quiet", "-q", action="store_true", help="print only alarms, warnings and the verdict")
     v.add_argument("--verbose", "-v", action="store_true", help="print a status line for every evaluation")
-    p.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
+    p.add_argument("--version", action=VersionAction)
     return p
 
 

@@ -4,7 +4,8 @@ How long a command takes to start is benchmarks/startup.py's job (docs/benchmark
 tests do not time anything.  They run a command's ``main`` in a fresh Python process and look at
 which top-level packages that process has imported (``sys.modules``): ``--help`` of every
 command loads none of the heavy libraries, and a harmonic replay loads neither Prophet nor the
-sweep's and the view's libraries (nor matplotlib with ``--no-plots``).  A package's
+sweep's and the view's libraries (nor matplotlib with ``--no-plots``); ``--version`` looks the
+version up only when asked.  A package's
 ``__init__`` that re-exported everything used to pull pandas into ``fourbar-view --help`` and
 scipy into ``fourbar-diagnose --help``.
 """
@@ -37,7 +38,7 @@ with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.St
     except SystemExit as exc:
         code = exc.code
 print(json.dumps({{"code": code, "stderr": err.getvalue()[-2000:],
-                  "modules": sorted({{name.split(".")[0] for name in sys.modules}})}}))
+                  "modules": sorted(sys.modules)}}))
 """
 
 #: A hang guard only (a replay of 12 s of data takes a few seconds of CPU).
@@ -45,13 +46,14 @@ _GUARD_S = 300
 
 
 def _imported(module: str, argv: list[str]) -> tuple[int, set[str], str]:
-    """Run ``module.main(argv)`` in a fresh process: its exit status, the top-level packages it
-    imported and the end of what it wrote to stderr."""
+    """Run ``module.main(argv)`` in a fresh process: its exit status, the modules it imported
+    (``a.b`` also as ``a``) and the end of what it wrote to stderr."""
     proc = subprocess.run([sys.executable, "-c", _PROBE.format(module=module, argv=argv)], cwd=REPO,
                           capture_output=True, text=True, timeout=_GUARD_S)
     assert proc.returncode == 0, proc.stderr[-4000:]
     report = json.loads(proc.stdout.splitlines()[-1])
-    return report["code"], set(report["modules"]), report["stderr"]
+    modules = set(report["modules"])
+    return report["code"], modules | {name.split(".")[0] for name in modules}, report["stderr"]
 
 
 @pytest.mark.parametrize("command, module", [("fourbar-monitor", "monitor.cli"), ("fourbar-run", "orchestrator.cli"),
@@ -61,6 +63,19 @@ def test_help_loads_no_heavy_library(command, module):
     code, modules, stderr = _imported(module, ["--help"])
     assert code == 0, stderr
     assert not modules & set(HEAVY), f"{command} --help imported {sorted(modules & set(HEAVY))}"
+    # --version's lookup (importlib.metadata, ~50 ms) waits until --version is asked for
+    assert "importlib.metadata" not in modules
+
+
+@pytest.mark.parametrize("module", ["monitor.cli", "orchestrator.cli", "diagnose.cli", "view.cli", "sweep.cli"])
+def test_version_still_prints_the_installed_version(module):
+    from importlib.metadata import version
+
+    proc = subprocess.run([sys.executable, "-c", f"from {module} import main; main(['--version'])"], cwd=REPO,
+                          capture_output=True, text=True, timeout=_GUARD_S)
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    command = {"orchestrator.cli": "fourbar-run"}.get(module, f"fourbar-{module.split('.')[0]}")
+    assert proc.stdout == f"{command} {version('fourbar-cosim')}\n"
 
 
 def test_packages_load_their_modules_on_first_use():
