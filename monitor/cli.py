@@ -270,10 +270,16 @@ def _main(argv: Sequence[str] | None, stop: Any) -> int:
                   file=out, flush=True)
         common = dict(out_dir=out_dir, plots=not args.no_plots, on_event=printer.event,
                       on_evaluation=printer.evaluation, on_warning=printer.warning, **settings)
-        if args.follow:
-            result = follow(exchange, poll=args.poll, timeout=args.timeout, on_wait=printer.wait, **common)
-        else:
-            result = replay(exchange, **common)
+        # one BLAS thread: the monitor's linear algebra is small (normal equations of a few dozen
+        # unknowns), so more threads only wait for work, busily: on 2 cores a replay of Case 2 spent
+        # 0.9 s of CPU in training instead of 0.2 s, with the same numbers (docs/benchmarks.md)
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=1, user_api="blas"):
+            if args.follow:
+                result = follow(exchange, poll=args.poll, timeout=args.timeout, on_wait=printer.wait, **common)
+            else:
+                result = replay(exchange, **common)
     except MonitorError as exc:
         if stop.received is not None:       # e.g. Prophet's optimiser killed by the same Ctrl-C
             return _stopped(stop.received, printer, out_dir, err, earlier)

@@ -127,3 +127,38 @@ def test_harmonic_replay_loads_no_prophet(short_case2, tmp_path, plots):
     assert (tmp_path / "monitor" / "history.png").exists() == plots
     assert not modules & set(NOT_IN_HARMONIC_REPLAY), \
         f"a harmonic replay imported {sorted(modules & set(NOT_IN_HARMONIC_REPLAY))}"
+
+
+def test_replay_runs_blas_on_one_thread(short_case2, tmp_path):
+    """``fourbar-monitor`` monitors with one BLAS thread: its linear algebra is small, and more
+    threads only wait, busily, for work (a harmonic replay of Case 2 spent 0.7 s more CPU on 2
+    cores, with the same results; docs/benchmarks.md).  The library's own setting is restored
+    after the session.  (On a 1-core machine BLAS has one thread anyway.)"""
+    probe = """
+import json, sys
+import monitor.session
+from threadpoolctl import threadpool_info
+from monitor.cli import main
+
+def blas_threads():
+    return sorted(set(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"))
+
+before = blas_threads()
+seen, replay = [], monitor.session.replay
+def spy(*args, **kwargs):
+    seen.append(blas_threads())
+    return replay(*args, **kwargs)
+monitor.session.replay = spy
+code = main({argv!r})
+print(json.dumps({{"code": code, "before": before, "during": seen, "after": blas_threads()}}))
+"""
+    import os
+
+    argv = [str(short_case2), "--model", "harmonic", "--quiet", "--no-plots", "--out", str(tmp_path / "monitor")]
+    proc = subprocess.run([sys.executable, "-c", probe.format(argv=argv)], cwd=REPO, capture_output=True, text=True,
+                          timeout=_GUARD_S, env={k: v for k, v in os.environ.items() if "_NUM_THREADS" not in k})
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    report = json.loads(proc.stdout.splitlines()[-1])
+    assert report["code"] == 1, report
+    assert report["during"] == [[1]], report
+    assert report["after"] == report["before"], report         # the library's setting, restored
