@@ -484,6 +484,8 @@ def _statistic_scale(stat: np.ndarray, thr: np.ndarray) -> tuple[str, float | No
 
 
 def _plot_statistic(fig: Any, result: "MonitorResult") -> None:
+    from .log_labels import plain_log_labels
+
     ev = result.evaluations
     s = result.summary
     o = result.options
@@ -523,6 +525,7 @@ def _plot_statistic(fig: Any, result: "MonitorResult") -> None:
                 ax.set_ylim(bottom=-0.08 * linthresh)
         else:
             ax.set_yscale("log")
+        plain_log_labels(ax.yaxis)
         if span is not None:
             ax.set_xlim(*span)
         ax.set_xlabel("time (s)")
@@ -549,6 +552,8 @@ def _plot_statistic(fig: Any, result: "MonitorResult") -> None:
 
 
 def _plot_spectrum(fig: Any, result: "MonitorResult") -> None:
+    from .log_labels import plain_log_labels
+
     est = result.fits[0].estimate
     fit = result.fits[0]
     ax, ax2 = fig.subplots(1, 2, width_ratios=[1.6, 1])
@@ -556,6 +561,7 @@ def _plot_spectrum(fig: Any, result: "MonitorResult") -> None:
     m = f <= min(f[-1], 12.0 / est.period)
     ax.semilogy(f[m], np.maximum(est.spectrum[m], 1e-12), color="tab:blue", lw=1.0,
                 label="|FFT| (mean removed, Hann, zero-padded)")
+    plain_log_labels(ax.yaxis)
     ax.axvline(est.fft_frequency, color="tab:orange", ls="--",
                label=f"FFT peak {est.fft_frequency:.4f} Hz → {est.fft_period:.4f} s")
     ax.axvline(est.frequency, color="red", lw=1.0,

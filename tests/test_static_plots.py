@@ -148,6 +148,58 @@ def test_statistic_shading_starts_at_the_alarm(figures):
         assert _vline_x(alarm) == pytest.approx(start, abs=TIME_TOL)
 
 
+# --------------------------------------------------------------- log axes, statistic and spectrum
+
+_SUPERSCRIPTS = {c: d for c, d in zip("⁰¹²³⁴⁵⁶⁷⁸⁹⁻", "0123456789-")}
+
+
+def _label_value(text: str) -> float:
+    """The number a plain-text log label says: ``0``, ``10⁻³``, ``2×10⁴`` (a minus as ``−``)."""
+    sign = -1.0 if text.startswith("−") else 1.0
+    text = text.lstrip("−")
+    coeff, _, power = text.rpartition("×") if "×" in text else ("1", "", text)
+    if power == "0":
+        return 0.0
+    assert power.startswith("10"), text
+    return sign * float(coeff) * 10.0 ** int("".join(_SUPERSCRIPTS[c] for c in power[2:]))
+
+
+def test_log_axes_are_labelled_in_plain_text(figures):
+    """The statistic's (symlog) and the spectrum's (log) axes say their decades in plain text:
+    no mathtext, whose parser a fresh process builds in about 0.15 s of CPU (docs/benchmarks.md),
+    and each label the value of its tick."""
+    import matplotlib.mathtext
+
+    parsed = []
+    parse = matplotlib.mathtext.MathTextParser.parse
+    matplotlib.mathtext.MathTextParser.parse = lambda self, s, *a, **k: parsed.append(s) or parse(self, s, *a, **k)
+    try:
+        for name in ("statistic.png", "spectrum.png"):
+            figures[name].canvas.draw()
+    finally:
+        matplotlib.mathtext.MathTextParser.parse = parse
+    assert parsed == []
+    log_axes = [ax for name in ("statistic.png", "spectrum.png") for ax in figures[name].axes
+                if ax.get_yscale() in ("log", "symlog")]
+    assert len(log_axes) == 3
+    for ax in log_axes:
+        ticks = [(tick.get_loc(), tick.label1.get_text()) for tick in ax.yaxis.get_major_ticks()
+                 if tick.label1.get_visible() and tick.label1.get_text()]
+        assert len(ticks) >= 3
+        for loc, text in ticks:
+            assert _label_value(text) == pytest.approx(loc, rel=1e-12, abs=0), (text, loc)  # decades, exactly
+
+
+def test_plain_label_keeps_what_it_cannot_write():
+    from monitor.log_labels import plain_label
+
+    assert plain_label(r"$\mathdefault{10^{-3}}$") == "10⁻³"
+    assert plain_label(r"$\mathdefault{-2\times10^{14}}$") == "−2×10¹⁴"
+    assert plain_label(r"$\mathdefault{0}$") == "0"
+    assert plain_label("") == ""
+    assert plain_label(r"$\mathdefault{\sqrt{2}}$") == r"$\mathdefault{\sqrt{2}}$"    # left to mathtext
+
+
 # ---------------------------------------------------------------------------- diagnosis.png
 
 @pytest.fixture(scope="module")
