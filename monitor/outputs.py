@@ -314,16 +314,27 @@ def plot_figures(result: "MonitorResult") -> dict[str, Any]:
 
 def write_plots(result: "MonitorResult", out_dir: str | os.PathLike[str]) -> list[Path]:
     """Write history.png, statistic.png and spectrum.png for ``result``; return their paths."""
+    import gc
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
-    for name, fig in plot_figures(result).items():
-        path = out / name
-        try:            # atomically: a full disk leaves no truncated PNG
-            replace_atomically(path, lambda tmp, fig=fig: fig.savefig(tmp, format="png"))
-        except OSError as exc:
-            raise OutputWriteError(f"{path}: cannot write: {exc.strerror or exc}") from exc
-        paths.append(path)
+    # no cycle collection while matplotlib is imported and draws: its thousands of new objects
+    # would start full collections of everything the process holds (pandas, scipy, the result),
+    # 0.2 s of a fresh process's CPU (docs/benchmarks.md); what they leave is collected after
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        for name, fig in plot_figures(result).items():
+            path = out / name
+            try:            # atomically: a full disk leaves no truncated PNG
+                replace_atomically(path, lambda tmp, fig=fig: fig.savefig(tmp, format="png"))
+            except OSError as exc:
+                raise OutputWriteError(f"{path}: cannot write: {exc.strerror or exc}") from exc
+            paths.append(path)
+    finally:
+        if collecting:
+            gc.enable()
     return paths
 
 

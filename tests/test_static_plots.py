@@ -14,6 +14,7 @@ delay_arl0.png and detection.png give the same delays at the designed ARL0 for t
 """
 from __future__ import annotations
 
+import os
 import subprocess
 
 import numpy as np
@@ -188,6 +189,40 @@ def test_log_axes_are_labelled_in_plain_text(figures):
         assert len(ticks) >= 3
         for loc, text in ticks:
             assert _label_value(text) == pytest.approx(loc, rel=1e-12, abs=0), (text, loc)  # decades, exactly
+
+
+def test_write_plots_starts_no_cycle_collection(case2, tmp_path):
+    """Drawing the figures starts no garbage-collector pass (before: about 100, each would walk every object the
+    process holds: 0.2 s of a fresh monitor's CPU, docs/benchmarks.md), and collection is on
+    again after, also when a write fails."""
+    import gc
+
+    from monitor.errors import OutputWriteError
+    from monitor.outputs import PLOT_FILES, write_plots
+
+    import sys
+
+    passes = []       # collections started from inside matplotlib (importing, building, drawing)
+
+    def count(phase, info):
+        frame = sys._getframe(1)
+        while phase == "start" and frame is not None:
+            if f"{os.sep}matplotlib{os.sep}" in frame.f_code.co_filename:
+                passes.append((info["generation"], frame.f_code.co_name))
+                return
+            frame = frame.f_back
+
+    gc.callbacks.append(count)
+    try:
+        paths = write_plots(case2[0], tmp_path / "plots")
+        assert passes == [] and gc.isenabled()
+        (tmp_path / "bad" / PLOT_FILES[0]).mkdir(parents=True)    # a folder where a PNG should be
+        with pytest.raises(OutputWriteError):
+            write_plots(case2[0], tmp_path / "bad")
+    finally:
+        gc.callbacks.remove(count)
+    assert gc.isenabled()
+    assert [p.name for p in paths] == list(PLOT_FILES) and all(p.stat().st_size > 0 for p in paths)
 
 
 def test_plain_label_keeps_what_it_cannot_write():
