@@ -189,7 +189,9 @@ def main(argv: list[str] | None = None) -> int:
     print("What a replay loads is what it uses (tests/test_startup_imports.py checks what `--help` and a harmonic "
           "replay import): pandas (the exchange file, the result's frames), scipy.optimize and scipy.interpolate "
           "(the period, the CUSUM's limit, the phase tracker) and, for the three PNG figures, matplotlib; the "
-          "difference between the two harmonic rows is matplotlib's import and the drawing of the figures.")
+          "difference between the two harmonic rows is matplotlib's import and the drawing of the figures. "
+          "The monitor runs BLAS on one thread (threadpoolctl: more threads only wait, busily, for its small "
+          "fits) and labels its log axes in plain text (no mathtext parser to build).")
     print()
     print(f"Load average (1 min) before / after: {load_before:.2f} / {load_after:.2f} "
           "(other processes on the machine lengthen the wall times).")
