@@ -32,6 +32,7 @@ SECTIONS = [
      ["benchmarks/monitor_replay.py"]),
     ("sweep_scaling", "Sweep throughput on Dask, 1 and 2 workers (issue 6)", ["benchmarks/sweep_scaling.py"]),
     ("view_load", "Live view following an hour-long run at 100 Hz (issue 25)", ["benchmarks/view_load.py"]),
+    ("startup", "Start-up time of the commands (issue 38)", ["benchmarks/startup.py"]),
 ]
 
 

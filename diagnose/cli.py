@@ -13,8 +13,8 @@ import sys
 import warnings
 from pathlib import Path
 
-from fourbar_common import package_version
 from fourbar_common.contract.layout import RunFolder
+from fourbar_common.version import VersionAction
 
 __all__ = ["AMBIGUOUS", "OUTPUTS_NOT_WRITTEN", "build_parser", "main"]
 
@@ -89,7 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-ramp", action="store_true", help="fit steps only")
     p.add_argument("--no-plot", action="store_true", help="write diagnosis.json only")
     p.add_argument("--quiet", action="store_true", help="print the verdict line only")
-    p.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
+    p.add_argument("--version", action=VersionAction)
     return p
 
 

@@ -26,7 +26,6 @@ from dataclasses import dataclass, field, replace
 from typing import Mapping
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from .simulator import BranchFailed, Simulator
 
@@ -288,6 +287,8 @@ class _StepObjective:
     def solve(self, c: int, u0: float, max_nfev: int) -> "_Solved":
         """Least squares from ``u0`` within the bounds, widened while the fit ends on one (module
         docstring), then polished by secant steps (:meth:`_polish`)."""
+        from scipy.optimize import least_squares   # here: ``fourbar-diagnose --help`` needs no scipy
+
         lo, hi = _BOUNDS_RELATIVE if self.v0 != 0 else _BOUNDS_ABSOLUTE
         for _ in range(_WIDEN):
             result = least_squares(self, [u0], args=(c,), diff_step=_DIFF_STEP, x_scale=[0.01], bounds=([lo], [hi]),
@@ -584,6 +585,8 @@ def fit_ramp(problem: Problem, step: Fit, duration0: float = 2.0,
     A ramp whose end is within two steps of the window's end is ``open``: still changing
     when the data end, so its end and final value are lower bounds.
     """
+    from scipy.optimize import least_squares
+
     grid = problem.sim.grid
     v0 = step.before
     scale = problem.scale(step.parameter)

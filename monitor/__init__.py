@@ -1,8 +1,9 @@
 """The monitor: the paper's analysis part (FFT period → Prophet forecast → MAE vs threshold).
 
 It reads only an exchange file (``time,x2,...``) and, if present, the ``run.json`` beside
-it; it imports nothing from ``orchestrator`` or ``fmu_src``.  Importing this package is
-light (numpy); Prophet, scikit-learn, scipy, pandas and matplotlib are imported when used.
+it; it imports nothing from ``orchestrator`` or ``fmu_src``.  Importing this package imports
+nothing more (its names load on first use); Prophet, scikit-learn, scipy, pandas and
+matplotlib are imported when used.
 
 Public API::
 
@@ -26,18 +27,41 @@ Command: ``fourbar-monitor`` (:mod:`monitor.cli`).  Method and options: docs/mon
 """
 from __future__ import annotations
 
-from .detector import ALARM_MESSAGE, Detector, Event, State
-from .detectors import register
-from .threshold import ThresholdRule, auto_threshold, fixed_threshold
-from .options import FollowOptions, MonitorOptions
-from .session import follow, replay
-from .stream import Monitor
-from .summary import FaultScore, MonitorResult, Summary, score_alarms
-from .errors import (ExchangeFormatError, ExchangeMissingError, MonitorError, OptionError, OutputWriteError,
-                     RunJsonError, TrainingError)
-from .forecasters import Forecaster, fit_forecaster
-from .reader import ExchangeReader, ExchangeWarning, RunInfo, read_exchange, read_run_info
-from .spectrum import PeriodEstimate, dominant_period
+from importlib import import_module
+from typing import Any
+
+#: Where each public name lives.  They are imported on first use (PEP 562), so that
+#: ``fourbar-monitor --help`` and ``from monitor.cli import main`` load none of the modules
+#: the command does not need; ``from monitor import replay`` works as before.
+_HOMES = {
+    "ALARM_MESSAGE": "detector", "Detector": "detector", "Event": "detector", "State": "detector",
+    "register": "detectors",
+    "ThresholdRule": "threshold", "auto_threshold": "threshold", "fixed_threshold": "threshold",
+    "FollowOptions": "options", "MonitorOptions": "options",
+    "follow": "session", "replay": "session",
+    "Monitor": "stream",
+    "FaultScore": "summary", "MonitorResult": "summary", "Summary": "summary", "score_alarms": "summary",
+    "ExchangeFormatError": "errors", "ExchangeMissingError": "errors", "MonitorError": "errors",
+    "OptionError": "errors", "OutputWriteError": "errors", "RunJsonError": "errors", "TrainingError": "errors",
+    "Forecaster": "forecasters", "fit_forecaster": "forecasters",
+    "ExchangeReader": "reader", "ExchangeWarning": "reader", "RunInfo": "reader", "read_exchange": "reader",
+    "read_run_info": "reader",
+    "PeriodEstimate": "spectrum", "dominant_period": "spectrum",
+}
+
+
+def __getattr__(name: str) -> Any:
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(f".{home}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     "ALARM_MESSAGE",

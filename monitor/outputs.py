@@ -309,16 +309,27 @@ def plot_figures(result: "MonitorResult") -> dict[str, Any]:
 
 def write_plots(result: "MonitorResult", out_dir: str | os.PathLike[str]) -> list[Path]:
     """Write history.png, statistic.png and spectrum.png for ``result``; return their paths."""
+    import gc
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
-    for name, fig in plot_figures(result).items():
-        path = out / name
-        try:            # atomically: a full disk leaves no truncated PNG
-            replace_atomically(path, lambda tmp, fig=fig: fig.savefig(tmp, format="png"))
-        except OSError as exc:
-            raise OutputWriteError(f"{path}: cannot write: {exc.strerror or exc}") from exc
-        paths.append(path)
+    # no cycle collection while matplotlib is imported and draws: its thousands of new objects
+    # would start full collections of everything the process holds (pandas, scipy, the result),
+    # 0.2 s of a fresh process's CPU (docs/benchmarks.md); what they leave is collected after
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        for name, fig in plot_figures(result).items():
+            path = out / name
+            try:            # atomically: a full disk leaves no truncated PNG
+                replace_atomically(path, lambda tmp, fig=fig: fig.savefig(tmp, format="png"))
+            except OSError as exc:
+                raise OutputWriteError(f"{path}: cannot write: {exc.strerror or exc}") from exc
+            paths.append(path)
+    finally:
+        if collecting:
+            gc.enable()
     return paths
 
 
@@ -480,6 +491,8 @@ def _statistic_scale(stat: np.ndarray, thr: np.ndarray) -> tuple[str, float | No
 
 
 def _plot_statistic(fig: Any, result: "MonitorResult") -> None:
+    from .log_labels import plain_log_labels
+
     ev = result.evaluations
     s = result.summary
     o = result.options
@@ -519,6 +532,7 @@ def _plot_statistic(fig: Any, result: "MonitorResult") -> None:
                 ax.set_ylim(bottom=-0.08 * linthresh)
         else:
             ax.set_yscale("log")
+        plain_log_labels(ax.yaxis)
         if span is not None:
             ax.set_xlim(*span)
         ax.set_xlabel("time (s)")
@@ -545,6 +559,8 @@ def _plot_statistic(fig: Any, result: "MonitorResult") -> None:
 
 
 def _plot_spectrum(fig: Any, result: "MonitorResult") -> None:
+    from .log_labels import plain_log_labels
+
     est = result.fits[0].estimate
     fit = result.fits[0]
     ax, ax2 = fig.subplots(1, 2, width_ratios=[1.6, 1])
@@ -552,6 +568,7 @@ def _plot_spectrum(fig: Any, result: "MonitorResult") -> None:
     m = f <= min(f[-1], 12.0 / est.period)
     ax.semilogy(f[m], np.maximum(est.spectrum[m], 1e-12), color="tab:blue", lw=1.0,
                 label="|FFT| (mean removed, Hann, zero-padded)")
+    plain_log_labels(ax.yaxis)
     ax.axvline(est.fft_frequency, color="tab:orange", ls="--",
                label=f"FFT peak {est.fft_frequency:.4f} Hz → {est.fft_period:.4f} s")
     ax.axvline(est.frequency, color="red", lw=1.0,

@@ -12,7 +12,7 @@ import os
 import signal
 import sys
 
-from fourbar_common import package_version
+from fourbar_common.version import VersionAction
 
 __all__ = ["main"]
 
@@ -66,7 +66,7 @@ def _parser() -> argparse.ArgumentParser:
                         help="allow the run to write up to N rows (replaces exchange.max_rows; default "
                              "10,000,000): a longer run is refused before anything is written")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no summary line")
-    parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
+    parser.add_argument("--version", action=VersionAction)
     return parser
 
 

@@ -11,8 +11,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from fourbar_common import package_version
 from fourbar_common.contract.layout import SweepFolder
+from fourbar_common.version import VersionAction
 
 __all__ = ["main"]
 
@@ -79,7 +79,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--dry-run", action="store_true",
                         help="check the sweep file and count the scenarios (done / to run); run nothing")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no summary")
-    parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
+    parser.add_argument("--version", action=VersionAction)
     return parser
 
 

@@ -3,7 +3,7 @@ to the end (exit 0, no traceback), prints its tables with the expected rows, and
 process behind.  The figures themselves are the benchmarks' job.
 
 ``make benchmarks`` runs ``benchmarks/run_all.py`` (fmu_speed, native_fmu --sweep,
-fmu_accuracy, orchestrator_overhead, monitor_replay, sweep_scaling) and
+fmu_accuracy, orchestrator_overhead, monitor_replay, sweep_scaling, view_load, startup) and
 ``benchmarks/doc_figures.py --write`` (tested by tests/test_doc_figures.py).  Every one of
 those scripts is smoke-tested here (``native_fmu.py`` and ``sweep_scaling.py`` with their
 ``--quick`` setting; native_fmu's ``--sweep`` part, which runs ``fourbar-sweep`` on a toml of
@@ -260,3 +260,19 @@ def test_view_load_benchmark(tmp_path):
     latency = re.search(r"median (\d+) ms, 95th percentile (\d+) ms, largest (\d+) ms", out)
     assert latency and int(latency[1]) < 5000, out       # drawn within seconds, not never
     assert "Page errors: 0." in out, out
+
+
+@pytest.mark.slow
+def test_startup_benchmark(native_fmu):
+    """``--quick``: every command once as a new process; each row of the table is there, with
+    a CPU time, and the two rows with a target say whether each time met it."""
+    out = _bench("startup.py", "--quick", "--fmu", str(native_fmu))
+    labels = ["python -c pass", "fourbar-monitor --help", "harmonic replay of Case 2",
+              "harmonic replay of Case 2, `--no-plots`", "Prophet replay of Case 2",
+              *(f"fourbar-{name} --help" for name in ("run", "diagnose", "view", "sweep"))]
+    for label in labels:
+        (row,) = _rows(out, label)
+        assert float(row[3]) > 0, row                    # CPU s, median
+    for label, target in (("fourbar-monitor --help", "<= 0.5"), ("harmonic replay of Case 2", "<= 2")):
+        (row,) = _rows(out, label)
+        assert row[5] == target and re.fullmatch(r"(yes|\*\*no\*\*) / (yes|\*\*no\*\*)", row[6]), row

@@ -14,6 +14,7 @@ delay_arl0.png and detection.png give the same delays at the designed ARL0 for t
 """
 from __future__ import annotations
 
+import os
 import subprocess
 
 import numpy as np
@@ -146,6 +147,92 @@ def test_statistic_shading_starts_at_the_alarm(figures):
         assert end == pytest.approx(20.0, abs=TIME_TOL)      # latched to the end of the run
         (alarm,) = _by_gid(ax, "alarm")
         assert _vline_x(alarm) == pytest.approx(start, abs=TIME_TOL)
+
+
+# --------------------------------------------------------------- log axes, statistic and spectrum
+
+_SUPERSCRIPTS = {c: d for c, d in zip("⁰¹²³⁴⁵⁶⁷⁸⁹⁻", "0123456789-")}
+
+
+def _label_value(text: str) -> float:
+    """The number a plain-text log label says: ``0``, ``10⁻³``, ``2×10⁴`` (a minus as ``−``)."""
+    sign = -1.0 if text.startswith("−") else 1.0
+    text = text.lstrip("−")
+    coeff, _, power = text.rpartition("×") if "×" in text else ("1", "", text)
+    if power == "0":
+        return 0.0
+    assert power.startswith("10"), text
+    return sign * float(coeff) * 10.0 ** int("".join(_SUPERSCRIPTS[c] for c in power[2:]))
+
+
+def test_log_axes_are_labelled_in_plain_text(figures):
+    """The statistic's (symlog) and the spectrum's (log) axes say their decades in plain text:
+    no mathtext, whose parser a fresh process builds in about 0.15 s of CPU (docs/benchmarks.md),
+    and each label the value of its tick."""
+    import matplotlib.mathtext
+
+    parsed = []
+    parse = matplotlib.mathtext.MathTextParser.parse
+    matplotlib.mathtext.MathTextParser.parse = lambda self, s, *a, **k: parsed.append(s) or parse(self, s, *a, **k)
+    try:
+        for name in ("statistic.png", "spectrum.png"):
+            figures[name].canvas.draw()
+    finally:
+        matplotlib.mathtext.MathTextParser.parse = parse
+    assert parsed == []
+    log_axes = [ax for name in ("statistic.png", "spectrum.png") for ax in figures[name].axes
+                if ax.get_yscale() in ("log", "symlog")]
+    assert len(log_axes) == 3
+    for ax in log_axes:
+        ticks = [(tick.get_loc(), tick.label1.get_text()) for tick in ax.yaxis.get_major_ticks()
+                 if tick.label1.get_visible() and tick.label1.get_text()]
+        assert len(ticks) >= 3
+        for loc, text in ticks:
+            assert _label_value(text) == pytest.approx(loc, rel=1e-12, abs=0), (text, loc)  # decades, exactly
+
+
+def test_write_plots_starts_no_cycle_collection(case2, tmp_path):
+    """Drawing the figures starts no garbage-collector pass (before: about 100, each would walk every object the
+    process holds: 0.2 s of a fresh monitor's CPU, docs/benchmarks.md), and collection is on
+    again after, also when a write fails."""
+    import gc
+
+    from monitor.errors import OutputWriteError
+    from monitor.outputs import PLOT_FILES, write_plots
+
+    import sys
+
+    passes = []       # collections started from inside matplotlib (importing, building, drawing)
+
+    def count(phase, info):
+        frame = sys._getframe(1)
+        while phase == "start" and frame is not None:
+            if f"{os.sep}matplotlib{os.sep}" in frame.f_code.co_filename:
+                passes.append((info["generation"], frame.f_code.co_name))
+                return
+            frame = frame.f_back
+
+    gc.callbacks.append(count)
+    try:
+        paths = write_plots(case2[0], tmp_path / "plots")
+        assert passes == [] and gc.isenabled()
+        (tmp_path / "bad" / PLOT_FILES[0]).mkdir(parents=True)    # a folder where a PNG should be
+        with pytest.raises(OutputWriteError):
+            write_plots(case2[0], tmp_path / "bad")
+    finally:
+        gc.callbacks.remove(count)
+    assert gc.isenabled()
+    assert [p.name for p in paths] == list(PLOT_FILES) and all(p.stat().st_size > 0 for p in paths)
+
+
+def test_plain_label_keeps_what_it_cannot_write():
+    from monitor.log_labels import plain_label
+
+    assert plain_label(r"$\mathdefault{10^{-3}}$") == "10⁻³"
+    assert plain_label(r"$\mathdefault{-2\times10^{14}}$") == "−2×10¹⁴"
+    assert plain_label(r"$\mathdefault{0}$") == "0"
+    assert plain_label("") == ""
+    assert plain_label(r"$\mathdefault{\sqrt{2}}$") == r"$\mathdefault{\sqrt{2}}$"    # left to mathtext
 
 
 # ---------------------------------------------------------------------------- diagnosis.png

@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
-from fourbar_common import package_version
+from fourbar_common.version import VersionAction
 
 __all__ = ["main"]
 
@@ -97,7 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                    "fault, 15 s after --start)")
     parser.add_argument("--width", type=int, default=640, help="--animate: width in pixels (default 640)")
     parser.add_argument("--quiet", "-q", action="store_true", help="print only the URL (or the animation's path)")
-    parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
+    parser.add_argument("--version", action=VersionAction)
     return parser
 
 
