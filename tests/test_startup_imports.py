@@ -100,7 +100,7 @@ print(json.dumps({"loaded": loaded, "homes": homes}))
     homes = report["homes"]
     assert homes["monitor.replay"] == "monitor.session"
     assert homes["monitor.MonitorOptions"] == "monitor.options"
-    assert homes["fourbar_common.RunRecord"] == "fourbar_common.run_record"
+    assert homes["fourbar_common.StepEvent"] == "fourbar_common.events"
     assert homes["view.RunFolder"] == "view.sources"
     with pytest.raises(AttributeError, match="no attribute 'nothing_by_this_name'"):
         import monitor
