@@ -7,8 +7,7 @@ The run folder's files (run.json and the others) have their typed homes in
 """
 from __future__ import annotations
 
-from importlib import import_module
-from typing import Any
+from .lazy import lazy_names
 
 #: Where each public name lives; imported on first use (PEP 562), so ``from fourbar_common
 #: import package_version`` (every command's ``--version``) does not load the XML drawing.
@@ -18,20 +17,7 @@ _HOMES = {
     "output_folder_problem": "files", "replace_atomically": "files", "write_json_atomic": "files",
     "package_version": "version",
 }
-
-
-def __getattr__(name: str) -> Any:
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(f".{home}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
-
+__getattr__, __dir__ = lazy_names(__name__, _HOMES)
 
 __all__ = [
     "Drawing",

@@ -27,8 +27,7 @@ Command: ``fourbar-monitor`` (:mod:`monitor.cli`).  Method and options: docs/mon
 """
 from __future__ import annotations
 
-from importlib import import_module
-from typing import Any
+from fourbar_common.lazy import lazy_names
 
 #: Where each public name lives.  They are imported on first use (PEP 562), so that
 #: ``fourbar-monitor --help`` and ``from monitor.cli import main`` load none of the modules
@@ -48,20 +47,7 @@ _HOMES = {
     "read_run_info": "reader",
     "PeriodEstimate": "spectrum", "dominant_period": "spectrum",
 }
-
-
-def __getattr__(name: str) -> Any:
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(f".{home}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
-
+__getattr__, __dir__ = lazy_names(__name__, _HOMES)
 
 __all__ = [
     "ALARM_MESSAGE",

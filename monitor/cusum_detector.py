@@ -199,7 +199,7 @@ class CusumDetector(Detector):
             return (f"{cls._model_text(event)}{each}; CUSUM k {d['cusum_k']:.3g}, h {d['cusum_h']:.4g} (≥ {d['arl0_hours']:.3g} h between false "
                     f"alarms); noise scale {sig}")
         if event.kind == "alarm" and d.get("reason") == "cusum":
-            return f" on {d['signal']} ({d['side']}), change began ≈ {d['onset']:.2f} s; episode {d['episode']}"
+            return cls._onset_text(event)
         return ""
 
     @classmethod

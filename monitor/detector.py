@@ -233,6 +233,12 @@ class Detector(ABC):
         return (f"period {d['period_s']:.6g} s (FFT {d['period_fft_s']:.4g} s{of}); {d['model']} order {d['order']} "
                 f"fitted in {d['fit_seconds']:.2f} s")
 
+    @staticmethod
+    def _onset_text(event: Event) -> str:
+        """An alarm event's signal, side, estimated onset and episode (the sequential detectors' keys)."""
+        d = event.data
+        return f" on {d['signal']} ({d['side']}), change began ≈ {d['onset']:.2f} s; episode {d['episode']}"
+
     @classmethod
     def settings_text(cls, options: Any) -> str:
         """The settings that matter, for the console's first line."""

@@ -261,7 +261,7 @@ class PageHinkleyDetector(Detector):
             return (f"{cls._model_text(event)}; Page–Hinkley δ {d['ph_delta']:.3g}, h {d['ph_h']:.4g} "
                     f"(≥ {d['arl0_hours']:.3g} h between false alarms); noise scale {sig}")
         if event.kind == "alarm" and d.get("reason") == "page-hinkley":
-            return f" on {d['signal']} ({d['side']}), change began ≈ {d['onset']:.2f} s; episode {d['episode']}"
+            return cls._onset_text(event)
         return ""
 
     @classmethod

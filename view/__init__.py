@@ -6,28 +6,14 @@ internals; the shared schemas come from :mod:`fourbar_common`.
 """
 from __future__ import annotations
 
-from importlib import import_module
-from typing import Any
+from fourbar_common.lazy import lazy_names
 
 #: Where each public name lives; imported on first use (PEP 562: pandas, numpy), so
 #: ``fourbar-view --help`` loads neither.
 _HOMES = {"BodyShape": "geometry", "Frame": "geometry", "Geometry": "geometry", "Scene": "geometry",
           "faulted_bodies": "geometry", "Diagnosis": "sources", "MonitorEvent": "sources", "RunFolder": "sources",
           "RunFolderError": "sources", "Update": "sources", "check_run_folder": "sources"}
-
-
-def __getattr__(name: str) -> Any:
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(f".{home}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
-
+__getattr__, __dir__ = lazy_names(__name__, _HOMES)
 
 __all__ = ["BodyShape", "Diagnosis", "Frame", "Geometry", "MonitorEvent", "RunFolder", "RunFolderError", "Scene",
            "Update", "check_run_folder", "faulted_bodies"]

@@ -26,9 +26,9 @@ from .problems import ContractError, Problem
 __all__ = ["COLUMNS", "Forecast", "ForecastRow", "ForecastTail", "HEADER", "format_row", "format_rows", "read_forecast",
            "write_forecast"]
 
-#: The columns, in the file's order.
+#: The columns, in the file's order: long format, one row per monitored column per judged sample.
 COLUMNS = ("time", "signal", "value", "forecast")
-#: The header line.
+#: The header line: the monitor writes it when it starts, before any row.
 HEADER = ",".join(COLUMNS) + "\n"
 
 
