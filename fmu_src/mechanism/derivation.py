@@ -292,7 +292,28 @@ def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy):
         raise MechanismError(f"{mech.source}: [outputs]: {', '.join(map(repr, unknown))} "
                              f"{'is' if len(unknown) == 1 else 'are'} not an output of this mechanism "
                              f"(available: {', '.join(available)})")
-    return tuple(offered[n] for n in chosen) + tuple(drawn.values()), available
+    defined = _expression_outputs(mech, offered, drawn)
+    return tuple(offered[n] for n in chosen) + defined + tuple(drawn.values()), available + tuple(
+        o.name for o in defined)
+
+
+def _expression_outputs(mech: Mechanism, offered: dict[str, OutputSpec],
+                        drawn: dict[str, OutputSpec]) -> tuple[OutputSpec, ...]:
+    """The file's ``[outputs.expressions]``, after the outputs it selects: expressions the loader
+    built over the same symbols as q, qd and the parameters.  A name that is already a
+    variable's is a MechanismError naming the entry."""
+    taken = {p.name: "a parameter" for p in mech.parameters}
+    taken |= {s.parameter: "a start-value parameter" for s in mech.start}
+    taken |= {name: "a parameter of the integrator" for name in ("rtol", "atol", "integrator", "max_evaluations")}
+    taken |= {name: "an output the mechanism offers" for name in offered}
+    taken |= {name: "a joint's position output" for name in drawn}
+    out = []
+    for e in mech.expression_outputs:
+        if e.name in taken:
+            raise MechanismError(f"{mech.source}: outputs.expressions.{e.name}: has the name of {taken[e.name]}; "
+                                 f"choose another name")
+        out.append(OutputSpec(e.name, e.unit, e.description, e.expression, display_unit=e.display_unit))
+    return tuple(out)
 
 
 def _point_words(ref: PointRef) -> str:

@@ -28,7 +28,7 @@ from .expressions import MAX_MAGNITUDE, ExpressionError, check_expression, parse
 if TYPE_CHECKING:      # sympy is imported once every expression of the file has passed its checks
     import sympy as sp
 
-__all__ = ["Mechanism", "Parameter", "Body", "PointRef", "Joint", "Driver", "StartValue",
+__all__ = ["Mechanism", "Parameter", "Body", "PointRef", "Joint", "Driver", "StartValue", "ExpressionOutput",
            "MechanismError", "load_mechanism", "parse_mechanism", "MECHANISM_DIR", "resolve_mechanism",
            "shipped_mechanisms", "RATE_PREFIX", "POSITIVE"]
 
@@ -138,6 +138,19 @@ class StartValue:
 
 
 @dataclass(frozen=True)
+class ExpressionOutput:
+    """An output the file defines as an expression (``[outputs.expressions]``) of the parameters,
+    the body coordinates (``theta3``: the symbol of q) and their rates (``omega3``: the symbol
+    ``theta3_d`` of qd), e.g. a relative angle ``theta3 - theta2``."""
+
+    name: str
+    expression: sp.Expr
+    unit: str                      # SI ("rad" for an output given in "deg")
+    description: str
+    display_unit: str | None = None
+
+
+@dataclass(frozen=True)
 class Mechanism:
     """A mechanism description, checked for consistency of its names (see the module doc)."""
 
@@ -152,6 +165,7 @@ class Mechanism:
     drivers: tuple[Driver, ...]
     start: tuple[StartValue, ...]  # per independent coordinate: its value, then its rate
     outputs: tuple[str, ...] | None    # None: every output (see derivation.available_outputs)
+    expression_outputs: tuple[ExpressionOutput, ...] = ()   # after ``outputs``, in file order
 
     @property
     def independent(self) -> tuple[str, ...]:
@@ -626,16 +640,74 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
     for s in start:
         if s.parameter in names:
             raise reader.fail(f"parameters.{s.parameter}", f"is also made by [start] {s.coordinate}")
-    outputs = None
+    outputs, expression_outputs = None, ()
     if "outputs" in data:
         table = reader.table(data, "outputs", "top level")
-        reader.unknown_keys(table, {"variables"}, "[outputs]")
+        reader.unknown_keys(table, {"variables", "expressions"}, "[outputs]")
         variables = table.get("variables")
-        if not isinstance(variables, list) or not variables or not all(isinstance(v, str) for v in variables):
-            raise reader.fail("[outputs]", "'variables' must be a non-empty list of output names")
-        if len(set(variables)) != len(variables):
-            raise reader.fail("[outputs]", "a variable is listed twice")
-        outputs = tuple(variables)
+        if "variables" in table or "expressions" not in table:
+            if not isinstance(variables, list) or not variables or not all(isinstance(v, str) for v in variables):
+                raise reader.fail("[outputs]", "'variables' must be a non-empty list of output names")
+            if len(set(variables)) != len(variables):
+                raise reader.fail("[outputs]", "a variable is listed twice")
+            outputs = tuple(variables)
+        if "expressions" in table:
+            expression_outputs = _expression_outputs(reader, table["expressions"], parameters, bodies, symbols)
     return Mechanism(name, reader.text(head, "description", "[mechanism]", name), source, gravity, parameters,
                      ground, bodies,
-                     joints, drivers, start, outputs)
+                     joints, drivers, start, outputs, expression_outputs)
+
+
+def _expression_outputs(reader: _Reader, table, parameters: tuple[Parameter, ...], bodies: tuple[Body, ...],
+                        symbols: dict[str, sp.Symbol]) -> tuple[ExpressionOutput, ...]:
+    """``[outputs.expressions]``: name = { expression = "...", unit = "...", description = "..." }
+    (or name = "..."), each an expression of the parameters, the coordinates and their rates,
+    read by the whitelist parser and checked at the parameters' values, the bodies' assembly
+    guesses and zero rates."""
+    import sympy as sp
+
+    if not isinstance(table, dict) or not table:
+        raise reader.fail("[outputs]", "'expressions' must be a table of name = { expression = \"...\", "
+                                       "unit = \"...\", description = \"...\" }")
+    scope_symbols = dict(symbols)
+    values = {p.name: p.value for p in parameters}
+    state_names = []
+    for body in bodies:
+        guesses = dict(zip(("x", "y", "theta"), body.guess))
+        for c in body.coordinates:
+            prefix = c[: len(c) - len(body.label)]
+            rate = RATE_PREFIX[prefix] + body.label
+            for name, symbol, value in ((c, sp.Symbol(c, real=True), guesses[prefix]),
+                                        (rate, sp.Symbol(f"{c}_d", real=True), 0.0)):
+                if name in values:
+                    raise reader.fail(f"parameters.{name}", f"has the name of body '{body.name}'s coordinate or "
+                                                            f"rate {name}, which [outputs.expressions] may use")
+                scope_symbols[name], values[name] = symbol, float(value)
+                state_names.append(name)
+    out = []
+    for name, spec in table.items():
+        where = f"outputs.expressions.{name}"
+        if not _NAME.match(name) or name in _RESERVED:
+            raise reader.fail(where, f"{name!r} cannot be an output name (letters, digits and _, starting with a "
+                                     f"letter; not one of {', '.join(sorted(_RESERVED))})")
+        if isinstance(spec, str):
+            spec = {"expression": spec}
+        if not isinstance(spec, dict):
+            raise reader.fail(where, "must be an expression (text) or a table { expression = \"...\", "
+                                     "unit = \"...\", description = \"...\" }")
+        reader.unknown_keys(spec, {"expression", "unit", "description"}, where)
+        text = spec.get("expression")
+        if not isinstance(text, str):
+            raise reader.fail(where, f"'expression' must be text, e.g. \"theta3 - theta2\", got {text!r}")
+        unit = reader.string(spec, "unit", where, "1")
+        if unit not in _UNITS:
+            raise reader.fail(where, f"unit {unit!r} is not one of {', '.join(sorted(_UNITS))}")
+        try:
+            check_expression(text, values, "parameters, coordinates and rates")
+            expr = parse_expression(text, scope_symbols, values, "parameters, coordinates and rates")
+        except ExpressionError as exc:
+            raise reader.fail(f"{where}.expression", f"{_shown(text)} {exc}") from None
+        unit, display = ("rad", "deg") if unit == "deg" else (unit, None)
+        out.append(ExpressionOutput(name, expr, unit, reader.text(spec, "description", where, f"{name} = {text}"),
+                                    display))
+    return tuple(out)

@@ -99,26 +99,30 @@ FUNCTIONS: Mapping[str, _Function] = {
 CONSTANTS: Mapping[str, tuple[str, float]] = {"pi": ("pi", math.pi)}
 
 
-def check_expression(text: str, values: Mapping[str, float]) -> float:
+def check_expression(text: str, values: Mapping[str, float], names: str = "parameters") -> float:
     """The value of ``text`` at the parameters' ``values`` (name -> float, SI), after every check
-    of the module doc, without sympy.  Raises :class:`ExpressionError` (and nothing else)."""
-    return _walk(text, values, None).value
+    of the module doc, without sympy.  Raises :class:`ExpressionError` (and nothing else).
+    ``names`` says what the names of ``values`` are, for the message of an unknown name."""
+    return _walk(text, values, None, names).value
 
 
-def parse_expression(text: str, symbols: Mapping[str, sp.Symbol], values: Mapping[str, float]) -> sp.Expr:
+def parse_expression(text: str, symbols: Mapping[str, sp.Symbol], values: Mapping[str, float],
+                     names: str = "parameters") -> sp.Expr:
     """The sympy expression of ``text`` over the parameters ``symbols`` (name -> Symbol), checked
     at the parameters' ``values`` (name -> float, SI).  Raises :class:`ExpressionError` (and
-    nothing else) for a text outside the grammar of the module doc or out of its bounds."""
-    _walk(text, values, None)                 # every check first: sympy builds only what passed
+    nothing else) for a text outside the grammar of the module doc or out of its bounds.
+    ``names`` says what the names of ``values`` are, for the message of an unknown name."""
+    _walk(text, values, None, names)          # every check first: sympy builds only what passed
     import sympy as sp
 
-    expr = _walk(text, values, symbols).expr
+    expr = _walk(text, values, symbols, names).expr
     if expr.has(sp.zoo, sp.oo, sp.nan, sp.I) or expr.has(-sp.oo):
         raise ExpressionError("is not finite and real (division by an exact zero, or a complex value)")
     return expr
 
 
-def _walk(text: str, values: Mapping[str, float], symbols: Mapping[str, sp.Symbol] | None) -> _Node:
+def _walk(text: str, values: Mapping[str, float], symbols: Mapping[str, sp.Symbol] | None,
+          names: str = "parameters") -> _Node:
     if not isinstance(text, str):
         raise ExpressionError(f"expected text, got {type(text).__name__}")
     if len(text) > MAX_LENGTH:
@@ -141,7 +145,7 @@ def _walk(text: str, values: Mapping[str, float], symbols: Mapping[str, sp.Symbo
     except (RecursionError, MemoryError, ValueError) as exc:
         raise ExpressionError(f"cannot be parsed ({type(exc).__name__})") from None
     try:
-        return _Walker(text.strip(), values, symbols).node(tree.body, 1)
+        return _Walker(text.strip(), values, symbols, names).node(tree.body, 1)
     except (RecursionError, MemoryError) as exc:
         raise ExpressionError(f"is too complex to read ({type(exc).__name__})") from None
 
@@ -162,8 +166,9 @@ class _Walker:
     """Checks each whitelisted node (float value, bounds) and, given ``symbols``, builds its sympy
     expression from its checked children."""
 
-    def __init__(self, text: str, values: Mapping[str, float], symbols: Mapping[str, sp.Symbol] | None):
-        self.text, self.values, self.symbols = text, values, symbols
+    def __init__(self, text: str, values: Mapping[str, float], symbols: Mapping[str, sp.Symbol] | None,
+                 names: str = "parameters"):
+        self.text, self.values, self.symbols, self.names = text, values, symbols, names
         if symbols is not None:
             import sympy
             self.sp = sympy
@@ -217,7 +222,8 @@ class _Walker:
             return _Node(None if self.symbols is None else getattr(self.sp, sympy_name), value, True, 64)
         if name in FUNCTIONS:
             raise ExpressionError(f"uses the function {name} without calling it")
-        raise ExpressionError(f"uses {name}, which is not a parameter (parameters: "
+        what = "a parameter" if self.names == "parameters" else f"one of its {self.names}"
+        raise ExpressionError(f"uses {name}, which is not {what} ({self.names}: "
                               f"{', '.join(self.values) or 'none'}; constants: {', '.join(CONSTANTS)})")
 
     def binary(self, node: ast.BinOp, depth: int) -> _Node:
