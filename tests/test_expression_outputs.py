@@ -122,3 +122,11 @@ def test_build_fmu_exits_2_on_an_unknown_name_and_writes_nothing(tmp_path):
     assert "Traceback" not in proc.stderr and proc.stderr.startswith("build_fmu.py: error: "), proc.stderr
     assert f"{path}: outputs.expressions.Theta.expression: 'theta3 - thetaX' uses thetaX" in proc.stderr, proc.stderr
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_the_short_form_is_an_expression_with_unit_1_and_itself_as_description(tmp_path):
+    path = _edited(tmp_path, 'Theta = { expression = "theta3 - theta2", unit = "rad", description = '
+                             '"Coupler angle relative to the crank [rad]" }', 'Theta = "theta3 - theta2"')
+    (theta,) = [o for o in load_mechanism(str(path)).expression_outputs if o.name == "Theta"]
+    assert (theta.unit, theta.description, str(theta.expression)) == ("1", "Theta = theta3 - theta2",
+                                                                     "-theta2 + theta3")
