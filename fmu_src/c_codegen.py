@@ -768,7 +768,8 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
     prototypes += dep_prototypes + [column_prototype] + ([stage_prototype] if stage_prototype else []) + [one_prototype]
 
     params = [p.name for p in mech.parameters]
-    drivers = [(params.index(d.start), params.index(d.speed), row) for d, row in zip(mech.drivers, eqs.driver_rows)]
+    drivers = [(-1 if d.start is None else params.index(d.start), -1 if d.speed is None else params.index(d.speed), row)
+               for d, row in zip(mech.drivers, eqs.driver_rows)]
     row_names = []
     for row in range(m):
         row_names.append(next(name for name, rows in eqs.joint_rows.items() if row in rows))

@@ -11,7 +11,7 @@ From a :class:`~fmu_src.mechanism.description.Mechanism`:
   coincide), two per prismatic joint (the point stays on the line; the relative angle is
   fixed at zero, so the slider's frame turns with the guide's, if the sliding body rotates,
 else one row), one per driver (the joint coordinate
-  equals ``s_ref + v (t - t_ref)``);
+  equals ``s_ref + v (t - t_ref)``, or the file's function of the parameters and ``t``);
 - eq. (11)::
 
       [[M,     Phi_q^T],   [qdd   ]   [Q    ]
@@ -207,7 +207,8 @@ def _derive(mech: Mechanism) -> MechanismEquations:
         drive += [s_ref, t_ref, v]
         driver_rows.append(len(rows))
         joint_rows[driver.name] = (len(rows),)
-        rows.append(_joint_coordinate(joints[driver.joint], frames) - (s_ref + v * (t - t_ref)))
+        prescribed = s_ref + v * (t - t_ref) if driver.position is None else driver.position   # (s_ref, t_ref, v) unused
+        rows.append(_joint_coordinate(joints[driver.joint], frames) - prescribed)
     Phi = sp.Matrix(rows)
     Phi_q = Phi.jacobian(q)
     if t in Phi_q.free_symbols:

@@ -109,16 +109,20 @@ class Joint:
 
 @dataclass(frozen=True)
 class Driver:
-    """A joint coordinate prescribed in time: constant speed from a start value.
+    """A joint coordinate prescribed in time: constant speed from a start value, or a function
+    of time.
 
     Revolute joint: the second body's angle relative to the first's; prismatic joint: the
-    second point's position along the line.  ``start`` and ``speed`` name parameters.
+    second point's position along the line.  Either ``start`` and ``speed`` name parameters
+    (``position`` None), or ``position`` is the coordinate as a sympy expression of the
+    parameters and the absolute time ``t`` (``start`` and ``speed`` None).
     """
 
     name: str
     joint: str
-    start: str
-    speed: str
+    start: str | None
+    speed: str | None
+    position: sp.Expr | None = None
 
 
 @dataclass(frozen=True)
@@ -526,7 +530,7 @@ def _joints(reader: _Reader, items, bodies: tuple[Body, ...], ground) -> tuple[J
     return tuple(joints)
 
 
-def _drivers(reader: _Reader, items, joints, parameters) -> tuple[Driver, ...]:
+def _drivers(reader: _Reader, items, joints, parameters, symbols: dict[str, sp.Symbol]) -> tuple[Driver, ...]:
     if items is None:
         return ()
     if not isinstance(items, list):
@@ -539,7 +543,7 @@ def _drivers(reader: _Reader, items, joints, parameters) -> tuple[Driver, ...]:
             raise reader.fail(where, "must be a table")
         name = reader.string(spec, "name", where)
         where = f"drivers[{k}] '{name}'"
-        reader.unknown_keys(spec, {"name", "joint", "start", "speed"}, where)
+        reader.unknown_keys(spec, {"name", "joint", "start", "speed", "position"}, where)
         if not _NAME.match(name):
             raise reader.fail(where, "a driver name is letters, digits and _, starting with a letter")
         joint = reader.string(spec, "joint", where)
@@ -548,6 +552,10 @@ def _drivers(reader: _Reader, items, joints, parameters) -> tuple[Driver, ...]:
                                      f"(joints: {', '.join(j.name for j in joints)})")
         if any(d.joint == joint for d in drivers):
             raise reader.fail(where, f"joint {joint!r} already has a driver")
+        if "position" in spec:
+            drivers.append(Driver(name, joint, None, None, _driver_position(reader, spec, where, parameters,
+                                                                           symbols)))
+            continue
         start, speed = reader.string(spec, "start", where), reader.string(spec, "speed", where)
         for role, pname in (("start", start), ("speed", speed)):
             if pname not in params:
@@ -557,6 +565,28 @@ def _drivers(reader: _Reader, items, joints, parameters) -> tuple[Driver, ...]:
                                      f"applies at the start")
         drivers.append(Driver(name, joint, start, speed))
     return tuple(drivers)
+
+
+def _driver_position(reader: _Reader, spec: dict, where: str, parameters, symbols: dict[str, sp.Symbol]) -> sp.Expr:
+    """A driver's ``position``: an expression of the parameters and the absolute time ``t``, read
+    by the whitelist parser (checked at the parameters' values and t = 0), without start and speed."""
+    import sympy as sp
+
+    both = [k for k in ("start", "speed") if k in spec]
+    if both:
+        raise reader.fail(where, f"gives 'position' and {' and '.join(map(repr, both))}: a driver is either "
+                                 f"start and speed (constant speed) or position (a function of t)")
+    text = spec["position"]
+    if not isinstance(text, str):
+        raise reader.fail(f"{where}.position", f"must be text, an expression of the parameters and t, e.g. "
+                                               f"\"theta2_start + A*sin(2*pi*f*t)\", got {_shown(repr(text))}")
+    values = {p.name: p.value for p in parameters} | {"t": 0.0}
+    scope = dict(symbols) | {"t": sp.Symbol("t", real=True)}
+    try:
+        check_expression(text, values, "parameters and t")
+        return parse_expression(text, scope, values, "parameters and t")
+    except ExpressionError as exc:
+        raise reader.fail(f"{where}.position", f"{_shown(text)} {exc}") from None
 
 
 def _start(reader: _Reader, table: dict, bodies: tuple[Body, ...]) -> tuple[StartValue, ...]:
@@ -634,7 +664,7 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
     ground = {k: _point_pair(reader, v, f"ground.points.{k}", scope) for k, v in ground_points.items()}
     bodies = _bodies(reader, data.get("bodies"), scope)
     joints = _joints(reader, data.get("joints"), bodies, ground)
-    drivers = _drivers(reader, data.get("drivers"), joints, parameters)
+    drivers = _drivers(reader, data.get("drivers"), joints, parameters, symbols)
     start = _start(reader, reader.table(data, "start", "top level", required=False), bodies)
     names = {p.name for p in parameters}
     for s in start:

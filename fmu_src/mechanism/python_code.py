@@ -30,6 +30,11 @@ class _Printer(PythonCodePrinter):
     _print_cos = _print_sin = _print_known_func
 
 
+
+def _index(params: list[str], name: str | None) -> int:
+    """The index of parameter ``name`` in ``params``; -1 for None (a time-function driver)."""
+    return -1 if name is None else params.index(name)
+
 def _unpack(names: list[str], array: str) -> str:
     if not names:
         return ""
@@ -99,7 +104,7 @@ def generate_module(eqs: MechanismEquations) -> str:
     state_outputs = [o for o in eqs.outputs if o.expression is not None and not (o.expression.free_symbols & lam)]
     force_outputs = [o for o in eqs.outputs if o.expression is not None and o.expression.free_symbols & lam]
     params = [p.name for p in mech.parameters]
-    drivers = tuple((d.name, params.index(d.start), params.index(d.speed), row)
+    drivers = tuple((d.name, _index(params, d.start), _index(params, d.speed), row)
                     for d, row in zip(mech.drivers, eqs.driver_rows))
     output_kinds = tuple(("force" if o in force_outputs else "state") if o.expression is not None
                          else ("work" if o.work is not None else o.name) for o in eqs.outputs)

@@ -216,7 +216,7 @@ class MechanismDAE:
         """The drivers' (s_ref, t_ref, v) for a start at time t (s_ref = the start parameter)."""
         d = []
         for _, start, speed, _ in self.eq.DRIVERS:
-            d += [self.p[start], t, self.p[speed]]
+            d += [self.p[start] if start >= 0 else 0.0, t, self.p[speed] if speed >= 0 else 0.0]   # -1: a function of t
         return d
 
     def assemble(self, t: float, guess, rates) -> None:
@@ -657,7 +657,7 @@ class MechanismDAE:
         d = []
         for k, (_, _, speed, _) in enumerate(self.eq.DRIVERS):
             s_ref, t_ref, v = self.d[3 * k:3 * k + 3]
-            d += [s_ref + v * (self.t - t_ref), self.t, new_p[speed]]
+            d += [s_ref + v * (self.t - t_ref), self.t, new_p[speed] if speed >= 0 else 0.0]
         try:
             try:
                 if used != declared:

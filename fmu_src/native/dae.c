@@ -158,9 +158,10 @@ double dae_snap_time(double t)
 void dae_drive_at(const double *p, double t, double *d)
 {
     for (int k = 0; k < N_DRIVERS; k++) {
-        d[3 * k] = p[DRIVERS[k][0]];
+        /* -1: a driver whose position is a function of t, whose row does not use d */
+        d[3 * k] = DRIVERS[k][0] >= 0 ? p[DRIVERS[k][0]] : 0.0;
         d[3 * k + 1] = t;
-        d[3 * k + 2] = p[DRIVERS[k][1]];
+        d[3 * k + 2] = DRIVERS[k][1] >= 0 ? p[DRIVERS[k][1]] : 0.0;
     }
 }
 
@@ -1314,7 +1315,7 @@ static int reassembled(ModelState *s, const double *p)
         const double s_ref = s->d[3 * k], t_ref = s->d[3 * k + 1], v = s->d[3 * k + 2];
         d[3 * k] = s_ref + v * (s->t - t_ref);
         d[3 * k + 1] = s->t;
-        d[3 * k + 2] = p[DRIVERS[k][1]];
+        d[3 * k + 2] = DRIVERS[k][1] >= 0 ? p[DRIVERS[k][1]] : 0.0;
     }
     if (N_DRIVERS == 0) d[0] = 0.0;
     configuration_init(&c);
