@@ -28,7 +28,7 @@ from .expressions import MAX_MAGNITUDE, ExpressionError, check_expression, parse
 if TYPE_CHECKING:      # sympy is imported once every expression of the file has passed its checks
     import sympy as sp
 
-__all__ = ["Mechanism", "Parameter", "Body", "PointRef", "Joint", "Driver", "StartValue",
+__all__ = ["Mechanism", "Parameter", "Body", "PointRef", "Joint", "Driver", "Spring", "StartValue",
            "MechanismError", "load_mechanism", "parse_mechanism", "MECHANISM_DIR", "resolve_mechanism",
            "shipped_mechanisms", "RATE_PREFIX", "POSITIVE"]
 
@@ -122,6 +122,22 @@ class Driver:
 
 
 @dataclass(frozen=True)
+class Spring:
+    """A point-to-point spring-damper between a point of one body and a point of another (or
+    of the ground).  Its tension, positive when it pulls the two points together, is
+    ``preload + stiffness (l - length) + damping dl/dt`` with ``l`` the distance between the
+    points; every coefficient an expression of the parameters."""
+
+    name: str
+    first: PointRef
+    second: PointRef
+    stiffness: sp.Expr          # N/m
+    damping: sp.Expr            # N.s/m
+    length: sp.Expr             # free length, m
+    preload: sp.Expr            # N, tension at l = length
+
+
+@dataclass(frozen=True)
 class StartValue:
     """The start value of an independent coordinate or of its rate (a fixed FMU parameter
     named ``<coordinate>_start``)."""
@@ -152,6 +168,7 @@ class Mechanism:
     drivers: tuple[Driver, ...]
     start: tuple[StartValue, ...]  # per independent coordinate: its value, then its rate
     outputs: tuple[str, ...] | None    # None: every output (see derivation.available_outputs)
+    springs: tuple[Spring, ...] = ()
 
     @property
     def independent(self) -> tuple[str, ...]:
@@ -376,6 +393,12 @@ def _check_expressions(reader: _Reader, data: dict, values: dict[str, float]) ->
         if isinstance(spec.get("points"), dict):
             for name, value in spec["points"].items():
                 pair(value, f"{where}.points.{name}")
+    springs = data.get("springs")
+    for k, spec in enumerate(springs if isinstance(springs, list) else ()):
+        if not isinstance(spec, dict) or not isinstance(spec.get("name"), str) or not spec["name"]:
+            continue
+        for key in ("stiffness", "damping", "length", "preload"):
+            check(spec.get(key), f"springs[{k}] '{spec['name']}'.{key}")
 
 
 def _bodies(reader: _Reader, items, scope: _Scope) -> tuple[Body, ...]:
@@ -545,6 +568,53 @@ def _drivers(reader: _Reader, items, joints, parameters) -> tuple[Driver, ...]:
     return tuple(drivers)
 
 
+def _springs(reader: _Reader, items, bodies: tuple[Body, ...], ground, joints, drivers, scope: _Scope
+             ) -> tuple[Spring, ...]:
+    """The [[springs]] entries: names unique among springs, joints and drivers (they name
+    outputs), points that exist, coefficients that are expressions of the parameters whose
+    values in the file are not negative (a free length, a stiffness, a damping)."""
+    import sympy as sp
+
+    if items is None:
+        return ()
+    if not isinstance(items, list):
+        raise reader.fail("springs", "use [[springs]] entries")
+    by_name = {b.name: b for b in bodies}
+    taken = {j.name: "a joint" for j in joints} | {d.name: "a driver" for d in drivers}
+    springs: list[Spring] = []
+    for k, spec in enumerate(items):
+        where = f"springs[{k}]"
+        if not isinstance(spec, dict):
+            raise reader.fail(where, "must be a table")
+        name = reader.string(spec, "name", where)
+        where = f"springs[{k}] '{name}'"
+        reader.unknown_keys(spec, {"name", "connects", "stiffness", "damping", "length", "preload"}, where)
+        if not _NAME.match(name):
+            raise reader.fail(where, "a spring name is letters, digits and _, starting with a letter")
+        if name in taken or any(s.name == name for s in springs):
+            raise reader.fail(where, f"{taken.get(name, 'a spring')} already has this name (it names outputs)")
+        connects = spec.get("connects")
+        if not isinstance(connects, list) or len(connects) != 2:
+            raise reader.fail(where, "'connects' must name two points, e.g. [\"ground.A\", \"block.centre\"]")
+        first, second = (_point_ref(reader, v, f"{where}.connects", by_name, ground) for v in connects)
+        if first.body == second.body:
+            raise reader.fail(where, f"connects two points of the same body ({first.body!r})")
+        values = {}
+        for key, default in (("stiffness", None), ("damping", 0), ("length", None), ("preload", 0)):
+            if key not in spec and default is None:
+                raise reader.fail(where, f"missing '{key}'")
+            expr = _expression(reader, spec.get(key, default), f"{where}.{key}", scope)
+            if key != "preload":
+                value = float(expr.subs({scope.symbols[n]: v for n, v in scope.values.items()}))
+                if value < 0:
+                    raise reader.fail(f"{where}.{key}", f"{_shown(str(spec[key]))} is {value:g} at the "
+                                                         f"parameters' values; a {key} cannot be negative")
+            values[key] = sp.sympify(expr)
+        springs.append(Spring(name, first, second, values["stiffness"], values["damping"], values["length"],
+                              values["preload"]))
+    return tuple(springs)
+
+
 def _start(reader: _Reader, table: dict, bodies: tuple[Body, ...]) -> tuple[StartValue, ...]:
     coordinates = {c: b for b in bodies for c in b.coordinates}
     rates = {}
@@ -595,8 +665,8 @@ def _start(reader: _Reader, table: dict, bodies: tuple[Body, ...]) -> tuple[Star
 def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
     """A :class:`Mechanism` from the TOML tables (``source`` names the file in messages)."""
     reader = _Reader(source)
-    reader.unknown_keys(data, {"mechanism", "parameters", "ground", "bodies", "joints", "drivers", "start",
-                               "outputs"}, "top level")
+    reader.unknown_keys(data, {"mechanism", "parameters", "ground", "bodies", "joints", "drivers", "springs",
+                               "start", "outputs"}, "top level")
     head = reader.table(data, "mechanism", "top level")
     reader.unknown_keys(head, {"name", "description", "gravity"}, "[mechanism]")
     name = reader.string(head, "name", "[mechanism]")
@@ -621,6 +691,7 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
     bodies = _bodies(reader, data.get("bodies"), scope)
     joints = _joints(reader, data.get("joints"), bodies, ground)
     drivers = _drivers(reader, data.get("drivers"), joints, parameters)
+    springs = _springs(reader, data.get("springs"), bodies, ground, joints, drivers, scope)
     start = _start(reader, reader.table(data, "start", "top level", required=False), bodies)
     names = {p.name for p in parameters}
     for s in start:
@@ -638,4 +709,4 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
         outputs = tuple(variables)
     return Mechanism(name, reader.text(head, "description", "[mechanism]", name), source, gravity, parameters,
                      ground, bodies,
-                     joints, drivers, start, outputs)
+                     joints, drivers, start, outputs, springs)
