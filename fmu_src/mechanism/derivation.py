@@ -196,7 +196,7 @@ def _derive(mech: Mechanism) -> MechanismEquations:
     if mech.springs:
         Q = sp.Matrix(Q)
         for spring in mech.springs:
-            element = _spring(spring, frames, q, qd)
+            element = _spring(spring, frames, q, qd, {j.name: j for j in mech.joints})
             Q += element.forces
             V += element.potential
             spring_outputs.append(element)
@@ -238,8 +238,9 @@ def _derive(mech: Mechanism) -> MechanismEquations:
 
 @dataclass(frozen=True)
 class _SpringTerms:
-    """A spring-damper's pieces: its length l, rate dl/dt, tension F (positive pulling its
-    points together), potential energy and generalized forces."""
+    """A spring-damper's pieces: its coordinate s (``length``: the distance l, or the joint's
+    relative angle), its rate ds/dt, what it exerts F (``tension``: positive pulling its points
+    together, or turning its second body clockwise), potential energy and generalized forces."""
 
     spring: Spring
     length: sp.Expr
@@ -249,20 +250,26 @@ class _SpringTerms:
     forces: sp.Matrix          # n x 1
 
 
-def _spring(spring: Spring, frames: _Frames, q: sp.Matrix, qd: sp.Matrix) -> _SpringTerms:
-    """Point-to-point spring-damper: l = |b - a|, F = preload + k (l - l0) + c dl/dt.
+def _spring(spring: Spring, frames: _Frames, q: sp.Matrix, qd: sp.Matrix, joints: dict[str, Joint]
+            ) -> _SpringTerms:
+    """A spring-damper on a coordinate s: l = |b - a| (point-to-point) or the revolute joint's
+    relative angle; F = preload + k (s - s0) + c ds/dt.
 
-    Its virtual work is -F dl, so its generalized forces are Q = -F (dl/dq)^T, with
-    dl/dq = (b - a)^T d(b - a)/dq / l; the conservative part has the potential
-    preload l + k (l - l0)^2 / 2 (the damping has none: it dissipates c (dl/dt)^2).
-    Not defined where the points meet (l = 0)."""
-    d = frames.point(spring.second) - frames.point(spring.first)
-    length = sp.sqrt(d[0]**2 + d[1]**2)
-    grad = (d.T * d.jacobian(q)) / length                  # 1 x n: dl/dq
+    Its virtual work is -F ds, so its generalized forces are Q = -F (ds/dq)^T (for the
+    distance, ds/dq = (b - a)^T d(b - a)/dq / l); the conservative part has the potential
+    preload s + k (s - s0)^2 / 2 (the damping has none: it dissipates c (ds/dt)^2).  A
+    point-to-point spring is not defined where its points meet (l = 0)."""
+    if spring.joint is not None:
+        coordinate = _joint_coordinate(joints[spring.joint], frames)
+        grad = sp.Matrix([coordinate]).jacobian(q)                 # 1 x n: ds/dq
+    else:
+        d = frames.point(spring.second) - frames.point(spring.first)
+        coordinate = sp.sqrt(d[0]**2 + d[1]**2)
+        grad = (d.T * d.jacobian(q)) / coordinate
     rate = (grad * qd)[0]
-    tension = spring.preload + spring.stiffness * (length - spring.length) + spring.damping * rate
-    potential = spring.preload * length + spring.stiffness * (length - spring.length)**2 / 2
-    return _SpringTerms(spring, length, rate, tension, potential, -tension * grad.T)
+    tension = spring.preload + spring.stiffness * (coordinate - spring.length) + spring.damping * rate
+    potential = spring.preload * coordinate + spring.stiffness * (coordinate - spring.length)**2 / 2
+    return _SpringTerms(spring, coordinate, rate, tension, potential, -tension * grad.T)
 
 
 def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, springs=()):
@@ -311,13 +318,17 @@ def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, 
                                                     f"the {body.name} about the sliding point [N.m]", sp.simplify(moment))
     for element in springs:
         name = element.spring.name
-        for suffix, unit, text, expr in (
-                ("force", "N", f"Tension of spring {name}, positive pulling its points together [N]", element.tension),
-                ("length", "m", f"Length of spring {name} [m]", element.length)):
+        rows = ((("force", "N", f"Tension of spring {name}, positive pulling its points together [N]"),
+                 ("length", "m", f"Length of spring {name} [m]")) if element.spring.joint is None else
+                (("torque", "N.m", f"Torque of rotational spring {name} at joint {element.spring.joint}, positive "
+                                   f"turning its second body clockwise [N.m]"),
+                 ("angle", "rad", f"Relative angle of joint {element.spring.joint} (second body minus first) [rad]")))
+        for (suffix, unit, text), expr in zip(rows, (element.tension, element.length)):
             if f"{name}_{suffix}" in offered:
                 raise MechanismError(f"{mech.source}: springs '{name}': its output {name}_{suffix!r} would have the "
                                      f"name of another output; rename the spring")
-            offered[f"{name}_{suffix}"] = OutputSpec(f"{name}_{suffix}", unit, text, expr)
+            offered[f"{name}_{suffix}"] = OutputSpec(f"{name}_{suffix}", unit, text, expr,
+                                                     display_unit="deg" if suffix == "angle" else None)
     joints = {j.name: j for j in mech.joints}
     for k, driver in enumerate(mech.drivers):
         (row,) = joint_rows[driver.name]

@@ -123,18 +123,21 @@ class Driver:
 
 @dataclass(frozen=True)
 class Spring:
-    """A point-to-point spring-damper between a point of one body and a point of another (or
-    of the ground).  Its tension, positive when it pulls the two points together, is
-    ``preload + stiffness (l - length) + damping dl/dt`` with ``l`` the distance between the
-    points; every coefficient an expression of the parameters."""
+    """A spring-damper on a coordinate s of the mechanism: point-to-point (``first``,
+    ``second``: s the distance between the points, a force) or rotational at a revolute joint
+    (``joint``: s its second body's angle minus its first's, a torque).  What it exerts,
+    ``preload + stiffness (s - length) + damping ds/dt``, is positive when it pulls the points
+    together or turns the second body back towards the first (clockwise on it for s > length);
+    every coefficient an expression of the parameters."""
 
     name: str
-    first: PointRef
-    second: PointRef
-    stiffness: sp.Expr          # N/m
-    damping: sp.Expr            # N.s/m
-    length: sp.Expr             # free length, m
-    preload: sp.Expr            # N, tension at l = length
+    first: PointRef | None      # point-to-point: the two points
+    second: PointRef | None
+    stiffness: sp.Expr          # N/m or N.m/rad
+    damping: sp.Expr            # N.s/m or N.m.s/rad
+    length: sp.Expr             # free length (m) or free angle (rad)
+    preload: sp.Expr            # N or N.m at s = length
+    joint: str | None = None    # rotational: the revolute joint
 
 
 @dataclass(frozen=True)
@@ -397,7 +400,7 @@ def _check_expressions(reader: _Reader, data: dict, values: dict[str, float]) ->
     for k, spec in enumerate(springs if isinstance(springs, list) else ()):
         if not isinstance(spec, dict) or not isinstance(spec.get("name"), str) or not spec["name"]:
             continue
-        for key in ("stiffness", "damping", "length", "preload"):
+        for key in ("stiffness", "damping", "length", "angle", "preload"):
             check(spec.get(key), f"springs[{k}] '{spec['name']}'.{key}")
 
 
@@ -588,30 +591,52 @@ def _springs(reader: _Reader, items, bodies: tuple[Body, ...], ground, joints, d
             raise reader.fail(where, "must be a table")
         name = reader.string(spec, "name", where)
         where = f"springs[{k}] '{name}'"
-        reader.unknown_keys(spec, {"name", "connects", "stiffness", "damping", "length", "preload"}, where)
+        reader.unknown_keys(spec, {"name", "connects", "joint", "stiffness", "damping", "length", "angle",
+                                   "preload"}, where)
         if not _NAME.match(name):
             raise reader.fail(where, "a spring name is letters, digits and _, starting with a letter")
         if name in taken or any(s.name == name for s in springs):
             raise reader.fail(where, f"{taken.get(name, 'a spring')} already has this name (it names outputs)")
-        connects = spec.get("connects")
-        if not isinstance(connects, list) or len(connects) != 2:
-            raise reader.fail(where, "'connects' must name two points, e.g. [\"ground.A\", \"block.centre\"]")
-        first, second = (_point_ref(reader, v, f"{where}.connects", by_name, ground) for v in connects)
-        if first.body == second.body:
-            raise reader.fail(where, f"connects two points of the same body ({first.body!r})")
+        if ("connects" in spec) == ("joint" in spec):
+            raise reader.fail(where, "give either 'connects' (two points: a spring along the line between "
+                                     "them) or 'joint' (a revolute joint: a rotational spring), not both")
+        first = second = joint = None
+        if "joint" in spec:
+            joint = reader.string(spec, "joint", where)
+            revolute = [j.name for j in joints if j.type == "revolute"]
+            if joint not in revolute:
+                raise reader.fail(f"{where}.joint", f"{joint!r} is not a revolute joint (revolute joints: "
+                                                    f"{', '.join(revolute) or 'none'})")
+            free = "angle"
+            if "length" in spec:
+                raise reader.fail(where, "a rotational spring has a free 'angle', not a 'length'")
+        else:
+            connects = spec.get("connects")
+            if not isinstance(connects, list) or len(connects) != 2:
+                raise reader.fail(where, "'connects' must name two points, e.g. [\"ground.A\", \"block.centre\"]")
+            first, second = (_point_ref(reader, v, f"{where}.connects", by_name, ground) for v in connects)
+            if first.body == second.body:
+                raise reader.fail(where, f"connects two points of the same body ({first.body!r})")
+            free = "length"
+            if "angle" in spec:
+                raise reader.fail(where, "a point-to-point spring has a free 'length', not an 'angle'")
         values = {}
-        for key, default in (("stiffness", None), ("damping", 0), ("length", None), ("preload", 0)):
+        for key, default in (("stiffness", None), ("damping", 0), (free, None if free == "length" else 0),
+                             ("preload", 0)):
             if key not in spec and default is None:
                 raise reader.fail(where, f"missing '{key}'")
-            expr = _expression(reader, spec.get(key, default), f"{where}.{key}", scope)
-            if key != "preload":
+            value = spec.get(key, default)
+            if key == "angle" and isinstance(value, (int, float)) and not isinstance(value, bool):
+                value = math.radians(reader.number(spec, "angle", where, 0.0))    # a number: degrees
+            expr = _expression(reader, value, f"{where}.{key}", scope)
+            if key not in ("preload", "angle"):
                 value = float(expr.subs({scope.symbols[n]: v for n, v in scope.values.items()}))
                 if value < 0:
                     raise reader.fail(f"{where}.{key}", f"{_shown(str(spec[key]))} is {value:g} at the "
                                                          f"parameters' values; a {key} cannot be negative")
             values[key] = sp.sympify(expr)
-        springs.append(Spring(name, first, second, values["stiffness"], values["damping"], values["length"],
-                              values["preload"]))
+        springs.append(Spring(name, first, second, values["stiffness"], values["damping"], values[free],
+                              values["preload"], joint))
     return tuple(springs)
 
 
