@@ -162,3 +162,21 @@ def test_build_fmu_refuses_a_negative_stiffness_with_exit_2(tmp_path):
     assert "Traceback" not in proc.stderr and proc.stderr.startswith("build_fmu.py: error: "), proc.stderr
     assert "springs[1] 's2'.stiffness: '-3' is -3" in proc.stderr and "cannot be negative" in proc.stderr, proc.stderr
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_model_exchange_directional_derivatives_include_the_springs(mechanism_fmus, tmp_path):
+    """The native FMU's exact directional derivatives (Model Exchange), now that Q depends on the
+    rates (the block's damper c1), against central finite differences: test_fmu_directional's
+    check and bound, run on this mechanism at the file's parameter values."""
+    if not sys.platform.startswith("linux"):
+        pytest.skip("FMPy loads the platform's binary; measured on x86_64-linux")
+    from test_fmu_directional import AGREE, _away_from_start, _Host
+    host = _Host(mechanism_fmus.get(str(MECHANISM), "native"), tmp_path)
+    try:
+        x = _away_from_start(host)
+        for direction in np.eye(host.n):
+            exact, estimate = host.directional(x, direction), host.finite_differences(x, direction)
+            error = np.abs(exact - estimate) / np.maximum(1.0, np.abs(estimate))
+            assert np.max(error) <= AGREE, (list(direction), exact, estimate)
+    finally:
+        host.close()
