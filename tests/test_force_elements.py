@@ -33,14 +33,15 @@ X0 = 1.2
 KINDS = ("pythonfmu", "native")
 
 
-def exact_block(t: np.ndarray) -> np.ndarray:
-    """m x'' + c x' + k (x - l0) + P = 0, x(0) = X0, x'(0) = 0 (underdamped: zeta = 0.04)."""
-    w = np.sqrt(K1 / M1)
+def exact_block(t: np.ndarray, k: float = K1, x0: float = X0, v0: float = 0.0, t0: float = 0.0) -> np.ndarray:
+    """m x'' + c x' + k (x - l0) + P = 0, x(t0) = x0, x'(t0) = v0 (underdamped: zeta = 0.04)."""
+    w = np.sqrt(k / M1)
     zeta = C1 / (2 * M1 * w)
     wd = w * np.sqrt(1 - zeta**2)
-    xe = L1 - P1 / K1
-    u0 = X0 - xe
-    return xe + np.exp(-zeta * w * t) * (u0 * np.cos(wd * t) + zeta * w * u0 / wd * np.sin(wd * t))
+    xe = L1 - P1 / k
+    u0 = x0 - xe
+    s = t - t0
+    return xe + np.exp(-zeta * w * s) * (u0 * np.cos(wd * s) + (v0 + zeta * w * u0) / wd * np.sin(wd * s))
 
 
 @functools.cache
@@ -180,3 +181,38 @@ def test_model_exchange_directional_derivatives_include_the_springs(mechanism_fm
             assert np.max(error) <= AGREE, (list(direction), exact, estimate)
     finally:
         host.close()
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_a_spring_that_weakens_mid_run_follows_the_new_stiffness(fmus, kind, tmp_path):
+    """k1 set from 50 to 30 N/m between two steps at t = 5 s (a case file's fault): from the state
+    at the switch the block follows the closed form with the new stiffness, within 1e-9 m."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+    md = read_model_description(fmus[kind])
+    refs = {v.name: v.valueReference for v in md.modelVariables}
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(fmus[kind], unzipdir=str(tmp_path)),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="weak")
+    slave.instantiate()
+    try:
+        slave.setupExperiment(startTime=0.0)
+        slave.setReal([refs["rtol"], refs["atol"]], [TIGHT, TIGHT])
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        h, t, rows = 0.05, 0.0, []
+        for step in range(200):
+            if step == 100:
+                slave.setReal([refs["k1"]], [30.0])
+                switch = (t, *slave.getReal([refs["x1"], refs["vx1"]]))
+            slave.doStep(t, h)
+            t = (step + 1) * h
+            rows.append((t, *slave.getReal([refs["x1"], refs["s1_force"]])))
+    finally:
+        slave.terminate()
+        slave.freeInstance()
+    time, x, force = np.array(rows).T
+    after = time > switch[0]
+    error = np.max(np.abs(x[after] - exact_block(time[after], k=30.0, x0=switch[1], v0=switch[2], t0=switch[0])))
+    assert abs(switch[0] - 5.0) < 1e-12 and error <= 1e-9, f"{kind}: {error:.3g} m after the change"
+    before = ~after
+    assert np.max(np.abs(x[before] - exact_block(time[before]))) <= 1e-9
