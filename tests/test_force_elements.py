@@ -4,8 +4,9 @@ spring-dampers.
 tests/mechanisms/spring_block.toml holds two independent one-degree-of-freedom systems: a block
 on a horizontal guide tied to the origin by a spring and damper (the damped oscillator, in
 closed form), and a pendulum whose tip a second spring ties to a ground point (the spring's
-line turns with the motion), with a rotational spring-damper at its pivot. Both FMUs (pythonfmu and native C) are built once per session
-and run at tight tolerances (their rtol = atol parameters at TIGHT).
+line turns with the motion), with a rotational spring-damper at its pivot. Both FMUs (pythonfmu
+and native C) are built once per session and run at tight tolerances (their rtol = atol
+parameters at TIGHT).
 """
 from __future__ import annotations
 
