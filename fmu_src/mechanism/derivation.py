@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .description import RATE_PREFIX, Joint, Mechanism, MechanismError, PointRef
+from .description import RATE_PREFIX, Joint, Mechanism, MechanismError, PointRef, Spring
 from .drawing import joint_columns
 
 __all__ = ["MechanismEquations", "OutputSpec", "derive", "RUNTIME_OUTPUTS"]
@@ -191,6 +191,15 @@ def _derive(mech: Mechanism) -> MechanismEquations:
     Q = sp.simplify(sp.Matrix([sp.diff(lagrangian, s) for s in q]) - dL_dqd.jacobian(q) * qd)
     if not M.is_diagonal():
         raise ValueError("centroidal coordinates give a diagonal mass matrix; this one is not")
+    # Force elements: their generalized forces from their virtual work, their potential into V.
+    spring_outputs = []
+    if mech.springs:
+        Q = sp.Matrix(Q)
+        for spring in mech.springs:
+            element = _spring(spring, frames, q, qd, {j.name: j for j in mech.joints})
+            Q += element.forces
+            V += element.potential
+            spring_outputs.append(element)
 
     # Constraints: joints in file order, then drivers.
     rows: list[sp.Expr] = []
@@ -219,7 +228,7 @@ def _derive(mech: Mechanism) -> MechanismEquations:
     gamma = gamma.applyfunc(sp.simplify)
     lam = sp.Matrix([sp.Symbol(f"lambda_{k}", real=True) for k in range(Phi.rows)])
 
-    outputs, available = _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, T + V)
+    outputs, available = _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, T + V, spring_outputs)
     eqs = MechanismEquations(
         mechanism=mech, coordinates=names, q=q, qd=qd, t=t, params=tuple(params.values()), drive=tuple(drive),
         mass_matrix=M, forces=Q, constraints=Phi, jacobian=Phi_q, nu=nu, gamma=gamma,
@@ -228,7 +237,43 @@ def _derive(mech: Mechanism) -> MechanismEquations:
     return eqs
 
 
-def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy):
+@dataclass(frozen=True)
+class _SpringTerms:
+    """A spring-damper's pieces: its coordinate s (``length``: the distance l, or the joint's
+    relative angle), its rate ds/dt, what it exerts F (``tension``: positive pulling its points
+    together, or turning its second body clockwise), potential energy and generalized forces."""
+
+    spring: Spring
+    length: sp.Expr
+    rate: sp.Expr
+    tension: sp.Expr
+    potential: sp.Expr
+    forces: sp.Matrix          # n x 1
+
+
+def _spring(spring: Spring, frames: _Frames, q: sp.Matrix, qd: sp.Matrix, joints: dict[str, Joint]
+            ) -> _SpringTerms:
+    """A spring-damper on a coordinate s: l = |b - a| (point-to-point) or the revolute joint's
+    relative angle; F = preload + k (s - s0) + c ds/dt.
+
+    Its virtual work is -F ds, so its generalized forces are Q = -F (ds/dq)^T (for the
+    distance, ds/dq = (b - a)^T d(b - a)/dq / l); the conservative part has the potential
+    preload s + k (s - s0)^2 / 2 (the damping has none: it dissipates c (ds/dt)^2).  A
+    point-to-point spring is not defined where its points meet (l = 0)."""
+    if spring.joint is not None:
+        coordinate = _joint_coordinate(joints[spring.joint], frames)
+        grad = sp.Matrix([coordinate]).jacobian(q)                 # 1 x n: ds/dq
+    else:
+        d = frames.point(spring.second) - frames.point(spring.first)
+        coordinate = sp.sqrt(d[0]**2 + d[1]**2)
+        grad = (d.T * d.jacobian(q)) / coordinate
+    rate = (grad * qd)[0]
+    tension = spring.preload + spring.stiffness * (coordinate - spring.length) + spring.damping * rate
+    potential = spring.preload * coordinate + spring.stiffness * (coordinate - spring.length)**2 / 2
+    return _SpringTerms(spring, coordinate, rate, tension, potential, -tension * grad.T)
+
+
+def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, springs=()):
     """Every output the mechanism offers, then the ones the file selects, in its order."""
     offered: dict[str, OutputSpec] = {}
     for body in mech.bodies:
@@ -248,7 +293,9 @@ def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy):
                 offered[rate] = OutputSpec(rate, "rad/s", f"{body.name.capitalize()} angular velocity [rad/s]", qd[i])
             else:
                 offered[rate] = OutputSpec(rate, "m/s", f"{prefix}-velocity of the {body.name}'s centre [m/s]", qd[i])
-    offered["energy"] = OutputSpec("energy", "J", "Total mechanical energy T + V, V = 0 at y = 0 [J]", energy)
+    offered["energy"] = OutputSpec("energy", "J", "Total mechanical energy T + V, V = 0 at y = 0 [J]" if not springs
+                                   else "Total mechanical energy T + V: gravity's (0 at y = 0) and the springs' "
+                                        "[J]", energy)
     offered["constraint_residual"] = OutputSpec(
         "constraint_residual", "1", "max(|Phi|, |Phi_q qd - nu|) of the reported state [m, m/s, rad, rad/s]")
     index = {n: k for k, n in enumerate(names)}
@@ -270,6 +317,19 @@ def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy):
             moment = torque - (arm[0] * fy - arm[1] * fx)
             offered[f"{joint.name}_M"] = OutputSpec(f"{joint.name}_M", "N.m", f"moment of joint {joint.name} on "
                                                     f"the {body.name} about the sliding point [N.m]", sp.simplify(moment))
+    for element in springs:
+        name = element.spring.name
+        rows = ((("force", "N", f"Tension of spring {name}, positive pulling its points together [N]"),
+                 ("length", "m", f"Length of spring {name} [m]")) if element.spring.joint is None else
+                (("torque", "N.m", f"Torque of rotational spring {name} at joint {element.spring.joint}, positive "
+                                   f"turning its second body clockwise [N.m]"),
+                 ("angle", "rad", f"Relative angle of joint {element.spring.joint} (second body minus first) [rad]")))
+        for (suffix, unit, text), expr in zip(rows, (element.tension, element.length)):
+            if f"{name}_{suffix}" in offered:
+                raise MechanismError(f"{mech.source}: springs '{name}': its output {name}_{suffix!r} would have the "
+                                     f"name of another output; rename the spring")
+            offered[f"{name}_{suffix}"] = OutputSpec(f"{name}_{suffix}", unit, text, expr,
+                                                     display_unit="deg" if suffix == "angle" else None)
     joints = {j.name: j for j in mech.joints}
     for k, driver in enumerate(mech.drivers):
         (row,) = joint_rows[driver.name]

@@ -28,7 +28,7 @@ from .expressions import MAX_MAGNITUDE, ExpressionError, check_expression, parse
 if TYPE_CHECKING:      # sympy is imported once every expression of the file has passed its checks
     import sympy as sp
 
-__all__ = ["Mechanism", "Parameter", "Body", "PointRef", "Joint", "Driver", "StartValue", "ExpressionOutput",
+__all__ = ["Mechanism", "Parameter", "Body", "PointRef", "Joint", "Driver", "Spring", "StartValue", "ExpressionOutput",
            "MechanismError", "load_mechanism", "parse_mechanism", "MECHANISM_DIR", "resolve_mechanism",
            "shipped_mechanisms", "RATE_PREFIX", "POSITIVE"]
 
@@ -126,6 +126,25 @@ class Driver:
 
 
 @dataclass(frozen=True)
+class Spring:
+    """A spring-damper on a coordinate s of the mechanism: point-to-point (``first``,
+    ``second``: s the distance between the points, a force) or rotational at a revolute joint
+    (``joint``: s its second body's angle minus its first's, a torque).  What it exerts,
+    ``preload + stiffness (s - length) + damping ds/dt``, is positive when it pulls the points
+    together or turns the second body back towards the first (clockwise on it for s > length);
+    every coefficient an expression of the parameters."""
+
+    name: str
+    first: PointRef | None      # point-to-point: the two points
+    second: PointRef | None
+    stiffness: sp.Expr          # N/m or N.m/rad
+    damping: sp.Expr            # N.s/m or N.m.s/rad
+    length: sp.Expr             # free length (m) or free angle (rad)
+    preload: sp.Expr            # N or N.m at s = length
+    joint: str | None = None    # rotational: the revolute joint
+
+
+@dataclass(frozen=True)
 class StartValue:
     """The start value of an independent coordinate or of its rate (a fixed FMU parameter
     named ``<coordinate>_start``)."""
@@ -170,6 +189,7 @@ class Mechanism:
     start: tuple[StartValue, ...]  # per independent coordinate: its value, then its rate
     outputs: tuple[str, ...] | None    # None: every output (see derivation.available_outputs)
     expression_outputs: tuple[ExpressionOutput, ...] = ()   # after ``outputs``, in file order
+    springs: tuple[Spring, ...] = ()
 
     @property
     def independent(self) -> tuple[str, ...]:
@@ -394,6 +414,12 @@ def _check_expressions(reader: _Reader, data: dict, values: dict[str, float]) ->
         if isinstance(spec.get("points"), dict):
             for name, value in spec["points"].items():
                 pair(value, f"{where}.points.{name}")
+    springs = data.get("springs")
+    for k, spec in enumerate(springs if isinstance(springs, list) else ()):
+        if not isinstance(spec, dict) or not isinstance(spec.get("name"), str) or not spec["name"]:
+            continue
+        for key in ("stiffness", "damping", "length", "angle", "preload"):
+            check(spec.get(key), f"springs[{k}] '{spec['name']}'.{key}")
 
 
 def _bodies(reader: _Reader, items, scope: _Scope) -> tuple[Body, ...]:
@@ -589,6 +615,75 @@ def _driver_position(reader: _Reader, spec: dict, where: str, parameters, symbol
         raise reader.fail(f"{where}.position", f"{_shown(text)} {exc}") from None
 
 
+def _springs(reader: _Reader, items, bodies: tuple[Body, ...], ground, joints, drivers, scope: _Scope
+             ) -> tuple[Spring, ...]:
+    """The [[springs]] entries: names unique among springs, joints and drivers (they name
+    outputs), points that exist, coefficients that are expressions of the parameters whose
+    values in the file are not negative (a free length, a stiffness, a damping)."""
+    import sympy as sp
+
+    if items is None:
+        return ()
+    if not isinstance(items, list):
+        raise reader.fail("springs", "use [[springs]] entries")
+    by_name = {b.name: b for b in bodies}
+    taken = {j.name: "a joint" for j in joints} | {d.name: "a driver" for d in drivers}
+    springs: list[Spring] = []
+    for k, spec in enumerate(items):
+        where = f"springs[{k}]"
+        if not isinstance(spec, dict):
+            raise reader.fail(where, "must be a table")
+        name = reader.string(spec, "name", where)
+        where = f"springs[{k}] '{name}'"
+        reader.unknown_keys(spec, {"name", "connects", "joint", "stiffness", "damping", "length", "angle",
+                                   "preload"}, where)
+        if not _NAME.match(name):
+            raise reader.fail(where, "a spring name is letters, digits and _, starting with a letter")
+        if name in taken or any(s.name == name for s in springs):
+            raise reader.fail(where, f"{taken.get(name, 'a spring')} already has this name (it names outputs)")
+        if ("connects" in spec) == ("joint" in spec):
+            raise reader.fail(where, "give either 'connects' (two points: a spring along the line between "
+                                     "them) or 'joint' (a revolute joint: a rotational spring), not both")
+        first = second = joint = None
+        if "joint" in spec:
+            joint = reader.string(spec, "joint", where)
+            revolute = [j.name for j in joints if j.type == "revolute"]
+            if joint not in revolute:
+                raise reader.fail(f"{where}.joint", f"{joint!r} is not a revolute joint (revolute joints: "
+                                                    f"{', '.join(revolute) or 'none'})")
+            free = "angle"
+            if "length" in spec:
+                raise reader.fail(where, "a rotational spring has a free 'angle', not a 'length'")
+        else:
+            connects = spec.get("connects")
+            if not isinstance(connects, list) or len(connects) != 2:
+                raise reader.fail(where, "'connects' must name two points, e.g. [\"ground.A\", \"block.centre\"]")
+            first, second = (_point_ref(reader, v, f"{where}.connects", by_name, ground) for v in connects)
+            if first.body == second.body:
+                raise reader.fail(where, f"connects two points of the same body ({first.body!r})")
+            free = "length"
+            if "angle" in spec:
+                raise reader.fail(where, "a point-to-point spring has a free 'length', not an 'angle'")
+        values = {}
+        for key, default in (("stiffness", None), ("damping", 0), (free, None if free == "length" else 0),
+                             ("preload", 0)):
+            if key not in spec and default is None:
+                raise reader.fail(where, f"missing '{key}'")
+            value = spec.get(key, default)
+            if key == "angle" and isinstance(value, (int, float)) and not isinstance(value, bool):
+                value = math.radians(reader.number(spec, "angle", where, 0.0))    # a number: degrees
+            expr = _expression(reader, value, f"{where}.{key}", scope)
+            if key not in ("preload", "angle"):
+                value = float(expr.subs({scope.symbols[n]: v for n, v in scope.values.items()}))
+                if value < 0:
+                    raise reader.fail(f"{where}.{key}", f"{_shown(str(spec[key]))} is {value:g} at the "
+                                                         f"parameters' values; a {key} cannot be negative")
+            values[key] = sp.sympify(expr)
+        springs.append(Spring(name, first, second, values["stiffness"], values["damping"], values[free],
+                              values["preload"], joint))
+    return tuple(springs)
+
+
 def _start(reader: _Reader, table: dict, bodies: tuple[Body, ...]) -> tuple[StartValue, ...]:
     coordinates = {c: b for b in bodies for c in b.coordinates}
     rates = {}
@@ -639,8 +734,8 @@ def _start(reader: _Reader, table: dict, bodies: tuple[Body, ...]) -> tuple[Star
 def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
     """A :class:`Mechanism` from the TOML tables (``source`` names the file in messages)."""
     reader = _Reader(source)
-    reader.unknown_keys(data, {"mechanism", "parameters", "ground", "bodies", "joints", "drivers", "start",
-                               "outputs"}, "top level")
+    reader.unknown_keys(data, {"mechanism", "parameters", "ground", "bodies", "joints", "drivers", "springs",
+                               "start", "outputs"}, "top level")
     head = reader.table(data, "mechanism", "top level")
     reader.unknown_keys(head, {"name", "description", "gravity"}, "[mechanism]")
     name = reader.string(head, "name", "[mechanism]")
@@ -665,6 +760,7 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
     bodies = _bodies(reader, data.get("bodies"), scope)
     joints = _joints(reader, data.get("joints"), bodies, ground)
     drivers = _drivers(reader, data.get("drivers"), joints, parameters, symbols)
+    springs = _springs(reader, data.get("springs"), bodies, ground, joints, drivers, scope)
     start = _start(reader, reader.table(data, "start", "top level", required=False), bodies)
     names = {p.name for p in parameters}
     for s in start:
@@ -685,7 +781,7 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
             expression_outputs = _expression_outputs(reader, table["expressions"], parameters, bodies, symbols)
     return Mechanism(name, reader.text(head, "description", "[mechanism]", name), source, gravity, parameters,
                      ground, bodies,
-                     joints, drivers, start, outputs, expression_outputs)
+                     joints, drivers, start, outputs, expression_outputs, springs)
 
 
 def _expression_outputs(reader: _Reader, table, parameters: tuple[Parameter, ...], bodies: tuple[Body, ...],
