@@ -746,8 +746,9 @@ def _friction(reader: _Reader, items, joints, drivers, springs, scope: _Scope) -
             expr = _expression(reader, spec.get(key, default), f"{where}.{key}", scope)
             value = float(expr.subs({scope.symbols[n]: v for n, v in scope.values.items()}))
             if value < 0 or (key == "velocity_scale" and value <= 0):
+                rule = "it must be positive" if key == "velocity_scale" else "a friction coefficient cannot be negative"
                 raise reader.fail(f"{where}.{key}", f"{_shown(str(spec[key]))} is {value:g} at the parameters' "
-                                                     f"values; {'it must be positive' if key == 'velocity_scale' else 'a friction coefficient cannot be negative'}")
+                                                     f"values; {rule}")
             values[key] = sp.sympify(expr)
         out.append(Friction(name, joint, kinds[joint], values["viscous"], values["coulomb"], values["velocity_scale"]))
     return tuple(out)
