@@ -270,3 +270,26 @@ def two_halves(modules: dict[str, tuple[float, int]]) -> list[str]:
     first, second = groups if count[0] >= count[1] else groups[::-1]
     density = {m: c / max(n, 1) for m, (c, n) in modules.items()}
     return sorted(first, key=lambda m: -density[m]) + sorted(second, key=lambda m: -density[m])
+
+
+def edited_mechanism_message(mechanism: Path, old: str, new: str, tmp_path: Path) -> tuple[Path, str]:
+    """``mechanism``'s text with ``old`` replaced by ``new`` once, loaded from ``tmp_path/mine.toml``:
+    the file and the MechanismError's message (the edit must apply and the load must fail)."""
+    from fmu_src.mechanism.description import MechanismError, load_mechanism
+
+    text = mechanism.read_text()
+    assert old in text
+    path = tmp_path / "mine.toml"
+    path.write_text(text.replace(old, new, 1))
+    with pytest.raises(MechanismError) as info:
+        load_mechanism(path)
+    return path, str(info.value)
+
+
+def build_fmu_refusal(path: Path, tmp_path: Path) -> subprocess.CompletedProcess:
+    """``build_fmu.py`` run on the mechanism file ``path``, into ``tmp_path/out``: expected to refuse it."""
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "build_fmu.py", "--mechanism", str(path), "--out", str(out / "a.fmu"),
+                           "--native-out", str(out / "b.fmu")], cwd=REPO, capture_output=True, text=True)
+    proc.out = out
+    return proc

@@ -9,14 +9,12 @@ pendulum with viscous damping at its pivot (c2 = 0.05 N.m.s/rad), swinging 1 deg
 from __future__ import annotations
 
 import functools
-import subprocess
 import sys
 
 import numpy as np
 import pytest
-from support import REPO
+from support import REPO, build_fmu_refusal, edited_mechanism_message
 
-from fmu_src.mechanism.description import MechanismError, load_mechanism
 
 MECHANISM = REPO / "tests" / "mechanisms" / "friction_pair.toml"
 #: rtol = atol of the FMUs' integrator (the springs' tests measured a global error ~1e-13 there).
@@ -114,22 +112,15 @@ BAD = [
 @pytest.mark.parametrize("case", BAD, ids=[b[0] for b in BAD])
 def test_a_bad_friction_entry_is_named(case, tmp_path):
     _, (old, new), words = case
-    text = MECHANISM.read_text()
-    assert old in text
-    path = tmp_path / "mine.toml"
-    path.write_text(text.replace(old, new, 1))
-    with pytest.raises(MechanismError) as info:
-        load_mechanism(path)
-    message = str(info.value)
+    path, message = edited_mechanism_message(MECHANISM, old, new, tmp_path)
     assert message.startswith(str(path)) and all(w in message for w in words), message
 
 
 def test_build_fmu_refuses_a_negative_viscous_coefficient_with_exit_2(tmp_path):
     path = tmp_path / "mine.toml"
     path.write_text(MECHANISM.read_text().replace('viscous = "c2"', 'viscous = -0.5'))
-    out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "build_fmu.py", "--mechanism", str(path), "--out", str(out / "a.fmu"),
-                           "--native-out", str(out / "b.fmu")], cwd=REPO, capture_output=True, text=True)
+    proc = build_fmu_refusal(path, tmp_path)
+    out = proc.out
     assert proc.returncode == 2, proc
     assert "Traceback" not in proc.stderr and proc.stderr.startswith("build_fmu.py: error: "), proc.stderr
     assert "friction[1] 'f2'.viscous: '-0.5' is -0.5" in proc.stderr and "cannot be negative" in proc.stderr, \
