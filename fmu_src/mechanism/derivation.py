@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .description import RATE_PREFIX, Joint, Mechanism, MechanismError, PointRef, Spring, Load
+from .description import RATE_PREFIX, Friction, Joint, Load, Mechanism, MechanismError, PointRef, Spring
 from .drawing import joint_columns
 
 __all__ = ["MechanismEquations", "OutputSpec", "derive", "RUNTIME_OUTPUTS"]
@@ -200,6 +200,11 @@ def _derive(mech: Mechanism) -> MechanismEquations:
             Q += element.forces
             V += element.potential
             spring_outputs.append(element)
+    friction_outputs = _friction_terms(mech, frames, q, qd)
+    if friction_outputs:
+        Q = sp.Matrix(Q)
+        for element in friction_outputs:
+            Q += element.forces
     load_outputs = []
     if mech.loads:
         Q = sp.Matrix(Q)
@@ -235,7 +240,8 @@ def _derive(mech: Mechanism) -> MechanismEquations:
     gamma = gamma.applyfunc(sp.simplify)
     lam = sp.Matrix([sp.Symbol(f"lambda_{k}", real=True) for k in range(Phi.rows)])
 
-    outputs, available = _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, T + V, spring_outputs, load_outputs)
+    outputs, available = _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, T + V, spring_outputs,
+                                  friction_outputs, load_outputs)
     eqs = MechanismEquations(
         mechanism=mech, coordinates=names, q=q, qd=qd, t=t, params=tuple(params.values()), drive=tuple(drive),
         mass_matrix=M, forces=Q, constraints=Phi, jacobian=Phi_q, nu=nu, gamma=gamma,
@@ -305,7 +311,49 @@ def _load(load: Load, frames: _Frames, q: sp.Matrix, qd: sp.Matrix) -> _LoadTerm
     return _LoadTerms(load, forces, sp.simplify((forces.T * qd)[0]))
 
 
-def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, springs=(), loads=()):
+@dataclass(frozen=True)
+class _FrictionTerms:
+    """A joint friction's pieces: the joint's rate v, what it exerts F (opposing v) and its
+    generalized forces."""
+
+    friction: Friction
+    rate: sp.Expr
+    force: sp.Expr
+    forces: sp.Matrix          # n x 1
+
+
+def _friction_terms(mech: Mechanism, frames: _Frames, q: sp.Matrix, qd: sp.Matrix) -> tuple[_FrictionTerms, ...]:
+    """Joint friction on the joint's coordinate s (the driver's: relative angle or position
+    along the line), v = ds/dt: F = viscous v + coulomb tanh(v / v_s).  Its virtual work is
+    -F ds, so Q = -F (ds/dq)^T; it has no potential and dissipates F v >= 0."""
+    joints = {j.name: j for j in mech.joints}
+    out = []
+    for friction in mech.friction:
+        grad = sp.Matrix([_joint_coordinate(joints[friction.joint], frames)]).jacobian(q)
+        rate = (grad * qd)[0]
+        force = friction.viscous * rate + friction.coulomb * sp.tanh(rate / friction.velocity_scale)
+        out.append(_FrictionTerms(friction, rate, force, -force * grad.T))
+    return tuple(out)
+
+
+def _friction_outputs(mech: Mechanism, offered: dict, friction: tuple[_FrictionTerms, ...]) -> None:
+    """``<name>_torque`` (revolute) or ``<name>_force`` (prismatic) and ``<name>_power``."""
+    for element in friction:
+        f = element.friction
+        kind, unit = ("torque", "N.m") if f.kind == "revolute" else ("force", "N")
+        rows = ((kind, unit, f"{kind.capitalize()} of friction {f.name} at joint {f.joint}, positive opposing a "
+                             f"positive joint rate (acting on the second body against it) [{unit}]", element.force),
+                ("power", "W", f"Power dissipated by friction {f.name} at joint {f.joint} (>= 0) [W]",
+                 element.force * element.rate))
+        for suffix, unit, text, expr in rows:
+            if f"{f.name}_{suffix}" in offered:
+                raise MechanismError(f"{mech.source}: friction '{f.name}': its output {f.name}_{suffix!r} would have "
+                                     f"the name of another output; rename it")
+            offered[f"{f.name}_{suffix}"] = OutputSpec(f"{f.name}_{suffix}", unit, text, expr)
+
+
+def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, springs=(), friction=(),
+             loads=()):
     """Every output the mechanism offers, then the ones the file selects, in its order."""
     offered: dict[str, OutputSpec] = {}
     for body in mech.bodies:
@@ -362,6 +410,7 @@ def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, 
                                      f"name of another output; rename the spring")
             offered[f"{name}_{suffix}"] = OutputSpec(f"{name}_{suffix}", unit, text, expr,
                                                      display_unit="deg" if suffix == "angle" else None)
+    _friction_outputs(mech, offered, friction)
     for element in loads:
         name = f"{element.load.name}_power"
         if name in offered:

@@ -28,7 +28,7 @@ from .expressions import MAX_MAGNITUDE, ExpressionError, check_expression, parse
 if TYPE_CHECKING:      # sympy is imported once every expression of the file has passed its checks
     import sympy as sp
 
-__all__ = ["Mechanism", "Parameter", "Body", "PointRef", "Joint", "Driver", "Spring", "Load", "StartValue", "ExpressionOutput",
+__all__ = ["Mechanism", "Parameter", "Body", "PointRef", "Joint", "Driver", "Spring", "Friction", "Load", "StartValue", "ExpressionOutput",
            "MechanismError", "load_mechanism", "parse_mechanism", "MECHANISM_DIR", "resolve_mechanism",
            "shipped_mechanisms", "RATE_PREFIX", "POSITIVE"]
 
@@ -145,6 +145,22 @@ class Spring:
 
 
 @dataclass(frozen=True)
+class Friction:
+    """Friction at a revolute or prismatic joint, on its coordinate s (the relative angle,
+    second body minus first, or the position along the line) and its rate v = ds/dt:
+    ``viscous v + coulomb tanh(v / velocity_scale)``, a torque (N.m) or force (N) opposing v
+    (the Coulomb part regularised, see docs/mechanisms.md); every coefficient an expression of
+    the parameters."""
+
+    name: str
+    joint: str
+    kind: str                   # "revolute" or "prismatic"
+    viscous: sp.Expr            # N.m.s/rad or N.s/m
+    coulomb: sp.Expr            # N.m or N
+    velocity_scale: sp.Expr     # rad/s or m/s, > 0
+
+
+@dataclass(frozen=True)
 class Load:
     """An applied load of constant size (an expression of the parameters, so tunable): a torque
     on a body (``torque``, N.m, counter-clockwise positive) or a force at a body point
@@ -204,6 +220,7 @@ class Mechanism:
     outputs: tuple[str, ...] | None    # None: every output (see derivation.available_outputs)
     expression_outputs: tuple[ExpressionOutput, ...] = ()   # after ``outputs``, in file order
     springs: tuple[Spring, ...] = ()
+    friction: tuple[Friction, ...] = ()
     loads: tuple[Load, ...] = ()
 
     @property
@@ -435,6 +452,12 @@ def _check_expressions(reader: _Reader, data: dict, values: dict[str, float]) ->
             continue
         for key in ("stiffness", "damping", "length", "angle", "preload"):
             check(spec.get(key), f"springs[{k}] '{spec['name']}'.{key}")
+    friction = data.get("friction")
+    for k, spec in enumerate(friction if isinstance(friction, list) else ()):
+        if not isinstance(spec, dict) or not isinstance(spec.get("name"), str) or not spec["name"]:
+            continue
+        for key in ("viscous", "coulomb", "velocity_scale"):
+            check(spec.get(key), f"friction[{k}] '{spec['name']}'.{key}")
 
 
 def _bodies(reader: _Reader, items, scope: _Scope) -> tuple[Body, ...]:
@@ -699,6 +722,53 @@ def _springs(reader: _Reader, items, bodies: tuple[Body, ...], ground, joints, d
     return tuple(springs)
 
 
+def _friction(reader: _Reader, items, joints, drivers, springs, scope: _Scope) -> tuple[Friction, ...]:
+    """The [[friction]] entries: names unique among friction entries, springs, joints and
+    drivers (they name outputs), a revolute or prismatic joint, coefficients that are
+    expressions of the parameters, not negative at the parameters' values (the velocity scale
+    positive)."""
+    import sympy as sp
+
+    if items is None:
+        return ()
+    if not isinstance(items, list):
+        raise reader.fail("friction", "use [[friction]] entries")
+    taken = ({j.name: "a joint" for j in joints} | {d.name: "a driver" for d in drivers}
+             | {s.name: "a spring" for s in springs})
+    kinds = {j.name: j.type for j in joints}
+    out: list[Friction] = []
+    for k, spec in enumerate(items):
+        where = f"friction[{k}]"
+        if not isinstance(spec, dict):
+            raise reader.fail(where, "must be a table")
+        name = reader.string(spec, "name", where)
+        where = f"friction[{k}] '{name}'"
+        reader.unknown_keys(spec, {"name", "joint", "viscous", "coulomb", "velocity_scale"}, where)
+        if not _NAME.match(name):
+            raise reader.fail(where, "a friction name is letters, digits and _, starting with a letter")
+        if name in taken or any(f.name == name for f in out):
+            raise reader.fail(where, f"{taken.get(name, 'a friction entry')} already has this name (it names outputs)")
+        joint = reader.string(spec, "joint", where)
+        if kinds.get(joint) not in ("revolute", "prismatic"):
+            raise reader.fail(f"{where}.joint", f"{joint!r} is not a revolute or prismatic joint (joints: "
+                                                f"{', '.join(kinds) or 'none'})")
+        if "viscous" not in spec and "coulomb" not in spec:
+            raise reader.fail(where, "give 'viscous' or 'coulomb' (or both)")
+        if "coulomb" in spec and "velocity_scale" not in spec:
+            raise reader.fail(where, "a Coulomb friction needs 'velocity_scale' (v_s of tanh(v/v_s))")
+        values = {}
+        for key, default in (("viscous", 0), ("coulomb", 0), ("velocity_scale", 1)):
+            expr = _expression(reader, spec.get(key, default), f"{where}.{key}", scope)
+            value = float(expr.subs({scope.symbols[n]: v for n, v in scope.values.items()}))
+            if value < 0 or (key == "velocity_scale" and value <= 0):
+                rule = "it must be positive" if key == "velocity_scale" else "a friction coefficient cannot be negative"
+                raise reader.fail(f"{where}.{key}", f"{_shown(str(spec[key]))} is {value:g} at the parameters' "
+                                                     f"values; {rule}")
+            values[key] = sp.sympify(expr)
+        out.append(Friction(name, joint, kinds[joint], values["viscous"], values["coulomb"], values["velocity_scale"]))
+    return tuple(out)
+
+
 def _loads(reader: _Reader, items, bodies: tuple[Body, ...], ground, taken: dict[str, str], scope: _Scope
            ) -> tuple[Load, ...]:
     """The [[loads]] entries: a constant torque on a body or a constant force at a body point,
@@ -809,7 +879,7 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
     """A :class:`Mechanism` from the TOML tables (``source`` names the file in messages)."""
     reader = _Reader(source)
     reader.unknown_keys(data, {"mechanism", "parameters", "ground", "bodies", "joints", "drivers", "springs",
-                               "loads", "start", "outputs"}, "top level")
+                               "friction", "loads", "start", "outputs"}, "top level")
     head = reader.table(data, "mechanism", "top level")
     reader.unknown_keys(head, {"name", "description", "gravity"}, "[mechanism]")
     name = reader.string(head, "name", "[mechanism]")
@@ -835,8 +905,10 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
     joints = _joints(reader, data.get("joints"), bodies, ground)
     drivers = _drivers(reader, data.get("drivers"), joints, parameters, symbols)
     springs = _springs(reader, data.get("springs"), bodies, ground, joints, drivers, scope)
+    friction = _friction(reader, data.get("friction"), joints, drivers, springs, scope)
     loads = _loads(reader, data.get("loads"), bodies, ground, {j.name: "a joint" for j in joints}
-                   | {d.name: "a driver" for d in drivers} | {s.name: "a spring" for s in springs}, scope)
+                   | {d.name: "a driver" for d in drivers} | {s.name: "a spring" for s in springs}
+                   | {f.name: "a friction entry" for f in friction}, scope)
     start = _start(reader, reader.table(data, "start", "top level", required=False), bodies)
     names = {p.name for p in parameters}
     for s in start:
@@ -857,7 +929,7 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
             expression_outputs = _expression_outputs(reader, table["expressions"], parameters, bodies, symbols)
     return Mechanism(name, reader.text(head, "description", "[mechanism]", name), source, gravity, parameters,
                      ground, bodies,
-                     joints, drivers, start, outputs, expression_outputs, springs, loads)
+                     joints, drivers, start, outputs, expression_outputs, springs, friction, loads)
 
 
 def _expression_outputs(reader: _Reader, table, parameters: tuple[Parameter, ...], bodies: tuple[Body, ...],

@@ -117,7 +117,7 @@ q = [{", ".join(eqs.coordinates)}], qd = dq/dt; p = ({", ".join(params)});
 d = the drivers' (s_ref, t_ref, v); lam = the multipliers.
 Equation form: M qdd + Phi_q^T lambda = Q, Phi_q qdd = gamma, Phi_q qd = nu.
 """
-from math import acos, asin, atan, atan2, cos, exp, log, pi, sin, sqrt, tan  # noqa: F401  (what expressions.FUNCTIONS and CONSTANTS allow)
+from math import acos, asin, atan, atan2, cos, exp, log, pi, sin, sqrt, tan, tanh  # noqa: F401  (expressions.FUNCTIONS and CONSTANTS; tanh: [[friction]])
 
 from numpy import array
 
