@@ -191,7 +191,7 @@ def command_line(argv, description: str, exit_status: str, without_fmusim: str, 
     --write), checked: exit 2 with a message for an unknown mechanism, a named fmusim that is not
     one, or a --write that lacks every mechanism, an fmusim or the page's marker lines."""
     from fmu_src.mechanism.description import shipped_mechanisms
-    shipped = shipped_mechanisms()
+    shipped = shipped_mechanisms(benchmarks=False)     # published benchmarks: their own tests
     parser = argparse.ArgumentParser(description=description, epilog=f"exit status: {exit_status}, 2 usage error")
     parser.add_argument("--fmusim", metavar="PATH",
                         help=f"the fmusim executable (default: $FMUSIM, else fmusim on PATH; none: {without_fmusim}; "

@@ -293,3 +293,17 @@ def build_fmu_refusal(path: Path, tmp_path: Path) -> subprocess.CompletedProcess
                            "--native-out", str(out / "b.fmu")], cwd=REPO, capture_output=True, text=True)
     proc.out = out
     return proc
+
+
+# -- the shipped mechanisms the per-mechanism loops sweep ----------------------------------------
+#: Shipped published benchmarks (fmu_src.mechanism.description.PUBLISHED_BENCHMARKS), each checked
+#: against its publication's reference solution in its own test file.
+BENCHMARK_MECHANISMS = {"andrews_squeezer": "tests/test_andrews_squeezer.py"}
+
+
+def swept_mechanisms() -> tuple[str, ...]:
+    """The shipped mechanisms but the published benchmarks, which run only over their short span."""
+    from fmu_src.mechanism.description import PUBLISHED_BENCHMARKS, shipped_mechanisms
+
+    assert set(BENCHMARK_MECHANISMS) == set(PUBLISHED_BENCHMARKS), "name each benchmark's test file"
+    return shipped_mechanisms(benchmarks=False)

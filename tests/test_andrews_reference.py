@@ -11,7 +11,7 @@ The chains, in the paper's coordinates (Hairer & Wanner, Sec. VII.7), with e(a) 
       = B + ss e(gamma - pi/2)                                 (lever 3 about B)
       = A + zt e(delta) + e e(Phi + delta - pi/2)              (5 about A, then 4)
       = A + u e(epsilon - pi/2) + zf e(Omega + epsilon)        (7 about A, then 6)
-tests/mechanisms/andrews_draft.toml.txt maps them to body angles.
+fmu_src/mechanisms/andrews_squeezer.toml maps them to body angles.
 """
 from __future__ import annotations
 

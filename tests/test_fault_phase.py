@@ -38,7 +38,7 @@ from hypothesis import strategies as st
 from fmu_src.mechanism.check import prepare_mechanism, start_state
 from fmu_src.mechanism.description import shipped_mechanisms
 from fmu_src.mechanism_model.dae import MechanismDAE, snap_time
-from support import REPO
+from support import REPO, swept_mechanisms
 
 #: Start rate given to each declared coordinate so that the crank runs through every phase (rad/s;
 #: m/s for a position) ...
@@ -74,7 +74,7 @@ def _user_files() -> list[str]:
     return sorted(str(p.relative_to(REPO)) for p in (REPO / "tests" / "mechanisms").glob("*.toml"))
 
 
-SPECS = list(shipped_mechanisms()) + _user_files() + ["quick_return_doubled"]
+SPECS = list(swept_mechanisms()) + _user_files()   # support.BENCHMARK_MECHANISMS: tested in their own files + ["quick_return_doubled"]
 
 
 def _path(spec: str) -> str:

@@ -22,10 +22,9 @@ from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Model
 from fmpy.fmi3 import FMU3Model, FMU3Slave
+from support import swept_mechanisms
 
-from fmu_src.mechanism.description import shipped_mechanisms
-
-MECHANISMS = shipped_mechanisms()
+MECHANISMS = swept_mechanisms()   # support.BENCHMARK_MECHANISMS: tested in their own files
 
 #: Finite-difference step of the states (rad, m, rad/s, m/s, J): central differences with h and
 #: h/2, Richardson-extrapolated, leave a truncation error ~ h^4 (1e-20) and a round-off error

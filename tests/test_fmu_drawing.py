@@ -25,13 +25,13 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 from mechanism_reference import read_model
-from support import REPO
+from support import REPO, swept_mechanisms
 from test_mechanism_fmus import AGREE, SPAN, TIGHT
 
 from fmu_src.mechanism.check import prepare_mechanism
-from fmu_src.mechanism.description import MECHANISM_DIR, MechanismError, load_mechanism, shipped_mechanisms
+from fmu_src.mechanism.description import MECHANISM_DIR, MechanismError, load_mechanism
 
-MECHANISMS = shipped_mechanisms()
+MECHANISMS = swept_mechanisms()   # support.BENCHMARK_MECHANISMS: tested in their own files
 KINDS = ("pythonfmu", "native")
 #: A joint's output against a point the bodies' coordinates put there (m): the two points of a
 #: joint coincide to the constraint residual (<= 1e-12, test_mechanism_fmus.RESIDUAL), and the

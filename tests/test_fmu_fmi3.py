@@ -31,12 +31,12 @@ from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
 from fmu_src import fmi_hosts   # the hosts' runners: one home
-from fmu_src.mechanism.description import load_mechanism, shipped_mechanisms
+from fmu_src.mechanism.description import load_mechanism
 from support import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, REPO, RESIDUAL, flavour_span,
-                     fmusim_or_skip, lengths_and_angles)
+                     fmusim_or_skip, lengths_and_angles, swept_mechanisms)
 
 
-MECHANISMS = shipped_mechanisms()
+MECHANISMS = swept_mechanisms()   # support.BENCHMARK_MECHANISMS: tested in their own files
 GLIBC_BASELINE = (2, 17)        # manylinux2014, as the FMI 2.0 binary
 FMI3_HEADERS = Path(__import__("fmpy").__file__).resolve().parent / "c-code"
 

@@ -31,11 +31,11 @@ from xml.etree import ElementTree as ET
 
 import pytest
 
-from fmu_src.mechanism.description import shipped_mechanisms
 from native_host.strict_host3 import (KNOWN_DEVIATIONS, HostRun, Target, compile_host, deviation_of, find_cc,
                                       list_cases, run_host, unpack)
+from support import swept_mechanisms
 
-MECHANISMS = shipped_mechanisms()
+MECHANISMS = swept_mechanisms()   # support.BENCHMARK_MECHANISMS: tested in their own files
 linux_only = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the host dlopens the x86_64-linux binary")
 _HOST_DIR = tempfile.TemporaryDirectory(prefix="fmi3_strict_host_")    # removed at exit
 

@@ -11,10 +11,10 @@ import sympy as sp
 from numpy.testing import assert_allclose
 
 from fmu_src.mechanism.check import prepare_mechanism, start_state
-from fmu_src.mechanism.description import shipped_mechanisms
 from fmu_src.mechanism_model.dae import MechanismDAE
+from support import swept_mechanisms
 
-MECHANISMS = shipped_mechanisms()
+MECHANISMS = swept_mechanisms()   # support.BENCHMARK_MECHANISMS: tested in their own files
 
 
 @pytest.fixture(scope="module", params=MECHANISMS)

@@ -17,12 +17,11 @@ from fmpy.fmi2 import FMU2Model
 from scipy.integrate import DOP853
 
 from fmu_src import fmi_hosts   # the hosts' runners: one home
-from fmu_src.mechanism.description import shipped_mechanisms
 from support import (COSIM_TOL, CVODE_RTOL, FLAVOUR_AGREE, RESIDUAL, flavour_span,
-                     fmucheck_or_skip, fmusim_or_skip, lengths_and_angles)
+                     fmucheck_or_skip, fmusim_or_skip, lengths_and_angles, swept_mechanisms)
 
 
-MECHANISMS = shipped_mechanisms()
+MECHANISMS = swept_mechanisms()   # support.BENCHMARK_MECHANISMS: tested in their own files
 
 
 @pytest.mark.parametrize("mechanism", MECHANISMS)

@@ -318,8 +318,9 @@ def _coordinates(fmu) -> list[str]:
 
 
 def _shipped():
-    from fmu_src.mechanism.description import shipped_mechanisms
-    return shipped_mechanisms()
+    from support import swept_mechanisms
+
+    return swept_mechanisms()   # support.BENCHMARK_MECHANISMS: tested in their own files
 
 
 @pytest.mark.parametrize("mechanism", _shipped())

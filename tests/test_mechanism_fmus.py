@@ -11,10 +11,9 @@ import numpy as np
 import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
+from support import swept_mechanisms
 
-from fmu_src.mechanism.description import shipped_mechanisms
-
-MECHANISMS = shipped_mechanisms()
+MECHANISMS = swept_mechanisms()   # support.BENCHMARK_MECHANISMS: tested in their own files
 #: rtol = atol of both FMUs in the agreement test (the issue's setting).
 TIGHT = 1e-12
 #: Agreement span (s): the five-bar is chaotic (a 1e-12 rad change grows to 7e-10 m by 5 s and

@@ -26,16 +26,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from support import fmucheck_or_skip, fmusim_or_skip
+from support import fmucheck_or_skip, fmusim_or_skip, swept_mechanisms
 
 from fmu_src import fmi_hosts
-from fmu_src.mechanism.description import shipped_mechanisms
 from fmu_src.mechanism.table import DEFAULT_TOLERANCE
 
 pytest.importorskip("libcosimpy", reason="libcosimpy is not installed (pip install libcosimpy); "
                                          "the libcosim comparison needs it")
 
-MECHANISMS = shipped_mechanisms()
+MECHANISMS = swept_mechanisms()   # support.BENCHMARK_MECHANISMS: tested in their own files
 #: 5 s of the benchmark's experiment (20 s): 501 communication points, past the first second in
 #: which every shipped mechanism moves through most of its motion (a fast crank turns ~5 times).
 EXPERIMENT = fmi_hosts.Experiment(stop=5.0)

@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .description import RATE_PREFIX, Friction, Joint, Mechanism, MechanismError, PointRef, Spring
+from .description import RATE_PREFIX, Friction, Joint, Load, Mechanism, MechanismError, PointRef, Spring
 from .drawing import joint_columns
 
 __all__ = ["MechanismEquations", "OutputSpec", "derive", "RUNTIME_OUTPUTS"]
@@ -205,6 +205,13 @@ def _derive(mech: Mechanism) -> MechanismEquations:
         Q = sp.Matrix(Q)
         for element in friction_outputs:
             Q += element.forces
+    load_outputs = []
+    if mech.loads:
+        Q = sp.Matrix(Q)
+        for load in mech.loads:
+            element = _load(load, frames, q, qd)
+            Q += element.forces
+            load_outputs.append(element)
 
     # Constraints: joints in file order, then drivers.
     rows: list[sp.Expr] = []
@@ -234,7 +241,7 @@ def _derive(mech: Mechanism) -> MechanismEquations:
     lam = sp.Matrix([sp.Symbol(f"lambda_{k}", real=True) for k in range(Phi.rows)])
 
     outputs, available = _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, T + V, spring_outputs,
-                                 friction_outputs)
+                                  friction_outputs, load_outputs)
     eqs = MechanismEquations(
         mechanism=mech, coordinates=names, q=q, qd=qd, t=t, params=tuple(params.values()), drive=tuple(drive),
         mass_matrix=M, forces=Q, constraints=Phi, jacobian=Phi_q, nu=nu, gamma=gamma,
@@ -280,6 +287,31 @@ def _spring(spring: Spring, frames: _Frames, q: sp.Matrix, qd: sp.Matrix, joints
 
 
 @dataclass(frozen=True)
+class _LoadTerms:
+    """An applied load's generalized forces and its power Q^T qd."""
+
+    load: Load
+    forces: sp.Matrix          # n x 1
+    power: sp.Expr
+
+
+def _load(load: Load, frames: _Frames, q: sp.Matrix, qd: sp.Matrix) -> _LoadTerms:
+    """A constant torque tau on a body: virtual work tau dtheta, so Q = tau (dtheta/dq)^T; a
+    constant force F at a point p: virtual work F . dp, so Q = (dp/dq)^T F, with F turned by the
+    body's angle when it is given in the body's frame.  Its power is Q^T qd."""
+    if load.torque is not None:
+        grad = sp.Matrix([frames.angle(load.body)]).jacobian(q)
+        forces = load.torque * grad.T
+    else:
+        force = sp.Matrix(load.force)
+        if load.frame == "body":
+            force = _rotation(frames.angle(load.body)) * force
+        forces = frames.point(load.point).jacobian(q).T * force
+    forces = forces.applyfunc(sp.simplify)
+    return _LoadTerms(load, forces, sp.simplify((forces.T * qd)[0]))
+
+
+@dataclass(frozen=True)
 class _FrictionTerms:
     """A joint friction's pieces: the joint's rate v, what it exerts F (opposing v) and its
     generalized forces."""
@@ -320,7 +352,8 @@ def _friction_outputs(mech: Mechanism, offered: dict, friction: tuple[_FrictionT
             offered[f"{f.name}_{suffix}"] = OutputSpec(f"{f.name}_{suffix}", unit, text, expr)
 
 
-def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, springs=(), friction=()):
+def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, springs=(), friction=(),
+             loads=()):
     """Every output the mechanism offers, then the ones the file selects, in its order."""
     offered: dict[str, OutputSpec] = {}
     for body in mech.bodies:
@@ -378,6 +411,13 @@ def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, 
             offered[f"{name}_{suffix}"] = OutputSpec(f"{name}_{suffix}", unit, text, expr,
                                                      display_unit="deg" if suffix == "angle" else None)
     _friction_outputs(mech, offered, friction)
+    for element in loads:
+        name = f"{element.load.name}_power"
+        if name in offered:
+            raise MechanismError(f"{mech.source}: loads '{element.load.name}': its output {name!r} would have "
+                                 f"the name of another output; rename the load")
+        offered[name] = OutputSpec(name, "W", f"Power of load {element.load.name} on the {element.load.body} [W]",
+                                   element.power)
     joints = {j.name: j for j in mech.joints}
     for k, driver in enumerate(mech.drivers):
         (row,) = joint_rows[driver.name]
