@@ -298,7 +298,8 @@ def build_fmu_refusal(path: Path, tmp_path: Path) -> subprocess.CompletedProcess
 # -- the shipped mechanisms the per-mechanism loops sweep ----------------------------------------
 #: Shipped published benchmarks (fmu_src.mechanism.description.PUBLISHED_BENCHMARKS), each checked
 #: against its publication's reference solution in its own test file.
-BENCHMARK_MECHANISMS = {"andrews_squeezer": "tests/test_andrews_squeezer.py"}
+BENCHMARK_MECHANISMS = {"andrews_squeezer": "tests/test_andrews_squeezer.py",
+                       "iftomm_pendulum": "tests/test_iftomm_pendulum.py"}
 
 
 def swept_mechanisms() -> tuple[str, ...]:

@@ -75,11 +75,11 @@ def test_closed_forms_rates_and_accelerations_satisfy_the_full_system(case):
         "B": sp.lambdify([q, t, list(values)], red.B),
         "r_t": sp.lambdify([q, t, list(values)], list(red.r_t)),
         "gamma_r": sp.lambdify([q, qd, t, list(values)], list(red.gamma)),
-        "rates": sp.lambdify([q, qd, t, list(values)], list(red.G_z * sp.Matrix([qd[i] for i in z])
+        "rates": sp.lambdify([q, qd, t, list(values)], list(red.G_z * sp.Matrix(len(z), 1, [qd[i] for i in z])
                                                             + red.G_i * sp.Matrix(len(ind), 1, [qd[i] for i in ind])
                                                             + red.g_t) if e else []),
         "acc": sp.lambdify([q, qd, qdd, t, list(values)],
-                           list(red.G_z * sp.Matrix([qdd[i] for i in z])
+                           list(red.G_z * sp.Matrix(len(z), 1, [qdd[i] for i in z])
                                 + red.G_i * sp.Matrix(len(ind), 1, [qdd[i] for i in ind]) + red.kappa) if e else []),
         "phi": sp.lambdify([q, t, list(values)], list(eqs.constraints)),
         "J": sp.lambdify([q, list(values)], eqs.jacobian),
@@ -136,6 +136,9 @@ def test_every_shipped_mechanisms_loops_are_solved_in_closed_form_and_the_forms_
     row and every z once, each in unknowns no earlier stage solves, and their coefficients read
     only what earlier stages and the independent coordinates give."""
     name, eqs, red, _ = case
+    if not red.z:       # no closed loop (a pendulum): every dependent coordinate has a closed form
+        assert len(red.residual) == 0, name
+        return
     stages = _stages(eqs, red)
     assert stages is not None, f"{name}: the native FMU would run Newton-Raphson at every evaluation"
     z = [eqs.q[i] for i in red.z]
