@@ -97,3 +97,15 @@ def test_a_bar_one_percent_longer_fails_the_criterion(mechanism_fmus):
     # the period grows by 0.5 %: over 2000 s (about 800 swings) the phases part completely
     result = _run(mechanism_fmus.get("iftomm_pendulum", "native"), SPAN, L=1.01)
     assert _error(result, SPAN) > 100 * CRITERION
+
+
+def test_the_fmu_states_the_published_problem(mechanism_fmus):
+    from fmpy import read_model_description
+
+    start = {v.name: v.start for v in read_model_description(
+        str(mechanism_fmus.get("iftomm_pendulum", "native"))).modelVariables}
+    problem = DATA["problem"]
+    assert float(start["m"]) == problem["mass"] and float(start["L"]) == problem["length"]
+    assert float(start["g"]) == problem["g"]
+    assert float(start["theta1_start"]) == pytest.approx(problem["theta0"], abs=1e-15)
+    assert float(start["omega1_start"]) == 0.0
