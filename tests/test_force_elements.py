@@ -208,3 +208,22 @@ def test_a_spring_that_weakens_mid_run_follows_the_new_stiffness(fmus, kind, tmp
     assert abs(switch[0] - 5.0) < 1e-12 and error <= 1e-9, f"{kind}: {error:.3g} m after the change"
     before = ~after
     assert np.max(np.abs(x[before] - exact_block(time[before]))) <= 1e-9
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_coefficients_carry_their_si_units_into_the_model_description(fmus, kind):
+    """The file's units of the coefficients (N/m, N.s/m, N.m/rad, N.m.s/rad) reach the FMU with
+    their SI base units, so a host converts them; a unit left as "1" would fail here."""
+    from fmpy import read_model_description
+
+    md = read_model_description(fmus[kind])
+    units = {u.name: u.baseUnit for u in md.unitDefinitions}
+    variables = {v.name: v for v in md.modelVariables}
+    expected = {"k1": ("N/m", {"kg": 1, "s": -2}), "c1": ("N.s/m", {"kg": 1, "s": -1}),
+                "k3": ("N.m/rad", {"kg": 1, "m": 2, "s": -2, "rad": -1}),
+                "c3": ("N.m.s/rad", {"kg": 1, "m": 2, "s": -1, "rad": -1})}
+    for name, (unit, exponents) in expected.items():
+        assert variables[name].unit == unit, name
+        base = units[unit]
+        found = {k: getattr(base, k) for k in ("kg", "m", "s", "A", "K", "mol", "cd", "rad") if getattr(base, k)}
+        assert found == exponents, f"{unit}: base units {found}"

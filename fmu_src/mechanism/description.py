@@ -38,7 +38,8 @@ MECHANISM_DIR = Path(__file__).resolve().parent.parent / "mechanisms"
 POSITIVE = 2.2250738585072014e-308
 #: A coordinate's rate: theta2 -> omega2, x4 -> vx4, y4 -> vy4.
 RATE_PREFIX = {"theta": "omega", "x": "vx", "y": "vy"}
-_UNITS = {"m", "kg", "kg.m2", "m/s2", "rad", "deg", "rad/s", "m/s", "1", "N", "N.m", "J", "s"}
+_UNITS = {"m", "kg", "kg.m2", "m/s2", "rad", "deg", "rad/s", "m/s", "1", "N", "N.m", "J", "s", "W",
+          "N/m", "N.s/m", "N.m/rad", "N.m.s/rad"}
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 #: Longest description, characters.
 MAX_TEXT = 2000
