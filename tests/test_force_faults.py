@@ -23,6 +23,7 @@ import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from support import BIN, FOURBAR_MONITOR, FOURBAR_RUN, REPO, case_file, file_key, shared_result
@@ -93,8 +94,6 @@ def _chain(case: Path, run_dir: Path, stop: float, diagnose: bool) -> Chain:
                               "--signal", SIGNAL], capture_output=True, text=True, timeout=300)
     diagnosis = subprocess.run([FOURBAR_DIAGNOSE, str(run_dir), "--no-plot"], capture_output=True, text=True,
                                timeout=600) if diagnose else None
-    import pandas as pd
-
     exchange = pd.read_csv(run_dir / "exchange.csv")
     work = dict(zip(exchange["time"].round(6), exchange["motor_work"]))
     return Chain(monitor.returncode, monitor.stdout + monitor.stderr, _json(run_dir / "monitor" / "summary.json"),
