@@ -24,6 +24,8 @@ SECTIONS = [
     ("fmu_speed", "FMU speed against the pythonfmu/FMPy floor (issue 2)", ["benchmarks/fmu_speed.py"]),
     ("native_fmu", "Native FMU against the pythonfmu FMU and the FMPy floor (issue 10)",
      ["benchmarks/native_fmu.py", "--sweep"]),
+    ("native_forces", "Mechanisms with forces against the VanDerPol floor (issue 39)",
+     ["benchmarks/native_fmu.py", "--forces"]),         # VanDerPol: FOURBAR_VANDERPOL, as for native_fmu
     ("fmu_accuracy", "FMU accuracy: independent formulation, energy, constraints (issue 2)",
      ["benchmarks/fmu_accuracy.py"]),
     ("orchestrator_overhead", "Orchestrator overhead against plain simulate_fmu (issue 3)",

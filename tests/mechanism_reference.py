@@ -32,6 +32,12 @@ Constraints ``Phi(q, t) = 0`` (``Phi_q qd = nu``, ``Phi_q qdd = gamma``):
 - driver on a revolute joint: ``theta_second - theta_first - (start + speed t) = 0``,
   ``nu = speed``, ``gamma = 0``.
 
+Applied forces: a point-to-point spring-damper from point a to point b, ``d = r_b - r_a``,
+``l = |d|``, ``e = d / l``, pulls with the tension ``F = preload + k (l - l0) + c (e . (v_b - v_a))``:
+``-F e`` on b at r_b, ``+F e`` on a at r_a.  Friction at a revolute joint, ``w = thetad_second -
+thetad_first``, is the torque ``T = viscous w + coulomb tanh(w / v_s)``: ``-T`` on the second
+body, ``+T`` on the first.  (Rotational springs and prismatic friction: not read.)
+
 Dynamics: ``M = diag(m, m, I)`` per body, gravity ``g`` along -y, and the augmented system
 ``[[M, Phi_q^T], [Phi_q, 0]] [qdd; lambda] = [Q; gamma]`` solved in full by LU (numpy).  The
 state ``(q, qd)`` is integrated as a whole by scipy's DOP853; after every output step it is
@@ -50,7 +56,7 @@ import numpy as np
 import sympy
 from scipy.integrate import solve_ivp
 
-__all__ = ["ReferenceModel", "Trajectory", "read_model", "MECHANISM_FOLDER"]
+__all__ = ["ReferenceModel", "Spring", "Friction", "Trajectory", "read_model", "MECHANISM_FOLDER"]
 
 MECHANISM_FOLDER = Path(__file__).resolve().parents[1] / "fmu_src" / "mechanisms"
 K = np.array([[0.0, -1.0], [1.0, 0.0]])      # a quarter turn: dA/dtheta = K A
@@ -111,6 +117,30 @@ class Driver:
 
 
 @dataclass(frozen=True)
+class Spring:
+    """A point-to-point spring-damper: tension (N) preload + stiffness (l - length) + damping dl/dt."""
+
+    name: str
+    a: Attachment
+    b: Attachment
+    stiffness: float      # N/m
+    damping: float        # N.s/m
+    length: float         # m
+    preload: float        # N
+
+
+@dataclass(frozen=True)
+class Friction:
+    """Friction at a revolute joint: torque viscous w + coulomb tanh(w / velocity_scale)."""
+
+    name: str
+    joint: int            # index into ReferenceModel.joints
+    viscous: float        # N.m.s/rad
+    coulomb: float        # N.m
+    velocity_scale: float  # rad/s
+
+
+@dataclass(frozen=True)
 class Trajectory:
     """Consistent states at the output times: ``q[k]``, ``qd[k]`` at ``t[k]``."""
 
@@ -122,7 +152,7 @@ class Trajectory:
 class ReferenceModel:
     """The equations of one mechanism file, evaluated numerically (see the module doc)."""
 
-    def __init__(self, name, parameters, gravity, bodies, joints, drivers, start):
+    def __init__(self, name, parameters, gravity, bodies, joints, drivers, start, springs=(), friction=()):
         self.name = name
         self.parameters: dict[str, float] = parameters
         self.g = gravity
@@ -130,6 +160,8 @@ class ReferenceModel:
         self.joints: tuple[Joint, ...] = joints
         self.drivers: tuple[Driver, ...] = drivers
         self.start: dict[str, float] = start     # independent coordinate or rate -> value (SI)
+        self.springs: tuple[Spring, ...] = tuple(springs)
+        self.friction: tuple[Friction, ...] = tuple(friction)
         self.coordinates: list[str] = []
         self._index: list[tuple[int, int, int | None]] = []     # per body: indices of x, y, theta
         for b in bodies:
@@ -249,11 +281,56 @@ class ReferenceModel:
         return np.array(out + [0.0] * len(self.drivers))
 
     # -- dynamics --------------------------------------------------------------------------
-    def forces(self) -> np.ndarray:
-        """Q: gravity on every centre (no velocity terms in centroidal coordinates)."""
+    def spring_tension(self, q, qd, spring: Spring) -> float:
+        """The spring's tension F (N), positive pulling its two points together."""
+        d = self.position(q, spring.b) - self.position(q, spring.a)
+        length = float(np.hypot(*d))
+        rate = float(d @ (self.velocity(q, qd, spring.b) - self.velocity(q, qd, spring.a))) / length
+        return spring.preload + spring.stiffness * (length - spring.length) + spring.damping * rate
+
+    def friction_torque(self, qd, friction: Friction) -> float:
+        """The friction torque T (N.m), positive opposing a positive relative rate."""
+        joint = self.joints[friction.joint]
+        w = self.rate(qd, joint.second.body) - self.rate(qd, joint.first.body)
+        return friction.viscous * w + friction.coulomb * math.tanh(w / friction.velocity_scale)
+
+    def applied(self, q, qd) -> dict[int, tuple[np.ndarray, float]]:
+        """Per body: the springs' and friction's resultant force (N) on its centre and moment
+        (N.m) about it (gravity not included)."""
+        out = {b: (np.zeros(2), 0.0) for b in range(len(self.bodies))}
+
+        def push(attachment: Attachment, force: np.ndarray, moment: float = 0.0) -> None:
+            if attachment.body is None:
+                return
+            f, m = out[attachment.body]
+            s = self.arm(q, attachment)
+            out[attachment.body] = (f + force, m + float(s[0] * force[1] - s[1] * force[0]) + moment)
+
+        for spring in self.springs:
+            d = self.position(q, spring.b) - self.position(q, spring.a)
+            e = d / float(np.hypot(*d))
+            F = self.spring_tension(q, qd, spring)
+            push(spring.b, -F * e)
+            push(spring.a, F * e)
+        for friction in self.friction:
+            joint, T = self.joints[friction.joint], self.friction_torque(qd, friction)
+            push(joint.second, np.zeros(2), -T)
+            push(joint.first, np.zeros(2), T)
+        return out
+
+    def forces(self, q=None, qd=None) -> np.ndarray:
+        """Q: gravity on every centre (no velocity terms in centroidal coordinates), and with
+        the state (q, qd) the springs' and friction's forces and moments."""
         Q = np.zeros(self.n)
         for body, (_, iy, _) in zip(self.bodies, self._index):
             Q[iy] = -body.mass * self.g
+        if q is not None:
+            for b, (force, moment) in self.applied(q, qd).items():
+                ix, iy, it = self._index[b]
+                Q[ix] += force[0]
+                Q[iy] += force[1]
+                if it is not None:
+                    Q[it] += moment
         return Q
 
     def accelerations(self, q, qd, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -264,7 +341,7 @@ class ReferenceModel:
         A[:n, :n] = np.diag(self.mass)
         A[:n, n:] = J.T
         A[n:, :n] = J
-        x = np.linalg.solve(A, np.concatenate([self.forces(), self.gamma(q, qd)]))
+        x = np.linalg.solve(A, np.concatenate([self.forces(q, qd), self.gamma(q, qd)]))
         return x[:n], x[n:]
 
     def energy(self, q, qd) -> float:
@@ -425,4 +502,21 @@ def read_model(name_or_path: str | Path, overrides: dict[str, float] | None = No
         spec = spec if isinstance(spec, dict) else {"value": spec}
         unit = spec.get("unit", "deg" if key.startswith("theta") else None)
         start[key] = math.radians(spec["value"]) if unit == "deg" else float(spec["value"])
-    return ReferenceModel(head["name"], params, gravity, tuple(bodies), joints, tuple(drivers), start)
+    if data.get("loads"):
+        raise NotImplementedError(f"{path}: the reference does not read [[loads]]")
+    springs = []
+    for s in data.get("springs", []):
+        if "connects" not in s:
+            raise NotImplementedError(f"{path}: the reference reads point-to-point springs only ({s['name']})")
+        springs.append(Spring(s["name"], attachment(s["connects"][0]), attachment(s["connects"][1]),
+                              _value(s["stiffness"], params), _value(s.get("damping", 0.0), params),
+                              _value(s["length"], params), _value(s.get("preload", 0.0), params)))
+    friction = []
+    for f in data.get("friction", []):
+        if joints[joint_index[f["joint"]]].type != "revolute":
+            raise NotImplementedError(f"{path}: the reference reads friction at revolute joints only ({f['name']})")
+        friction.append(Friction(f["name"], joint_index[f["joint"]], _value(f.get("viscous", 0.0), params),
+                                 _value(f.get("coulomb", 0.0), params),
+                                 _value(f.get("velocity_scale", 1.0), params)))
+    return ReferenceModel(head["name"], params, gravity, tuple(bodies), joints, tuple(drivers), start, springs,
+                          friction)

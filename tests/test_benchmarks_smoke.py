@@ -276,3 +276,55 @@ def test_startup_benchmark(native_fmu):
     for label, target in (("fourbar-monitor --help", "<= 0.5"), ("harmonic replay of Case 2", "<= 2")):
         (row,) = _rows(out, label)
         assert row[5] == target and re.fullmatch(r"(yes|\*\*no\*\*) / (yes|\*\*no\*\*)", row[6]), row
+
+
+def test_native_fmu_forces_refuses_without_vanderpol(native_fmu, fourbar_fmu, tmp_path):
+    """``--forces`` measures against VanDerPol only: without ``--vanderpol`` it stops up front (exit
+    2, saying how to build it); ``--write`` without ``--forces`` is a usage error; a page without
+    the section's marker lines is refused before anything runs, and left as it was."""
+    base = [sys.executable, str(REPO / "benchmarks" / "native_fmu.py"), "--native", str(native_fmu),
+            "--fmu", str(fourbar_fmu)]
+    env = {k: v for k, v in os.environ.items() if k not in ("FOURBAR_VANDERPOL", "FOURBAR_VANDERPOL3")}
+    proc = subprocess.run([*base, "--forces"], cwd=REPO, env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "--forces needs --vanderpol PATH" in proc.stderr, proc.stderr
+    assert "build_vanderpol.sh" in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+    page = tmp_path / "page.md"
+    page.write_text("no markers here\n", encoding="utf-8")
+    proc = subprocess.run([*base, "--write", str(page)], cwd=REPO, env=env, capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2 and "--write goes with --forces" in proc.stderr, proc.stderr
+    proc = subprocess.run([*base, "--forces", "--vanderpol", str(native_fmu), "--write", str(page)], cwd=REPO,
+                          env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "not the Reference-FMUs' VanDerPol" in proc.stderr, proc.stderr
+    assert page.read_text(encoding="utf-8") == "no markers here\n"
+
+
+@pytest.mark.slow
+def test_native_fmu_forces_table(native_fmu, fourbar_fmu, tmp_path):
+    """``--forces --quick --repeat 1 --vanderpol $FOURBAR_VANDERPOL --write PAGE``: the press's two
+    rows (default and Table 1 tolerances) with a ratio to VanDerPol, Andrews' squeezer's two rows
+    with its steps, written between the marker lines and nowhere else.  Skipped without that FMU
+    (benchmarks/native/build_vanderpol.sh SRC_DIR PATH builds it)."""
+    vanderpol = os.environ.get("FOURBAR_VANDERPOL")
+    if not vanderpol:
+        pytest.skip("FOURBAR_VANDERPOL not set (benchmarks/native/build_vanderpol.sh SRC_DIR PATH)")
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    from native_fmu import FORCES_BEGIN, FORCES_END
+
+    page = tmp_path / "page.md"
+    page.write_text(f"before\n{FORCES_BEGIN}\nold\n{FORCES_END}\nafter\n", encoding="utf-8")
+    _bench("native_fmu.py", "--forces", "--quick", "--repeat", "1", "--vanderpol", vanderpol, "--native",
+           str(native_fmu), "--fmu", str(fourbar_fmu), "--write", str(page))
+    text = page.read_text(encoding="utf-8")
+    assert text.startswith(f"before\n{FORCES_BEGIN}\n") and text.endswith(f"{FORCES_END}\nafter\n"), text
+    assert "\nold\n" not in text
+    press = _rows(text, "fourbar_press")
+    assert [r[1] for r in press] == ["1e-10, 1e-10 (default)", "1e-9, 1e-6 (Table 1)"], press
+    for row in press:
+        assert float(row[2]) > 0 and float(row[3]) > 0 and re.fullmatch(r"[\d.]+x \((met|\*\*not met\*\*)\)", row[4])
+    andrews = _rows(text, "andrews_squeezer")
+    assert len(andrews) == 2, andrews
+    for row in andrews:
+        # native evaluations and the in-process model's: the same integrator, within a few attempts
+        native, steps, python = (int(c.replace(",", "")) for c in row[4:7])
+        assert steps > 0 and abs(native - python) <= 5 * 12, row

@@ -31,13 +31,18 @@ RESIDUAL = 1e-12
 #: 1e-13 (measured up to ~2e-10 J), on the native FMU (a 100 s run in ~1 s).
 ENERGY = 1e-9
 ENERGY_TOLERANCE = 1e-13
+#: Start values that switch off a mechanism's dissipation for the energy check: the dissipated
+#: energy is not an integrated output yet (docs/mechanisms.md, [[friction]]), and integrating
+#: the bearings' power over the 0.01 s grid would leave errors far over ENERGY; the springs'
+#: potential stays in ``energy`` and is checked.  Friction's own balance: test_joint_friction.py.
+CONSERVATIVE = {"fourbar_press": {"c": 0.0, "T2": 0.0, "T4": 0.0}}
 
 
 def _outputs(fmu) -> list[str]:
     return [v.name for v in read_model_description(str(fmu)).modelVariables if v.causality == "output"]
 
 
-def _run(fmu, stop: float, tol: float) -> np.ndarray:
+def _run(fmu, stop: float, tol: float, **start_values) -> np.ndarray:
     # a pythonfmu FMU's slave module is cached by name in this interpreter: a FourBar of another
     # test run before in this worker (a variant, a user's file) would answer for this one
     # (PythonFMU #228; the project's workaround), as it did when the suite's order changed
@@ -50,7 +55,7 @@ def _run(fmu, stop: float, tol: float) -> np.ndarray:
     unzipped = extract(str(fmu))
     try:
         forget_other_fmu_modules(unzipped)
-        return simulate_fmu(unzipped, stop_time=stop, output_interval=0.01, start_values={"rtol": tol, "atol": tol})
+        return simulate_fmu(unzipped, stop_time=stop, output_interval=0.01, start_values={"rtol": tol, "atol": tol, **start_values})
     finally:
         shutil.rmtree(unzipped, ignore_errors=True)
 
@@ -79,7 +84,7 @@ def test_the_two_fmus_agree_on_the_constraint_manifold(mechanism, mechanism_fmus
 def test_energy_is_conserved_over_100_s(mechanism, mechanism_fmus):
     fmu = mechanism_fmus.get(mechanism, "native")
     names = _outputs(fmu)
-    run = _run(fmu, 100.0, ENERGY_TOLERANCE)
+    run = _run(fmu, 100.0, ENERGY_TOLERANCE, **CONSERVATIVE.get(mechanism, {}))
     works = [n for n in names if n.endswith("_work")]
     balance = run["energy"] - sum(run[n] for n in works)
     moving = [n for n in names if n.startswith("theta") or n[:1] in "xy"]
