@@ -26,8 +26,14 @@ its *second* point (when that is the ground: the force on the ground, i.e. minus
 the first body).  A prismatic joint whose slider rotates adds
 ``<joint>_M``, the moment (N.m) it applies to the second body about the sliding point.  A
 driver's ``<driver>_torque`` (revolute) or ``<driver>_force`` (prismatic) is what the motor
-applies to the second body, ``<driver>_work`` the work it has done since the start (J), so that
-``energy - sum(work)`` is conserved.
+applies to the second body.
+
+Work outputs (J) are time integrals from the start of a power P(q, qd, lambda, t, p, d)
+(``OutputSpec.integrand``), integrated with the state by both FMUs (``MechanismEquations.works``):
+``<driver>_work`` (power: the driver's torque or force times the joint's prescribed rate,
+-lambda[row] nu[row]), ``<load>_work`` (the load's power Q_load^T qd) and ``dissipated`` (the
+dampers' c (ds/dt)^2 plus the friction's F v, >= 0; offered when the mechanism has a damper or
+friction), so that ``energy - sum(<driver>_work, <load>_work) + dissipated`` is conserved.
 
 After the outputs the file selects come, always, the joints' positions a view draws the
 mechanism from (``drawing``): ``<joint>_x, <joint>_y`` (m), the joint's second point in the
@@ -54,14 +60,15 @@ RUNTIME_OUTPUTS = ("constraint_residual",)
 
 @dataclass(frozen=True)
 class OutputSpec:
-    """One output variable: its expression in (q, qd, lambda, t, p, d) or, for a driver's
-    work, the index of the integrated work (``work``); ``constraint_residual`` has neither."""
+    """One output variable: its expression in (q, qd, lambda, t, p, d) or, for a work output, the
+    power whose time integral from the start it is (``integrand``, same symbols: the FMUs
+    integrate it with the state); ``constraint_residual`` has neither."""
 
     name: str
     unit: str
     description: str
     expression: sp.Expr | None = None
-    work: int | None = None
+    integrand: sp.Expr | None = None
     display_unit: str | None = None
 
 
@@ -89,6 +96,8 @@ class MechanismEquations:
     driver_rows: tuple[int, ...]               # the row of each driver, in driver order
     outputs: tuple[OutputSpec, ...]            # in the FMU's output order
     available: tuple[str, ...]                 # every output name the mechanism offers
+    works: tuple[OutputSpec, ...] = ()         # every work output offered (selected or not), in the
+    #                                            order of the integrated states: drivers', loads', dissipated
 
     @property
     def n(self) -> int:
@@ -240,13 +249,13 @@ def _derive(mech: Mechanism) -> MechanismEquations:
     gamma = gamma.applyfunc(sp.simplify)
     lam = sp.Matrix([sp.Symbol(f"lambda_{k}", real=True) for k in range(Phi.rows)])
 
-    outputs, available = _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, T + V, spring_outputs,
-                                  friction_outputs, load_outputs)
+    outputs, available, works = _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, T + V,
+                                         spring_outputs, friction_outputs, load_outputs)
     eqs = MechanismEquations(
         mechanism=mech, coordinates=names, q=q, qd=qd, t=t, params=tuple(params.values()), drive=tuple(drive),
         mass_matrix=M, forces=Q, constraints=Phi, jacobian=Phi_q, nu=nu, gamma=gamma,
         kinetic_energy=T, potential_energy=V, multipliers=lam, joint_rows=joint_rows,
-        driver_rows=tuple(driver_rows), outputs=outputs, available=available)
+        driver_rows=tuple(driver_rows), outputs=outputs, available=available, works=works)
     return eqs
 
 
@@ -354,7 +363,8 @@ def _friction_outputs(mech: Mechanism, offered: dict, friction: tuple[_FrictionT
 
 def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, springs=(), friction=(),
              loads=()):
-    """Every output the mechanism offers, then the ones the file selects, in its order."""
+    """Every output the mechanism offers, then the ones the file selects, in its order, and the
+    work outputs (the FMUs' integrated states)."""
     offered: dict[str, OutputSpec] = {}
     for body in mech.bodies:
         for c in body.coordinates:
@@ -418,7 +428,9 @@ def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, 
                                  f"the name of another output; rename the load")
         offered[name] = OutputSpec(name, "W", f"Power of load {element.load.name} on the {element.load.body} [W]",
                                    element.power)
+    works = _load_works(mech, offered, loads) + _dissipation(mech, offered, springs, friction)
     joints = {j.name: j for j in mech.joints}
+    driver_works = []
     for k, driver in enumerate(mech.drivers):
         (row,) = joint_rows[driver.name]
         joint = joints[driver.joint]
@@ -426,8 +438,12 @@ def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, 
         offered[f"{driver.name}_{kind}"] = OutputSpec(
             f"{driver.name}_{kind}", unit, f"{kind.capitalize()} of driver {driver.name} on the second body of "
             f"joint {joint.name} [{unit}]", -lam[row])
-        offered[f"{driver.name}_work"] = OutputSpec(
-            f"{driver.name}_work", "J", f"Work done by driver {driver.name} since the start [J]", work=k)
+        # its power: the torque (force) -lambda times the joint's prescribed rate nu = -Phi_t
+        # (= the joint's rate at every consistent state)
+        driver_works.append(OutputSpec(f"{driver.name}_work", "J", f"Work done by driver {driver.name} since the "
+                                       f"start [J]", integrand=-lam[row] * -Phi_t[row]))
+        offered[f"{driver.name}_work"] = driver_works[-1]
+    works = driver_works + works
     drawn = _joint_position_outputs(mech, frames, offered)
     available = tuple(offered) + tuple(drawn)
     chosen = mech.outputs or tuple(n for n in offered if not n.startswith(("vx", "vy")))
@@ -443,7 +459,34 @@ def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, 
                              f"(available: {', '.join(available)})")
     defined = _expression_outputs(mech, offered, drawn)
     return tuple(offered[n] for n in chosen) + defined + tuple(drawn.values()), available + tuple(
-        o.name for o in defined)
+        o.name for o in defined), tuple(works)
+
+
+def _offer(mech: Mechanism, offered: dict[str, OutputSpec], spec: OutputSpec, what: str) -> OutputSpec:
+    """Add ``spec`` to the offered outputs; a name already taken is a MechanismError naming ``what``."""
+    if spec.name in offered:
+        raise MechanismError(f"{mech.source}: {what}: its output {spec.name!r} would have the name of another "
+                             f"output; rename it")
+    offered[spec.name] = spec
+    return spec
+
+
+def _load_works(mech: Mechanism, offered: dict[str, OutputSpec], loads) -> list[OutputSpec]:
+    """``<load>_work`` (J) per load: the time integral of its power Q_load^T qd."""
+    return [_offer(mech, offered, OutputSpec(f"{e.load.name}_work", "J", f"Work done by load {e.load.name} on the "
+                                             f"{e.load.body} since the start [J]", integrand=e.power),
+                   f"loads '{e.load.name}'") for e in loads]
+
+
+def _dissipation(mech: Mechanism, offered: dict[str, OutputSpec], springs, friction) -> list[OutputSpec]:
+    """``dissipated`` (J), when the mechanism has a damper or friction: the time integral of the
+    power the dampers (c (ds/dt)^2) and the friction (F v) take out, >= 0 for c >= 0."""
+    power = sum((e.spring.damping * e.rate**2 for e in springs if e.spring.damping != 0), sp.Integer(0))
+    power += sum((e.force * e.rate for e in friction), sp.Integer(0))
+    if power == 0:
+        return []
+    return [_offer(mech, offered, OutputSpec("dissipated", "J", "Energy dissipated since the start by the dampers "
+                                             "and the friction (>= 0) [J]", integrand=power), "dissipated")]
 
 
 def _expression_outputs(mech: Mechanism, offered: dict[str, OutputSpec],

@@ -67,16 +67,15 @@ _RATE_UNITS = {"rad": "rad/s", "rad/s": "rad/s2", "m": "m/s", "m/s": "m/s2", "J"
 
 def model_exchange_states(eqs: MechanismEquations) -> tuple[tuple[str, str, str], ...]:
     """The native FMU's continuous states for Model Exchange, in the C state vector's order
-    (dae.c's y): the file's independent coordinates, their rates, then each driver's work;
-    per state ``(name, unit, description)``."""
+    (dae.c's y): the file's independent coordinates, their rates, then the work outputs
+    (``MechanismEquations.works``: drivers', loads', dissipated); per state ``(name, unit, description)``."""
     mech = eqs.mechanism
     coordinates, rates = mech.start[::2], mech.start[1::2]
     states = [(s.coordinate, s.unit, f"Independent coordinate {s.coordinate} (a continuous state)")
               for s in coordinates]
     states += [(s.coordinate, s.unit, f"Rate {s.coordinate} of {c.coordinate} (a continuous state)")
                for c, s in zip(coordinates, rates)]
-    states += [(f"{d.name}_work", "J", f"Work done by driver {d.name} since the start (a continuous state)")
-               for d in mech.drivers]
+    states += [(w.name, w.unit, f"{w.description.removesuffix(' [J]')} (a continuous state)") for w in eqs.works]
     return tuple(states)
 
 

@@ -15,7 +15,7 @@ with the symmetric positive definite matrix factorised by LAPACK (``dposv``).
 
 Constraint stabilisation is generalized-coordinate partitioning (Wehage and Haug): the
 explicit Runge-Kutta method integrates the independent coordinates and their rates (plus each
-driver's work); the dependent coordinates are recovered from ``Phi(q, t) = 0`` by
+work output); the dependent coordinates are recovered from ``Phi(q, t) = 0`` by
 Newton-Raphson, started from the last accepted state moved along its velocity (so the assembly
 branch is kept by continuity), and their rates from ``Phi_q qd = nu``.  Every reported state
 satisfies both to round-off.  Newton-Raphson starts from the second-order Taylor predictor of the
@@ -25,7 +25,7 @@ near a dead point (their velocity ratio, reviewed after every accepted Runge-Kut
 passes REPARTITION_AWAY) others are chosen, from a column-pivoted QR factorization of ``Phi_q``, and
 the integrator restarts; it returns to the declared ones below REPARTITION_RETURN.  A parameter
 change keeps the declared coordinates and rates whatever the integrator uses (change_parameters).  A driven mechanism with no degree of freedom integrates only
-its drivers' work: its positions come from the constraints alone.
+its work outputs: its positions come from the constraints alone.
 """
 from __future__ import annotations
 
@@ -159,7 +159,7 @@ class MechanismDAE:
     method : {"DOP853", "RK45"}
     rtol, atol : float
         Tolerances of the Runge-Kutta error control on the independent coordinates, their
-        rates and the drivers' work.
+        rates and the work outputs.
     t_bound : float
         Time the integrator may not step beyond (the experiment's stop time), s.
 
@@ -183,7 +183,7 @@ class MechanismDAE:
         self._dense = None
         self.p = tuple(float(v) for v in p)
         self.d = self.drive_at(0.0)
-        self.work = [0.0] * len(eq.DRIVERS)
+        self.work = [0.0] * len(eq.WORKS)
         self.t, self.q, self.qd = 0.0, list(eq.GUESS), [0.0] * self.n
         self._Jp = np.zeros((self.m, self.n), order="F")
         self._Jp_flat = self._Jp.reshape(-1, order="F")        # a view: entry (i, k) at i + m k
@@ -465,10 +465,9 @@ class MechanismDAE:
         self._last_eval = (t, q, qd, qdd, self._sign)
         k = len(self.independent)
         out = yl[k:2 * k] + qdd_p[self.m:].tolist()
-        if self.eq.DRIVERS:
-            nu = self.eq.nu(t, self.p, self.d)
-            # The driver's power: its constraint force -Phi_q^T lambda times qd, i.e. -lambda nu (row d).
-            out += [-float(lam[row] * nu[row]) for _, _, _, row in self.eq.DRIVERS]
+        if self.eq.WORKS:
+            # the work outputs' powers (a driver's: its constraint force -Phi_q^T lambda times qd, -lambda nu)
+            out += self.eq.powers(q, qd, lam, t, self.p, self.d)
         return np.array(out)
 
     # -- time stepping ----------------------------------------------------------------

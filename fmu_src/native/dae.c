@@ -12,8 +12,9 @@
  * gives every multiplier, serves the outputs that need them (joint and driver forces).
  *
  * Constraint stabilisation is generalized-coordinate partitioning (Wehage and Haug): the
- * Runge-Kutta method (rk.c) integrates the independent coordinates, their rates and each
- * driver's work (power -lambda[row] nu[row]); the dependent coordinates are recovered from
+ * Runge-Kutta method (rk.c) integrates the independent coordinates, their rates and each work
+ * output (the time integral of a generated power: eq_powers_force, a driver's -lambda[row] nu[row],
+ * and eq_powers_state, a load's or the dissipation's); the dependent coordinates are recovered from
  * Phi(q, t) = 0 by Newton-Raphson from a prediction made from accepted states only (so the
  * assembly branch is kept by continuity: a stage of a rejected step may sit on the other
  * branch near a dead point), and their rates from Phi_q qd = nu.  Every reported state
@@ -102,6 +103,7 @@ enum {
     M = MECH_M,
     K = MECH_K,
     N_DRIVERS = MECH_N_DRIVERS,
+    N_WORKS = MECH_N_WORKS,              /* the drivers' work first (MECH_N_FORCE_WORKS = N_DRIVERS) */
     N_ANGLES = MECH_N_ANGLES,
     MA = MECH_ALLOC(MECH_M),
     KA = MECH_ALLOC(MECH_K),
@@ -940,7 +942,7 @@ static int reduced_evaluation(ModelState *s, double t, const double *y, Configur
 }
 #endif
 
-/* dy/dt for y = (q[independent], qd[independent], work): the Runge-Kutta right-hand side.  The
+/* dy/dt for y = (q[independent], qd[independent], work outputs): the Runge-Kutta right-hand side.  The
    evaluation is kept in s->last (a base when it ends an accepted step). */
 static int rhs(void *context, double t, const double *y, double *f)
 {
@@ -968,7 +970,8 @@ static int rhs(void *context, double t, const double *y, double *f)
             f[K + j] = e->qdd[s->independent[j]];
         }
         if (N_DRIVERS == 1) f[2 * K] = power;
-        if (2 * K + N_DRIVERS == 0) f[0] = 0.0;
+        if (N_WORKS > N_DRIVERS) eq_powers_state(c.q, c.tr, c.qd, t, s->p, s->d, f + 2 * K + N_DRIVERS);
+        if (2 * K + N_WORKS == 0) f[0] = 0.0;
         return RK_FUNCTION_OK;
     }
 #endif
@@ -998,12 +1001,10 @@ static int rhs(void *context, double t, const double *y, double *f)
         f[j] = y[K + j];
         f[K + j] = e->qdd[s->independent[j]];
     }
-    for (int k = 0; k < N_DRIVERS; k++) {
-        /* the driver's power: its constraint force -Phi_q^T lambda (row `row`) times qd, -lambda nu */
-        const int row = DRIVERS[k][2];
-        f[2 * K + k] = -lam[row] * c.nu[row];
-    }
-    if (2 * K + N_DRIVERS == 0) f[0] = 0.0;   /* nothing to integrate: one constant */
+    /* the work outputs' powers: a driver's, its constraint force -Phi_q^T lambda (its row) times qd, -lambda nu */
+    if (N_DRIVERS > 0) eq_powers_force(c.q, c.tr, c.qd, lam, t, s->p, s->d, f + 2 * K);
+    if (N_WORKS > N_DRIVERS) eq_powers_state(c.q, c.tr, c.qd, t, s->p, s->d, f + 2 * K + N_DRIVERS);
+    if (2 * K + N_WORKS == 0) f[0] = 0.0;   /* nothing to integrate: one constant */
     return RK_FUNCTION_OK;
 }
 
@@ -1015,7 +1016,7 @@ void dae_states(const ModelState *s, double *y)
         y[j] = s->q[s->independent[j]];
         y[K + j] = s->qd[s->independent[j]];
     }
-    for (int k = 0; k < N_DRIVERS; k++) y[2 * K + k] = s->work[k];
+    for (int k = 0; k < N_WORKS; k++) y[2 * K + k] = s->work[k];
 }
 
 /* The current state as the predictor's base (the integrator's start), on its assembly branch: the
@@ -1070,7 +1071,7 @@ int dae_me_evaluate(ModelState *s, double t, const double *y, double *f)
     memcpy(s->q, s->last.q, sizeof s->q);
     memcpy(s->qd, s->last.qd, sizeof s->qd);
     memcpy(s->tr, s->last.tr, sizeof s->tr);
-    for (int k = 0; k < N_DRIVERS; k++) s->work[k] = y[2 * K + k];
+    for (int k = 0; k < N_WORKS; k++) s->work[k] = y[2 * K + k];
     memcpy(f, ff, DAE_N_STATES * sizeof *f);
     return DAE_OK;
 }
@@ -1113,8 +1114,8 @@ int dae_derivatives(ModelState *s, double *f)
    - accelerations and multipliers: eq. (11) differentiated, M dqdd + Phi_q^T dlam = dQ - dM qdd -
      d(Phi_q^T lambda)/dq dq and Phi_q dqdd = dgamma - d(Phi_q qdd)/dq dq, solved as eq. (11) is
      (null_space_solve: the same matrix);
-   - a driver's power -lambda[row] nu[row]: -dlam[row] nu[row];
-   - the outputs: eq_dir_outputs_*; a driver's work: its state's direction; the constraint residual
+   - the work outputs' powers: eq_dir_powers_* (a driver's -lambda[row] nu[row]: -dlam[row] nu[row]);
+   - the outputs: eq_dir_outputs_*; a work output: its state's direction; the constraint residual
      is zero on every consistent state, so its derivative along them is 0.
    The same cost as about one evaluation of the right-hand side, without Newton-Raphson (the state
    is already consistent).  DAE_INTEGRATION or DAE_ASSEMBLY with the message in s->rhs_message. */
@@ -1171,10 +1172,8 @@ int dae_directional(ModelState *s, const double *dy, double *df, double *dout)
         df[j] = dqd[independent[j]];
         df[K + j] = dqdd[independent[j]];
     }
-    for (int k = 0; k < N_DRIVERS; k++) {
-        const int row = DRIVERS[k][2];
-        df[2 * K + k] = -dlam[row] * c.nu[row];
-    }
+    if (N_DRIVERS > 0) eq_dir_powers_force(c.q, c.tr, c.qd, lam, t, s->p, s->d, dq, dqd, dlam, df + 2 * K);
+    if (N_WORKS > N_DRIVERS) eq_dir_powers_state(c.q, c.tr, c.qd, t, s->p, s->d, dq, dqd, df + 2 * K + N_DRIVERS);
     /* outputs */
     eq_dir_outputs_state(c.q, c.tr, c.qd, t, s->p, s->d, dq, dqd, values);
     eq_dir_outputs_force(c.q, c.tr, c.qd, lam, t, s->p, s->d, dq, dqd, dlam, forces);
@@ -1533,7 +1532,7 @@ static int review_at_accepted(ModelState *s, int *result)
     memcpy(s->q, b->q, sizeof s->q);
     memcpy(s->tr, b->tr, sizeof s->tr);
     memcpy(s->qd, b->qd, sizeof s->qd);
-    for (int k = 0; k < N_DRIVERS; k++) s->work[k] = s->solver.y[2 * K + k];
+    for (int k = 0; k < N_WORKS; k++) s->work[k] = s->solver.y[2 * K + k];
     set_partition(s, independent, dependent);
     *result = dae_start(s, s->solver.h_abs);
     return 1;
@@ -1637,7 +1636,7 @@ static int advance(ModelState *s, double t_end)
     memcpy(s->q, c.q, sizeof s->q);
     memcpy(s->tr, c.tr, sizeof s->tr);
     memcpy(s->qd, c.qd, sizeof s->qd);
-    for (int k = 0; k < N_DRIVERS; k++) s->work[k] = y[2 * K + k];
+    for (int k = 0; k < N_WORKS; k++) s->work[k] = y[2 * K + k];
     if (!pending) return DAE_OK;
     set_partition(s, independent, dependent);
     return dae_start(s, s->solver.h_abs);

@@ -77,7 +77,7 @@ void dae_outputs_state(const double *p, const double *d, double t, const double 
    (tr: ModelState's). */
 double dae_output_state_one(const double *p, const double *d, double t, const double *q, const double *tr,
                             const double *qd, const double *work, int k);
-/* Model Exchange: the host integrates y = (q[independent], qd[independent], work) of the file's
+/* Model Exchange: the host integrates y = (q[independent], qd[independent], work outputs) of the file's
    partition, which never changes (DAE_N_STATES values, the Runge-Kutta's y without its filler).
    dae_states: y of the current consistent state.  dae_me_start: after assembly or a parameter
    change, the current state becomes the predictor's base (with its accelerations).
@@ -87,7 +87,7 @@ double dae_output_state_one(const double *p, const double *d, double t, const do
    base its second point (fmi2CompletedIntegratorStep).  dae_derivatives: f at the current
    consistent state without touching the integrator's bookkeeping (a co-simulation host reading
    der(...) between steps). */
-#define DAE_N_STATES (2 * MECH_K + MECH_N_DRIVERS)
+#define DAE_N_STATES (2 * MECH_K + MECH_N_WORKS)
 void dae_states(const ModelState *s, double *y);
 int dae_me_start(ModelState *s);
 int dae_me_evaluate(ModelState *s, double t, const double *y, double *f);

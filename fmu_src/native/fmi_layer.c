@@ -531,7 +531,7 @@ ModelStatus fmi_do_step(ModelInstance *m, const char *function, double current_t
 
 /* -- model exchange ------------------------------------------------------------------ */
 
-/* The continuous states are the file's independent coordinates, their rates and the drivers' work
+/* The continuous states are the file's independent coordinates, their rates and the work outputs
    (dae.h), in the order of FMU_STATE_VRS; the FMU has no event indicators and no time events: a
    parameter set in event mode is applied by the event update (re-assembly keeping the states). */
 

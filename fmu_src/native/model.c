@@ -126,7 +126,7 @@ static ModelStatus publish(ModelInstance *m)
 }
 
 /* Copy the outputs of kind `kind` from out (output order) into values[]; MECH_OUTPUT_STATE: the
-   state group (MECH_STATE_GROUP: the drivers' work with the state's expressions). */
+   state group (MECH_STATE_GROUP: the work outputs with the state's expressions). */
 static void store_outputs(ModelState *s, const double *out, int kind)
 {
     if (kind == MECH_OUTPUT_STATE) {                 /* read at every step: its own list */

@@ -54,7 +54,7 @@ typedef struct {
     double q[MECH_N], qd[MECH_N];               /* consistent: Phi(q, t) = 0, Phi_q qd = nu */
     double tr[MECH_ALLOC(MECH_N_TRIG)];          /* cos and sin of q's angles (eq_trig's, to round-off): dae.c sets
                                                    them with q */
-    double work[MECH_ALLOC(MECH_N_DRIVERS)];    /* each driver's work since the start, J */
+    double work[MECH_ALLOC(MECH_N_WORKS)];      /* each work output since the start, J (equations.h) */
     int declared;                               /* the partition's dependent coordinates are the file's */
     double length_scale;                        /* the velocity ratio's length, m (dae.c: set at assembly) */
     double mass[MECH_N], minv[MECH_N];          /* diagonal of M and its inverse for p (MECH_MASS_IS_CONSTANT) */

@@ -16,9 +16,9 @@
 
 #include "equations.h"
 
-/* State dimension: the independent coordinates, their rates and each driver's work (at least 1:
+/* State dimension: the independent coordinates, their rates and each work output (at least 1:
    C99 has no empty arrays; a mechanism with nothing to integrate carries one constant zero). */
-#define RK_N MECH_ALLOC(2 * MECH_K + MECH_N_DRIVERS)
+#define RK_N MECH_ALLOC(2 * MECH_K + MECH_N_WORKS)
 #define RK_MAX_STAGES 16         /* DOP853 with its three extra dense-output stages */
 #define RK_MAX_DENSE 7           /* DOP853's interpolator power */
 

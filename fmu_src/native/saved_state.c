@@ -133,7 +133,7 @@ int model_check_state(const ModelState *s, int model_exchange, char *why, size_t
     FINITE(s->q, MECH_N, "q");
     FINITE(s->qd, MECH_N, "qd");
     FINITE(s->tr, MECH_N_TRIG, "tr");
-    FINITE(s->work, MECH_N_DRIVERS, "work");
+    FINITE(s->work, MECH_N_WORKS, "work");
     if (!is_flag(s->declared)) BAD("declared = %d: must be 0 or 1", s->declared);
     if (assembled && !(isfinite(s->length_scale) && s->length_scale > 0.0))
         BAD("length_scale = %g: must be finite, > 0", s->length_scale);
