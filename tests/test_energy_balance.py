@@ -94,6 +94,9 @@ def test_model_exchange_directional_derivatives_of_the_work_states(mechanism_fmu
             assert error[worst] <= AGREE, (mechanism.label, list(direction), names[rows[worst]], exact[worst],
                                            estimate[worst])
             largest = max(largest, float(np.abs(estimate).max(initial=0.0)))
-        assert largest > 1e-3, f"{mechanism.label}: the powers do not depend on the state here"
+        if len(rows) < host.n:
+            assert largest > 1e-3, f"{mechanism.label}: the powers do not depend on the state here"
+        else:       # no degree of freedom (fourbar_press): the powers depend on time alone
+            assert largest == 0.0, f"{mechanism.label}: a power depends on a work state"
     finally:
         host.close()

@@ -25,17 +25,17 @@ SPAN = {"fivebar": 5.0}
 AGREE = 1e-9
 #: constraint_residual output of every reported row: Newton-Raphson converged to round-off.
 RESIDUAL = 1e-12
-#: |energy(t) - energy(0)| over 100 s (J; for a driven mechanism energy - motor_work): the
+#: |energy(t) - energy(0)| over 100 s (J; with drivers or dissipation energy - works + dissipated): the
 #: issue's bound.  At rtol = atol = 1e-12 the slider-crank drifts 1.3e-9 J and the five-bar
 #: 1.7e-9 J over 100 s (DOP853's error comes in jumps at fast passages); the check runs at
 #: 1e-13 (measured up to ~2e-10 J), on the native FMU (a 100 s run in ~1 s).
 ENERGY = 1e-9
 ENERGY_TOLERANCE = 1e-13
-#: Start values that switch off a mechanism's dissipation for the energy check: the dissipated
-#: energy is not an integrated output yet (docs/mechanisms.md, [[friction]]), and integrating
-#: the bearings' power over the 0.01 s grid would leave errors far over ENERGY; the springs'
-#: potential stays in ``energy`` and is checked.  Friction's own balance: test_joint_friction.py.
-CONSERVATIVE = {"fourbar_press": {"c": 0.0, "T2": 0.0, "T4": 0.0}}
+#: ... plus this fraction of the energy the drivers, loads and dissipation exchange (J): each
+#: work output is integrated with the state, its error relative to its size (measured 2e-12 on
+#: fourbar_press over 100 s; the dedicated balance test, tests/test_energy_balance.py, holds
+#: every mechanism with forces to 1e-8 relative over 10 s).
+EXCHANGED_REL = 1e-11
 
 
 def _outputs(fmu) -> list[str]:
@@ -84,9 +84,15 @@ def test_the_two_fmus_agree_on_the_constraint_manifold(mechanism, mechanism_fmus
 def test_energy_is_conserved_over_100_s(mechanism, mechanism_fmus):
     fmu = mechanism_fmus.get(mechanism, "native")
     names = _outputs(fmu)
-    run = _run(fmu, 100.0, ENERGY_TOLERANCE, **CONSERVATIVE.get(mechanism, {}))
+    run = _run(fmu, 100.0, ENERGY_TOLERANCE)
     works = [n for n in names if n.endswith("_work")]
-    balance = run["energy"] - sum(run[n] for n in works)
+    # dissipated: what the dampers and friction took (an integrated output, like the works)
+    balance = run["energy"] - sum(run[n] for n in works) + (run["dissipated"] if "dissipated" in names else 0.0)
     moving = [n for n in names if n.startswith("theta") or n[:1] in "xy"]
     assert max(np.ptp(run[n]) for n in moving) > 0.1       # it moves: the check can fail
-    assert float(np.max(np.abs(balance - balance[0]))) <= ENERGY, (mechanism, np.max(np.abs(balance - balance[0])))
+    # an integrated work's error grows with what it integrates: fourbar_press's motor and bearings
+    # exchange ~3.3e3 J over 100 s and the balance moves 6.4e-9 J (2e-12 of it)
+    flows = [n for n in names if n.endswith("_work") or n == "dissipated"]
+    exchanged = sum(float(np.ptp(run[n])) for n in flows)
+    bound = ENERGY + EXCHANGED_REL * exchanged
+    assert float(np.max(np.abs(balance - balance[0]))) <= bound, (mechanism, np.max(np.abs(balance - balance[0])))
