@@ -126,7 +126,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
 {
-    ENTER(CALL_SET);
+    ENTER(CALL_SET_REAL);
     REQUIRE_ARRAY(vr, nvr);
     REQUIRE_ARRAY(value, nvr);
     return (fmi2Status)fmi_set_float64(m, &LAYER, __func__, vr, nvr, value);

@@ -31,8 +31,10 @@ enum { KIND_TUNABLE = 0, KIND_FIXED = 1, KIND_STRING = 2, KIND_OUTPUT = 3, KIND_
 #define FMI3_ALL (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_EVENT | MODE_CONTINUOUS | \
                   MODE_TERMINATED | MODE_ERROR)
 #define FMI3_READABLE (MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED)
-/* Both: parameters and inputs; in continuousTimeMode inputs only (fmi_set_float64 checks). */
+/* Both: parameters and inputs; in continuousTimeMode inputs only (fmi_set_float64 checks), so
+   only when the mechanism has some. */
 #define SETTABLE (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_EVENT)
+#define SET_CONTINUOUS (MECH_N_INPUTS > 0 ? MODE_CONTINUOUS : 0)
 #define ME_READABLE (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED)
 
 enum { BOTH = -1, CS = 0, ME = 1 };     /* the instance type a call belongs to (model_exchange) */
@@ -52,7 +54,9 @@ static const struct {
        mode): the start values, and the outputs and states they give */
     [CALL_GET]                  = {{FMI2_READABLE,              MODE_INSTANTIATED | FMI3_READABLE}, BOTH},
     [CALL_GET_DEFINED]          = {{FMI2_READABLE,              FMI3_READABLE},             BOTH},
-    [CALL_SET]                  = {{SETTABLE | MODE_CONTINUOUS, SETTABLE | MODE_CONTINUOUS}, BOTH},
+    [CALL_SET]                  = {{SETTABLE,                   SETTABLE},                  BOTH},
+    /* a mechanism's inputs (and only they: fmi_set_float64) are set in continuousTimeMode too */
+    [CALL_SET_REAL]             = {{SETTABLE | SET_CONTINUOUS,  SETTABLE | SET_CONTINUOUS}, BOTH},
     [CALL_ENTER_CONFIGURATION]  = {{0,                          MODE_INSTANTIATED | MODE_STEP_COMPLETE | MODE_EVENT},
                                    BOTH},
     [CALL_EXIT_CONFIGURATION]   = {{0,                          MODE_CONFIGURATION | MODE_RECONFIGURATION}, BOTH},

@@ -201,7 +201,7 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueR
 fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                           const fmi3Float64 values[], size_t nValues)
 {
-    ENTER(CALL_SET);
+    ENTER(CALL_SET_REAL);
     REQUIRE_ARRAY(valueReferences, nValueReferences);
     REQUIRE_ARRAY(values, nValues);
     SCALARS(nValueReferences, nValues);
