@@ -352,7 +352,8 @@ def test_model_description_declares_inputs_and_interpolation(pendulum, mechanism
 
 # -- (5) other hosts: fmusim with an input file, libcosim with an input set -------------------------
 
-def test_fmusim_runs_the_input_fmu_from_an_input_file(pendulum, tmp_path):
+@pytest.mark.parametrize("interface", [["cs"], ["me", "--solver", "cvode", "--tolerance", "1e-12"]], ids=["cs", "me"])
+def test_fmusim_runs_the_input_fmu_from_an_input_file(interface, pendulum, tmp_path):
     from support import fmusim_or_skip
 
     fmusim = fmusim_or_skip()
@@ -363,7 +364,7 @@ def test_fmusim_runs_the_input_fmu_from_an_input_file(pendulum, tmp_path):
 
     def run(name, extra):
         out = tmp_path / f"{name}.csv"
-        command = [str(fmusim), "--interface-type", "cs", "--stop-time", "1", "--output-interval", "0.01",
+        command = [str(fmusim), "--interface-type", *interface, "--stop-time", "1", "--output-interval", "0.01",
                    "--start-value", "rtol", repr(TIGHT), "--start-value", "atol", repr(TIGHT), *extra]
         for name_ in STATE:
             command += ["--output-variable", name_]
@@ -374,7 +375,8 @@ def test_fmusim_runs_the_input_fmu_from_an_input_file(pendulum, tmp_path):
 
     fed = run("fed", ["--input-file", str(table)])
     twins = run("twins", [x for n, v in HELD.items() for x in ("--start-value", f"{n}_load", repr(v))])
-    # the same binary on the same grid, inputs set before the start: the same numbers (measured 0.0)
+    # the same binary on the same grid, inputs set before the start: the same numbers (measured 0.0,
+    # co-simulation and model exchange)
     assert fed.shape == (101, 1 + len(STATE))
     assert np.max(np.abs(fed - twins)) <= TWIN_AGREE
     assert np.ptp(fed[:, 3]) > 0.5

@@ -11,7 +11,11 @@ From a :class:`~fmu_src.mechanism.description.Mechanism`:
   coincide), two per prismatic joint (the point stays on the line; the relative angle is
   fixed at zero, so the slider's frame turns with the guide's, if the sliding body rotates,
 else one row), one per driver (the joint coordinate
-  equals ``s_ref + v (t - t_ref)``, or the file's function of the parameters and ``t``);
+  equals ``s_ref + v (t - t_ref)``, or the file's function of the parameters and ``t``, or a
+  driver input ``u``: its ``u(t)`` differentiated, then ``u'`` and ``u''`` replaced by the inputs
+  ``u_d`` and ``u_dd``);
+- the ``[[inputs]]``: symbols appended to ``p`` (``params`` ends with ``inputs``), a torque or
+  force input entering ``Q`` through its virtual work like a load;
 - eq. (11)::
 
       [[M,     Phi_q^T],   [qdd   ]   [Q    ]
