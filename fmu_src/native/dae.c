@@ -1122,14 +1122,16 @@ int dae_derivatives(ModelState *s, double *f)
 
 /* The derivatives along a direction dy of the states (DAE_N_STATES) at the current consistent state
    (Model Exchange: the file's partition): df of the states' derivatives (DAE_N_STATES) and dout of
-   the outputs (MECH_N_OUTPUTS, output order).  Exact, from the generated derivatives (eq_dir_*):
-   - positions: Phi(q) = 0 keeps the block's rows, so dq[dependent] = V dq[independent];
-   - rates: Phi_q qd = nu (nu depends on t only): block dqd[dependent] = -Phi_q[:, independent]
-     dqd[independent] - d(Phi_q qd)/dq dq;
+   the outputs (MECH_N_OUTPUTS, output order), and along du of the inputs (MECH_N_INPUTS).  Exact, from
+   the generated derivatives (eq_dir_*; eq_dir_inputs: the partials along du, q, qd and lambda held):
+   - positions: Phi(q, u) = 0 keeps the block's rows, so dq[dependent] = V dq[independent] - block^-1 Phi_u du;
+   - rates: Phi_q qd = nu (nu depends on t and a driver input's rate only): block dqd[dependent] =
+     -Phi_q[:, independent] dqd[independent] - d(Phi_q qd)/dq dq + nu_u du;
    - accelerations and multipliers: eq. (11) differentiated, M dqdd + Phi_q^T dlam = dQ - dM qdd -
      d(Phi_q^T lambda)/dq dq and Phi_q dqdd = dgamma - d(Phi_q qdd)/dq dq, solved as eq. (11) is
      (null_space_solve: the same matrix);
-   - a driver's power -lambda[row] nu[row]: -dlam[row] nu[row];
+   - Q and gamma: their partials along du added to eq. (11)'s right-hand side;
+   - a driver's power -lambda[row] nu[row]: -dlam[row] nu[row] - lambda[row] nu_u[row] du;
    - the outputs: eq_dir_outputs_*; a driver's work: its state's direction; the constraint residual
      is zero on every consistent state, so its derivative along them is 0.
    The same cost as about one evaluation of the right-hand side, without Newton-Raphson (the state

@@ -153,8 +153,8 @@ ModelStatus model_me_completed_step(ModelInstance *m);
 ModelStatus model_me_event_update(ModelInstance *m);
 /* Model Exchange's directional derivatives (fmi2GetDirectionalDerivative, fmi3GetDirectionalDerivative):
    sensitivity_i = sum_j d unknown_i / d known_j seed_j at the current state (in initialization
-   mode, the state the start values give), the knowns being
-   continuous states and the inputs and the unknowns the states' derivatives or outputs
+   mode, the state the start values give), the knowns being the
+   continuous states and the inputs, the unknowns the states' derivatives or outputs
    (dae_directional: exact, from the generated derivatives).  A layer starts a Directional with
    model_me_directional_start, adds each known's seed (model_me_seed), computes
    (model_me_directional) and reads each unknown (model_me_sensitivity); a value reference of the
