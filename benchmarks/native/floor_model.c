@@ -112,6 +112,18 @@ ModelStatus model_me_sensitivity(ModelInstance *m, const char *function, const D
     return MODEL_OK;
 }
 
+void model_inputs_set(ModelInstance *m, const unsigned int *vr, size_t nvr)
+{
+    (void)m; (void)vr; (void)nvr;
+}
+
+ModelStatus model_set_input_derivatives(ModelInstance *m, const char *function, const unsigned int *vr, size_t nvr,
+                                        const int *order, const double *value)
+{
+    (void)m; (void)function; (void)vr; (void)nvr; (void)order; (void)value;
+    return MODEL_OK;
+}
+
 int model_past_stop_time(ModelInstance *m, const char *function, double current_time, double step)
 {
     (void)m; (void)function; (void)current_time; (void)step;

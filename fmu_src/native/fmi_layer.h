@@ -36,6 +36,7 @@ typedef enum {
     CALL_GET,                    /* the getters of variables */
     CALL_GET_DEFINED,            /* FMI 3.0's clock getters, directional and adjoint derivatives */
     CALL_SET,                    /* the setters of variables (parameters: not in continuousTimeMode) */
+    CALL_SET_REAL,               /* fmi2SetReal, fmi3SetFloat64: also inputs, in continuousTimeMode too */
     CALL_ENTER_CONFIGURATION,
     CALL_EXIT_CONFIGURATION,
     CALL_ACTIVATE_PARTITION,

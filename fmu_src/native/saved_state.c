@@ -118,8 +118,8 @@ int model_check_state(const ModelState *s, int model_exchange, char *why, size_t
         BAD("mode = %d: not a state a %s instance saves", mode, model_exchange ? "model-exchange" : "co-simulation");
     const int assembled = mode != MODE_INSTANTIATED && mode != MODE_INITIALIZATION;
     for (int vr = 0; vr < FMU_N_VARIABLES; vr++)
-        if ((KINDS[vr] == 0 || KINDS[vr] == 1) && !isfinite(s->values[vr]))
-            BAD("values[%d] (a parameter) = %g: must be finite", vr, s->values[vr]);
+        if ((KINDS[vr] == 0 || KINDS[vr] == 1 || KINDS[vr] == 6) && !isfinite(s->values[vr]))
+            BAD("values[%d] (a parameter or input) = %g: must be finite", vr, s->values[vr]);
     if (s->integrator < 0 || s->integrator >= FMU_N_INTEGRATORS)
         BAD("integrator = %d: must be in [0, %d)", s->integrator, FMU_N_INTEGRATORS);
     if (s->outputs_pending & ~groups) BAD("outputs_pending = %d: not a set of output groups", s->outputs_pending);
@@ -127,6 +127,10 @@ int model_check_state(const ModelState *s, int model_exchange, char *why, size_t
     if (isnan(s->stop_time) || s->stop_time < s->start_time)
         BAD("stop_time = %g: must not be before start_time = %g", s->stop_time, s->start_time);
     FINITE(s->p, MECH_N_PARAMETERS, "p");
+    FINITE(&s->input_poly[0][0], 3 * MECH_N_INPUTS, "input_poly");
+    FINITE(&s->input_der[0][0], 2 * MECH_N_INPUTS, "input_der");
+    FINITE(&s->input_t0, 1, "input_t0");
+    if (!is_flag(s->interpolating)) BAD("interpolating = %d: must be 0 or 1", s->interpolating);
     FINITE(s->d, 3 * MECH_N_DRIVERS, "d");
     if (check_partition(s, assembled, why, n)) return 1;
     FINITE(&s->t, 1, "t");
