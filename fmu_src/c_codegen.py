@@ -740,8 +740,8 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
          [("out", [sym.c(o.integrand) for o in force_works])], ("q", "tr", "qd", "lam", "p", "d")),
         ("void eq_powers_state(const double *q, const double *tr, const double *qd, double t, const double *p, "
          "const double *d, double *out)",
-         f"The powers (W) of the other {len(state_works)} work outputs (loads', dissipated), in MechanismEquations."
-         f"works order.", [("out", [sym.c(o.integrand) for o in state_works])], ("q", "tr", "qd", "p", "d")),
+         f"The powers (W) of the other {len(state_works)} work outputs (loads', inputs', dissipated), in "
+         f"MechanismEquations.works order.", [("out", [sym.c(o.integrand) for o in state_works])], ("q", "tr", "qd", "p", "d")),
     ]
     # The range-space solve of eq. (11), printed from the sparsity pattern of Phi_q:
     # S = Phi_q M^-1 Phi_q^T (lower triangle), r = Phi_q M^-1 Q - gamma, qdd = M^-1 (Q - Phi_q^T lambda).

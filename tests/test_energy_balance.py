@@ -1,10 +1,12 @@
 """The energy balance of every mechanism with force elements (issue 39, docs/mechanisms.md,
-"Energy and work"): ``energy - sum(<driver>_work, <load>_work) + dissipated`` is constant.
+"Energy and work"): ``energy - sum(<driver>_work, <load>_work, <input>_work) + dissipated`` is
+constant.
 
-For each mechanism of tests/energy_runs.py (shipped and test mechanisms with springs, friction
-or loads), in both FMUs at rtol = atol = 1e-12 over 10 s (a published benchmark over its span),
-the balance's spread is at most BALANCE_REL of the energy exchanged: the sum over its terms of
-each one's range (max - min).  Relative to that, not to |energy|: the energy's zero is arbitrary
+For each mechanism of tests/energy_runs.py (shipped and test mechanisms with springs, friction,
+loads or torque and force inputs, the inputs following a sine set before each step), in both
+FMUs at rtol = atol = 1e-12 over 10 s (a published benchmark over its span), the balance's spread
+is at most BALANCE_REL of the energy exchanged: the sum over its terms of each one's range
+(max - min).  Relative to that, not to |energy|: the energy's zero is arbitrary
 (V = 0 at y = 0), so a constant offset would loosen the check without any physics changing,
 while each term's integration error grows with how much energy it carries.  And each term is
 needed: the balance without any one of them misses by more than MISSING_REL (a dropped term
@@ -16,7 +18,7 @@ import sys
 
 import numpy as np
 import pytest
-from energy_runs import KINDS, force_mechanisms, force_run
+from energy_runs import KINDS, force_mechanisms, force_run, input_signal
 
 MECHANISMS = force_mechanisms()
 #: The issue's target: the balance to 1e-8 of the energy exchanged at rtol = atol = 1e-12
@@ -45,7 +47,7 @@ def test_every_mechanism_with_forces_is_checked():
     labels = {m.label for m in MECHANISMS}
     # the published benchmark and the test mechanisms of each force element (a change in the
     # discovery that loses one fails here)
-    assert {"andrews_squeezer", "spring_block", "friction_pair", "loaded_pendulum"} <= labels, labels
+    assert {"andrews_squeezer", "spring_block", "friction_pair", "loaded_pendulum", "input_pendulum"} <= labels, labels
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -79,8 +81,15 @@ def test_model_exchange_directional_derivatives_of_the_work_states(mechanism_fmu
         pytest.skip("FMPy loads the platform's binary; measured on x86_64-linux")
     from test_fmu_directional import AGREE, _away_from_start, _Host
 
-    host = _Host(mechanism_fmus.get(mechanism.source, "native"), tmp_path)
+    fmu = mechanism_fmus.get(mechanism.source, "native")
+    host = _Host(fmu, tmp_path)
     try:
+        if mechanism.inputs:        # away from 0, so that the inputs' powers depend on the state
+            from fmpy import read_model_description
+
+            vr = {v.name: v.valueReference for v in read_model_description(str(fmu)).modelVariables}
+            host.fmu.setReal([vr[n] for n in mechanism.inputs], [input_signal(k, 0.3)
+                                                                  for k in range(len(mechanism.inputs))])
         x = _away_from_start(host)
         names = host.v.names
         rows = [k for k, n in enumerate(names[:host.n]) if n.removeprefix("der(").removesuffix(")") in mechanism.works]

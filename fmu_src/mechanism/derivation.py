@@ -35,9 +35,10 @@ applies to the second body.
 Work outputs (J) are time integrals from the start of a power P(q, qd, lambda, t, p, d)
 (``OutputSpec.integrand``), integrated with the state by both FMUs (``MechanismEquations.works``):
 ``<driver>_work`` (power: the driver's torque or force times the joint's prescribed rate,
--lambda[row] nu[row]), ``<load>_work`` (the load's power Q_load^T qd) and ``dissipated`` (the
-dampers' c (ds/dt)^2 plus the friction's F v, >= 0; offered when the mechanism has a damper or
-friction), so that ``energy - sum(<driver>_work, <load>_work) + dissipated`` is conserved.
+-lambda[row] nu[row]), ``<load>_work`` (the load's power Q_load^T qd), ``<input>_work`` (a torque
+or force input's power Q_u^T qd) and ``dissipated`` (the dampers' c (ds/dt)^2 plus the
+friction's F v, >= 0; offered when the mechanism has a damper or friction), so that
+``energy - sum(<driver>_work, <load>_work, <input>_work) + dissipated`` is conserved.
 
 After the outputs the file selects come, always, the joints' positions a view draws the
 mechanism from (``drawing``): ``<joint>_x, <joint>_y`` (m), the joint's second point in the
@@ -101,8 +102,8 @@ class MechanismEquations:
     driver_rows: tuple[int, ...]               # the row of each driver, in driver order
     outputs: tuple[OutputSpec, ...]            # in the FMU's output order
     available: tuple[str, ...]                 # every output name the mechanism offers
-    works: tuple[OutputSpec, ...] = ()         # every work output offered (selected or not), in the
-    #                                            order of the integrated states: drivers', loads', dissipated
+    works: tuple[OutputSpec, ...] = ()         # every work output offered (selected or not), in the order
+    #                                            of the integrated states: drivers', loads', inputs', dissipated
     #: A driver input's (u, u_d) and (u_d, u_dd): each input symbol whose time derivative is another
     input_rates: tuple[tuple[sp.Symbol, sp.Symbol], ...] = ()
 
@@ -500,7 +501,8 @@ def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, 
             raise MechanismError(f"{mech.source}: inputs '{element.input.name}': its output {name!r} would have "
                                  f"the name of another output; rename the input")
         offered[name] = OutputSpec(name, "W", f"Power of input {element.input.name} [W]", element.power)
-    works = _load_works(mech, offered, loads) + _dissipation(mech, offered, springs, friction)
+    works = _load_works(mech, offered, loads) + _input_works(mech, offered, inputs) + _dissipation(
+        mech, offered, springs, friction)
     joints = {j.name: j for j in mech.joints}
     driver_works = []
     for k, driver in enumerate(mech.drivers):
@@ -548,6 +550,14 @@ def _load_works(mech: Mechanism, offered: dict[str, OutputSpec], loads) -> list[
     return [_offer(mech, offered, OutputSpec(f"{e.load.name}_work", "J", f"Work done by load {e.load.name} on the "
                                              f"{e.load.body} since the start [J]", integrand=e.power),
                    f"loads '{e.load.name}'") for e in loads]
+
+
+def _input_works(mech: Mechanism, offered: dict[str, OutputSpec], inputs) -> list[OutputSpec]:
+    """``<input>_work`` (J) per torque or force input: the time integral of its power Q_u^T qd (a
+    driver input's work is its driver's ``<driver>_work``)."""
+    return [_offer(mech, offered, OutputSpec(f"{e.input.name}_work", "J", f"Work done by input {e.input.name} "
+                                             f"since the start [J]", integrand=e.power),
+                   f"inputs '{e.input.name}'") for e in inputs]
 
 
 def _dissipation(mech: Mechanism, offered: dict[str, OutputSpec], springs, friction) -> list[OutputSpec]:

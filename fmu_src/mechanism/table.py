@@ -72,7 +72,7 @@ _RATE_UNITS = {"rad": "rad/s", "rad/s": "rad/s2", "m": "m/s", "m/s": "m/s2", "J"
 def model_exchange_states(eqs: MechanismEquations) -> tuple[tuple[str, str, str], ...]:
     """The native FMU's continuous states for Model Exchange, in the C state vector's order
     (dae.c's y): the file's independent coordinates, their rates, then the work outputs
-    (``MechanismEquations.works``: drivers', loads', dissipated); per state ``(name, unit, description)``."""
+    (``MechanismEquations.works``: drivers', loads', inputs', dissipated); per state ``(name, unit, description)``."""
     mech = eqs.mechanism
     coordinates, rates = mech.start[::2], mech.start[1::2]
     states = [(s.coordinate, s.unit, f"Independent coordinate {s.coordinate} (a continuous state)")
