@@ -1,0 +1,178 @@
+"""fourbar-run drives FMU inputs from a case file's ``[inputs]`` (orchestrator.input_signals).
+
+A small pythonfmu FMU (built once, in a child process) echoes what the master set: ``u_seen``
+is the input ``u`` at the start of the last step and ``x`` integrates the held input, so the
+rows show exactly which value was set before each doStep.  Checked here: the values set at
+each step's start, the input columns of exchange.csv, run.json's record of the signals, and
+the refusals (exit 2, nothing written).
+"""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from numpy.testing import assert_allclose
+
+from fourbar_common.contract.run_record import read_run_record
+from orchestrator import ConfigError, load_case, run_case
+from support import FOURBAR_RUN, REPO
+
+ECHO = textwrap.dedent('''
+    from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability
+    from pythonfmu.variables import Real
+
+
+    class Echo(Fmi2Slave):
+        """u_seen = u over the last step; x = integral of u, held over each step; y = gain*u."""
+
+        def __init__(self, **kwargs):
+            super().__init__(**kwargs)
+            self.gain = 1.0
+            self.u = 0.0
+            self.w = 0.0
+            self.u_seen = 0.0
+            self.x = 0.0
+            self.register_variable(Real("gain", causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable))
+            self.register_variable(Real("u", causality=Fmi2Causality.input))
+            self.register_variable(Real("w", causality=Fmi2Causality.input))
+            self.register_variable(Real("u_seen", causality=Fmi2Causality.output))
+            self.register_variable(Real("x", causality=Fmi2Causality.output))
+
+        def exit_initialization_mode(self):
+            self.u_seen = self.u
+
+        def do_step(self, current_time, step_size):
+            self.u_seen = self.u
+            self.x += self.gain * self.u * step_size
+            return True
+''')
+
+
+@pytest.fixture(scope="module")
+def echo_fmu(tmp_path_factory) -> Path:
+    """Echo.fmu, built by pythonfmu in a child process (keeps this process's sys.modules clean)."""
+    tmp = tmp_path_factory.mktemp("echo")
+    script = tmp / "Echo.py"
+    script.write_text(ECHO)
+    subprocess.run([sys.executable, "-c", "import sys; from pythonfmu.builder import FmuBuilder; "
+                    "FmuBuilder.build_FMU(sys.argv[1], dest=sys.argv[2])", str(script), str(tmp)],
+                   check=True, capture_output=True, timeout=120)
+    return tmp / "Echo.fmu"
+
+
+def write_case(folder: Path, fmu: Path, inputs: str, extra: str = "") -> Path:
+    path = folder / "echo.toml"
+    path.write_text(f'name = "echo"\nfmu = {json.dumps(str(fmu))}\n{extra}\n'
+                    f'[experiment]\nstart = 0.0\nstop = 2.0\nstep = 0.1\n\n'
+                    f'[outputs]\nvariables = ["u_seen", "x"]\n\n[inputs]\n{inputs}\n')
+    return path
+
+
+def run_cli(*args) -> subprocess.CompletedProcess:
+    return subprocess.run([FOURBAR_RUN, *map(str, args)], capture_output=True, text=True, timeout=120, cwd=REPO)
+
+
+def test_inputs_are_set_at_each_step_start_and_written_after_the_outputs(echo_fmu, tmp_path):
+    case = write_case(tmp_path, echo_fmu, 'u = { type = "sine", amplitude = 2.0, frequency = 0.5, offset = 1.0 }\n'
+                                          'w = { type = "step", before = 0.0, after = 3.0, time = 1.0 }\n')
+    result = run_case(load_case(case), out_dir=tmp_path / "out")
+    assert result.status == "finished"
+    data = pd.read_csv(result.exchange_path)
+    assert list(data.columns) == ["time", "u_seen", "x", "u", "w"]
+    t = data["time"].to_numpy()
+    u = 1.0 + 2.0 * np.sin(np.pi * t)
+    # the input columns: each signal's value at the row's time, written exactly (17 digits)
+    assert_allclose(data["u"], u, rtol=0, atol=1e-15)       # the same formula, round-off only
+    assert list(data["w"]) == [0.0 if tk < 1.0 - 1e-9 else 3.0 for tk in t]
+    # the FMU saw u(t_k) over the step from t_k: u_seen at row k+1 is u at row k; row 0 is the
+    # value set before initialisation, u(start)
+    assert_allclose(data["u_seen"][1:], u[:-1], rtol=0, atol=1e-15)
+    assert data["u_seen"][0] == u[0]
+    # x integrates the held input: the left Riemann sum
+    assert_allclose(data["x"], np.concatenate([[0.0], np.cumsum(u[:-1] * 0.1)]), rtol=0, atol=1e-12)
+    record = read_run_record(result.run_json_path)
+    assert [(i.name, dict(i.signal)) for i in record.inputs] == [
+        ("u", {"type": "sine", "amplitude": 2.0, "frequency": 0.5, "phase": 0.0, "offset": 1.0}),
+        ("w", {"type": "step", "before": 0.0, "after": 3.0, "time": 1.0})]
+    assert record.input_derivatives == 0          # pythonfmu FMUs cannot interpolate inputs
+    assert record.outputs == ("u_seen", "x", "u", "w")
+
+
+def test_a_csv_column_and_a_table_drive_inputs_with_steps_at_repeated_times(echo_fmu, tmp_path):
+    (tmp_path / "drive.csv").write_text("t,torque\n0,0\n1,1\n1,-1\n2,0\n")
+    case = write_case(tmp_path, echo_fmu, 'u = { type = "csv", file = "drive.csv", time = "t", column = "torque" }\n'
+                                          'w = { type = "table", rows = [[0.0, 5.0], [0.5, 5.0], [0.5, 1.0]] }\n')
+    result = run_case(load_case(case), out_dir=tmp_path / "out")
+    data = pd.read_csv(result.exchange_path)
+    t = data["time"].to_numpy()
+    expected_u = np.where(t < 1.0 - 1e-9, t, t - 2.0)          # up to 1 at 1 s, then from -1 back to 0
+    assert_allclose(data["u"], expected_u, rtol=0, atol=1e-12)  # interpolation round-off
+    assert_allclose(data["u_seen"][1:], expected_u[:-1], rtol=0, atol=1e-12)
+    assert list(data["w"]) == [5.0 if tk < 0.5 - 1e-9 else 1.0 for tk in t]
+    signal = read_run_record(result.run_json_path).inputs[0].signal
+    assert signal["type"] == "csv" and signal["rows"] == 4 and signal["column"] == "torque"
+
+
+def test_a_constant_input_and_a_fault_on_a_parameter_run_together(echo_fmu, tmp_path):
+    """Faults still change parameters between steps while an input is driven."""
+    case = write_case(tmp_path, echo_fmu, "u = 0.5\n",
+                      extra='[[events]]\ntype = "step"\ntime = 1.0\nvariable = "gain"\nvalue = 2.0\n')
+    result = run_case(load_case(case), out_dir=tmp_path / "out")
+    data = pd.read_csv(result.exchange_path)
+    # x = 0.05 per step before 1.0 s, 0.1 per step after (gain 2): 0.5 + 1.0 at 2 s
+    assert_allclose(data["x"].iloc[-1], 1.5, rtol=0, atol=1e-12)
+    assert list(data["u"]) == [0.5] * 21
+
+
+@pytest.mark.parametrize("inputs, extra, expected", [
+    ("tau = 1.0\n", "", "inputs.tau = 1.0: Echo.fmu has no input named 'tau'; its inputs: u, w"),
+    ("u = 1.0\n", "[parameters]\nu = 2.0\n",
+     "parameters.u = 2.0: u is given in [inputs] already; expected each input given once, in [inputs]"),
+    ("u = 1.0\n", '[[events]]\ntype = "step"\ntime = 1.0\nvariable = "u"\nvalue = 2.0\n',
+     'events[0].variable = "u": u is given in [inputs] already'),
+    ("u = 1.0\n", "input_derivatives = true\n",
+     "input_derivatives = true: Echo.fmu does not say canInterpolateInputs (FMI 2.0 co-simulation); "
+     "expected false or leave it out"),
+    ("u = 1.0\n", "input_derivatives = 3\n", "input_derivatives = 3: expected true, false, or the order 0, 1 or 2"),
+    ('u = { type = "ramp", from = 0.0, to = 1.0, start = 0.5, duration = -1.0 }\n', "",
+     "inputs.u.duration = -1.0: expected a duration > 0 s"),
+    ('u = { type = "csv", file = "short.csv", column = "u" }\n', "",
+     "inputs.u.file = \"short.csv\" ("),
+])
+def test_bad_inputs_exit_2_naming_the_field_and_nothing_is_written(echo_fmu, tmp_path, inputs, extra, expected):
+    (tmp_path / "short.csv").write_text("time,u\n0,1\n1.5,2\n")
+    case = write_case(tmp_path, echo_fmu, inputs, extra=extra)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "exchange.csv").write_text("a previous run\n")
+    proc = run_cli(case, "--out", out)
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert any(line.strip().startswith(f"{case}: ") and expected in line for line in proc.stderr.splitlines()), \
+        proc.stderr
+    assert (out / "exchange.csv").read_text() == "a previous run\n"       # nothing already written is lost
+    assert sorted(p.name for p in out.iterdir()) == ["exchange.csv"]
+
+
+def test_the_inputs_section_in_help():
+    proc = run_cli("--help")
+    assert proc.returncode == 0 and "[inputs]" in proc.stdout, proc.stdout
+
+
+def test_overrides_keep_the_inputs(echo_fmu, tmp_path):
+    """apply_overrides validates Case.as_dict again: each signal reads back as it was."""
+    from orchestrator import apply_overrides
+
+    (tmp_path / "drive.csv").write_text("time,torque\n0,0\n2,1\n")
+    case = load_case(write_case(tmp_path, echo_fmu, 'u = { type = "ramp", from = 0.0, to = 1.0, start = 0.3, '
+                                                    'duration = 0.7 }\n'
+                                                    'w = { type = "csv", file = "drive.csv", column = "torque" }\n'))
+    again = apply_overrides(case, overrides={"gain": 2.0})
+    assert again.inputs == case.inputs and again.parameters == {"gain": 2.0}
