@@ -40,7 +40,7 @@ from fourbar_common.files import NotRegularFileError, open_regular
 from .validation import ProblemReporter, kind_of, show_value
 
 __all__ = ["INPUT_TYPES", "MAX_CSV_BYTES", "Constant", "CsvColumn", "InputSignal", "Ramp", "Sine", "Step", "Table",
-           "derivative_order", "parse_inputs"]
+           "derivative_order", "parse_inputs", "recorded_signals"]
 
 #: The largest CSV file an input is read from (bytes): 64 MB is a million rows of two columns.
 MAX_CSV_BYTES = 64 << 20
@@ -189,8 +189,9 @@ class Table:
         if order == 2:
             return 0.0
         t0, t1, v0, v1 = self.times[i], self.times[i + 1], self.values[i], self.values[i + 1]
-        slope = (v1 - v0) / (t1 - t0)       # t0 < t1: bisect_right skips a repeated time
-        return slope if order == 1 else v0 + slope * (t - t0)
+        if order == 1:
+            return (v1 - v0) / (t1 - t0)    # t0 < t1: bisect_right skips a repeated time
+        return v0 + (v1 - v0) * ((t - t0) / (t1 - t0))
 
     def as_dict(self) -> dict:
         return {"type": self.KIND, "rows": [[t, v] for t, v in zip(self.times, self.values)]}
@@ -248,6 +249,38 @@ def derivative_order(model_description) -> int:
 
 
 # ---------------------------------------------------------------------------- the case file
+
+def recorded_signals(inputs: Mapping[str, Mapping[str, Any]], source: str = "run.json") -> dict[str, InputSignal]:
+    """The signals a run recorded (run.json's ``inputs``, :class:`~fourbar_common.contract.run_record.RecordedInput`
+    ``signal`` by name), to drive a replay as the run did.  A CSV column is read again from its
+    recorded (absolute) path and must still have the recorded SHA-256.  Raises
+    :class:`~orchestrator.validation.ConfigError` naming ``source`` and the field."""
+    from .validation import ConfigError
+
+    class _Reporter(ProblemReporter):
+        def __init__(self):
+            self.raw, self.problems = {}, []
+
+    reporter = _Reporter()
+    table = {}
+    for name, signal in inputs.items():
+        signal = dict(signal)
+        if signal.get("type") == "ramp" and "duration" in signal:
+            signal.pop("to", None)          # recorded for readers; slope and duration define it
+        if signal.get("type") == "csv":
+            signal.pop("rows", None)
+            signal.pop("sha256", None)
+        table[name] = signal
+    signals = parse_inputs(reporter, table, None, Path("/"), None)
+    for name, signal in signals.items():
+        want = inputs[name].get("sha256")
+        if isinstance(signal, CsvColumn) and want is not None and signal.sha256 != want:
+            reporter.problems.append(f"inputs.{name}.file = {show_value(signal.file)}: changed since the run "
+                                     f"(SHA-256 {signal.sha256[:12]}..., the run read {str(want)[:12]}...)")
+    if reporter.problems:
+        raise ConfigError(source, reporter.problems)
+    return signals
+
 
 def parse_inputs(reporter: ProblemReporter, table: Any, inputs: Mapping[str, Any] | None, base_dir: Path,
                  span: tuple[float, float] | None, fmu_name: str = "the FMU") -> dict[str, InputSignal]:
@@ -383,7 +416,7 @@ def _table(reporter: ProblemReporter, where: str, rows: Any) -> Table | None:
             return None
         times.append(t)
         values.append(v)
-    problem = _order_problem(times)
+    problem = _order_problem(times, values)
     if problem is not None:
         i, text = problem
         reporter.problem(f"{where}.rows[{i}]", rows[i], text)
@@ -391,9 +424,13 @@ def _table(reporter: ProblemReporter, where: str, rows: Any) -> Table | None:
     return Table(times=tuple(times), values=tuple(values))
 
 
-def _order_problem(times: list[float]) -> tuple[int, str] | None:
-    """(row index, what is wrong) when the times decrease or one time is given three times."""
+def _order_problem(times: list[float], values: list[float]) -> tuple[int, str] | None:
+    """(row index, what is wrong) when the times decrease, one time is given three times, or
+    two rows are so close that the slope between them is not a finite number."""
     for i in range(1, len(times)):
+        if times[i] > times[i - 1] and not math.isfinite((values[i] - values[i - 1]) / (times[i] - times[i - 1])):
+            return i, (f"time {times[i]!r} s is so close to the previous row's {times[i - 1]!r} s that the slope "
+                       f"between them is not a finite number; expected rows further apart, or one time twice (a step)")
         if times[i] < times[i - 1]:
             return i, f"time {times[i]!r} s is before the previous row's {times[i - 1]!r} s; expected times in order"
         if i >= 2 and times[i] == times[i - 1] == times[i - 2]:
@@ -469,7 +506,7 @@ def _csv(reporter: ProblemReporter, where: str, item: dict, base_dir: Path,
     if not times:
         reporter.problems.append(f"{label}: has a header but no rows")
         return None
-    problem = _order_problem(times)
+    problem = _order_problem(times, values)
     if problem is not None:
         reporter.problems.append(f"{label}: data row {problem[0] + 1}, column {time_column!r}: {problem[1]}")
         return None
