@@ -221,9 +221,10 @@ class _Validator(ProblemReporter):
 
     def input_derivatives(self, inputs: dict[str, InputSignal], fmi_type: str) -> int:
         """``input_derivatives``: the order of the input derivatives set at each step's start:
-        false (0: inputs held over the step), true (the highest the FMU accepts), 1 or 2.
-        Default: the highest the FMU accepts (:func:`~orchestrator.input_signals.derivative_order`),
-        when the case has inputs and runs in co-simulation."""
+        false (0: inputs held over the step), true (the FMU's default order,
+        :func:`~orchestrator.input_signals.derivative_order`), 1 or 2 (FMI 2.0 declares no highest
+        input order: an FMU that says canInterpolateInputs may be given 2).  Default: true when
+        the case has inputs and runs an FMU that can interpolate them in co-simulation."""
         value = self.raw.get("input_derivatives")
         can = derivative_order(self.md) if self.md is not None and fmi_type == "CoSimulation" else 0
         if value is None:
@@ -235,13 +236,11 @@ class _Validator(ProblemReporter):
         else:
             self.problem("input_derivatives", value, "expected true, false, or the order 0, 1 or 2")
             return 0
-        if value is True and can == 0 or wanted > can:
+        if (value is True or wanted > 0) and can == 0 and self.md is not None:
             if fmi_type != "CoSimulation":
                 why = "with fmi_type = \"ModelExchange\" the inputs are set at every evaluation of the model"
-            elif self.md is not None and derivative_order(self.md) == 0:
-                why = f"{self.fmu_name} does not say canInterpolateInputs (FMI 2.0 co-simulation)"
             else:
-                why = f"{self.fmu_name} accepts input derivatives up to order {can}"
+                why = f"{self.fmu_name} does not say canInterpolateInputs (FMI 2.0 co-simulation)"
             self.problem("input_derivatives", value, f"{why}; expected false or leave it out")
             return 0
         return wanted

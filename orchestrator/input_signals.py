@@ -233,14 +233,15 @@ INPUT_TYPES: Mapping[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 
 
 def derivative_order(model_description) -> int:
-    """The highest input derivative order the FMU accepts through ``fmi2SetRealInputDerivatives``:
-    0 unless it is an FMI 2.0 co-simulation FMU with ``canInterpolateInputs``; then 1, or 2 when
-    its ``maxOutputDerivativeOrder`` is 2 or more.
+    """The input derivative order set through ``fmi2SetRealInputDerivatives`` unless the case
+    says otherwise: 0 unless it is an FMI 2.0 co-simulation FMU with ``canInterpolateInputs``;
+    then 1, or 2 when its ``maxOutputDerivativeOrder`` is 2 or more.
 
-    FMI 2.0 declares no maximum input derivative order: ``canInterpolateInputs`` promises the
-    first derivative (the input linear within the step), and the FMU's own highest output
-    derivative order is taken as the highest input order it interpolates (quadratic from 2).
-    FMI 3.0 has no input derivatives (0).
+    FMI 2.0 declares no highest input derivative order: ``canInterpolateInputs`` promises the
+    first derivative (the input linear within the step); the FMU's own highest output
+    derivative order is taken as a sign it interpolates to that order (quadratic from 2).  A
+    case may ask for order 2 (``input_derivatives = 2``) of any FMU that can interpolate inputs.
+    FMI 3.0 co-simulation has no input derivatives (0).
     """
     cs = getattr(model_description, "coSimulation", None)
     if cs is None or not str(model_description.fmiVersion).startswith("2") or not cs.canInterpolateInputs:

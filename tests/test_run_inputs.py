@@ -176,3 +176,4 @@ def test_overrides_keep_the_inputs(echo_fmu, tmp_path):
                                                     'w = { type = "csv", file = "drive.csv", column = "torque" }\n'))
     again = apply_overrides(case, overrides={"gain": 2.0})
     assert again.inputs == case.inputs and again.parameters == {"gain": 2.0}
+
