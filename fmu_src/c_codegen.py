@@ -69,7 +69,7 @@ OUTPUT_STATE, OUTPUT_WORK, OUTPUT_RESIDUAL, OUTPUT_FORCE = 0, 1, 2, 3
 #: Output groups (variables.h, FMU_READ_COMPUTED): bits of the outputs computed together when first read.
 OUTPUT_GROUP_STATE, OUTPUT_GROUP_RESIDUAL, OUTPUT_GROUP_FORCE, OUTPUT_GROUP_STATES = 1, 2, 4, 8
 #: Variable kinds (variables.h, FMU_VARIABLE_KINDS).
-KIND_TUNABLE, KIND_FIXED, KIND_STRING, KIND_OUTPUT, KIND_LOCAL = 0, 1, 2, 3, 4
+KIND_TUNABLE, KIND_FIXED, KIND_STRING, KIND_OUTPUT, KIND_LOCAL, KIND_INPUT = 0, 1, 2, 3, 4, 6   # 5: FMI 3.0's time
 
 
 class _Printer(C99CodePrinter):
@@ -157,6 +157,7 @@ class _Symbols:
         self.dqd = [sp.Symbol(f"dqd_{nm}", real=True) for nm in names]
         self.dlam = [sp.Symbol(f"dlam_{k}", real=True) for k in range(m)]
         self.w = [sp.Symbol(f"w_{nm}", real=True) for nm in names]
+        self.du = [sp.Symbol(f"du_{u}", real=True) for u in eqs.inputs]     # a direction of the inputs
         #: Phi_q with a symbol for each entry that is not a constant: its sparsity pattern
         # (constant entries, e.g. the -1 of a pin's x, are used as such)
         self.J_pattern = sp.Matrix(m, n, lambda i, k: eqs.jacobian[i, k] if eqs.jacobian[i, k].is_number
@@ -171,7 +172,7 @@ class _Symbols:
     def arrays(self) -> dict[str, list[sp.Symbol]]:
         return {"q": self.q, "tr": self.trig, "qd": self.qd, "qdd": self.qdd, "lam": self.lam, "p": self.p, "d": self.d,
                 "J": self.J, "minv": self.minv, "Q": self.Q, "v": self.vector, "dq": self.dq, "dqd": self.dqd,
-                "dlam": self.dlam, "w": self.w}
+                "dlam": self.dlam, "w": self.w, "du": self.du}
 
     def directional(self, expr: sp.Expr, multipliers: bool = False) -> sp.Expr:
         """The derivative of ``expr`` (in the equations' symbols) along (dq, dqd) and, with
@@ -182,6 +183,13 @@ class _Symbols:
             pairs += list(zip(self.eqs.multipliers, self.dlam))
         free = expr.free_symbols
         return self.c(sp.Add(*(sp.diff(expr, x) * dx for x, dx in pairs if x in free)))
+
+    def along_inputs(self, expr: sp.Expr) -> sp.Expr:
+        """The derivative of ``expr`` along a direction du of the inputs (partial: q, qd, lambda
+        held), in C names."""
+        expr = sp.sympify(expr)
+        free = expr.free_symbols
+        return self.c(sp.Add(*(sp.diff(expr, u) * du for u, du in zip(self.eqs.inputs, self.du) if u in free)))
 
 
 class _Sparse(dict):
@@ -767,7 +775,7 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
     body += [dep_source, column_source, stage_source, one_source]
     prototypes += dep_prototypes + [column_prototype] + ([stage_prototype] if stage_prototype else []) + [one_prototype]
 
-    params = [p.name for p in mech.parameters]
+    params = [p.name for p in mech.parameters] + [str(u) for u in eqs.inputs]
     drivers = [(-1 if d.start is None else params.index(d.start), -1 if d.speed is None else params.index(d.speed), row)
                for d, row in zip(mech.drivers, eqs.driver_rows)]
     row_names = []
@@ -806,7 +814,12 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
         f"#define MECH_N {n}                  /* coordinates */",
         f"#define MECH_M {m}                  /* constraint rows (= dependent coordinates) */",
         f"#define MECH_K {sizes['k']}                  /* independent coordinates (degrees of freedom) */",
-        f"#define MECH_N_PARAMETERS {len(params)}",
+        f"#define MECH_N_PARAMETERS {len(params)}   /* p: the file's parameters, then the inputs */",
+        f"#define MECH_N_FILE_PARAMETERS {len(mech.parameters)}",
+        f"#define MECH_N_INPUTS {len(eqs.inputs)}",
+        "/* The driver inputs: the index among the inputs of each position u (then u_d, u_dd follow it). */",
+        f"#define MECH_N_INPUT_DRIVERS {len(_input_drivers(eqs))}",
+        f"#define MECH_INPUT_DRIVERS {ints(_padded([str(k) for k in _input_drivers(eqs)], '-1'))}",
         f"#define MECH_N_DRIVERS {sizes['drivers']}",
         f"#define MECH_N_TRIG {sizes['trig']}             /* cos and sin of each angle coordinate */",
         f"#define MECH_N_OUTPUTS {len(eqs.outputs)}",
@@ -867,6 +880,12 @@ def _equations(eqs: MechanismEquations, variables) -> tuple[str, str]:
     return "\n".join(header) + "\n", source
 
 
+def _input_drivers(eqs: MechanismEquations) -> list[int]:
+    """The index among the inputs of each driver input's position (its rate and acceleration follow)."""
+    names = [str(u) for u in eqs.inputs]
+    return [names.index(d.input) for d in eqs.mechanism.drivers if d.input is not None]
+
+
 def _directional_functions(eqs: MechanismEquations, sym: _Symbols, state_outputs, force_outputs) -> list:
     """The pieces of Model Exchange's directional derivatives (dae.c: dae_directional), each the
     derivative of an expression above along a direction (dq, dqd[, dlam]) of the state, printed
@@ -903,6 +922,16 @@ def _directional_functions(eqs: MechanismEquations, sym: _Symbols, state_outputs
          "double *out)", "The derivatives of eq_outputs_force's outputs along (dq, dqd, dlam).",
          [("out", [sym.directional(o.expression, multipliers=True) for o in force_outputs])],
          ("q", "tr", "qd", "lam", "p", "d", "dq", "dqd", "dlam")),
+        ("void eq_dir_inputs(const double *q, const double *tr, const double *qd, const double *lam, double t, "
+         "const double *p, const double *d, const double *du, double *dphi, double *dnu, double *dQ, "
+         "double *dgamma, double *dstate, double *dforce)",
+         "The partial derivatives along a direction du of the inputs (q, qd, lambda held) of Phi, nu, Q, gamma "
+         "and the outputs of eq_outputs_state and eq_outputs_force.",
+         [("dphi", [sym.along_inputs(e) for e in eqs.constraints]), ("dnu", [sym.along_inputs(e) for e in eqs.nu]),
+          ("dQ", [sym.along_inputs(e) for e in eqs.forces]), ("dgamma", [sym.along_inputs(e) for e in eqs.gamma]),
+          ("dstate", [sym.along_inputs(o.expression) for o in state_outputs]),
+          ("dforce", [sym.along_inputs(o.expression) for o in force_outputs])],
+         ("q", "tr", "qd", "lam", "p", "d", "du")),
     ]
 
 
@@ -978,10 +1007,12 @@ def _variables(eqs: MechanismEquations, variables, guid: str, model_identifier: 
             kinds.append(KIND_OUTPUT)
         elif var.causality == "local":
             kinds.append(KIND_LOCAL)
+        elif var.causality == "input":
+            kinds.append(KIND_INPUT)
         else:
             kinds.append(KIND_TUNABLE if var.variability == "tunable" else KIND_FIXED)
     lines.append("/* Variable kinds: 0 Real tunable parameter, 1 Real fixed parameter, 2 String fixed parameter, "
-                 "3 Real output, 4 Real local (Model Exchange's states and derivatives). */")
+                 "3 Real output, 4 Real local (Model Exchange's states and derivatives), 6 Real input. */")
     lines.append(f"#define FMU_VARIABLE_KINDS {_braced(str(k) for k in kinds)}")
     starts = [_c_double(v.start) if v.type == "Real" and v.start is not None else "0.0" for v in variables]
     lines.append(f"#define FMU_REAL_STARTS {_braced(starts)}")

@@ -66,9 +66,10 @@ class Reduction:
 
 
 def _time_derivative(exprs: sp.Matrix, coordinates: Sequence[sp.Symbol], rates: Sequence[sp.Symbol],
-                     t: sp.Symbol) -> sp.Matrix:
-    """d/dt of expressions of (coordinates, t) along the given rates (the rates held fixed)."""
-    out = exprs.diff(t)
+                     eqs: MechanismEquations) -> sp.Matrix:
+    """d/dt of expressions of (coordinates, t, a driver's inputs) along the given rates (the rates
+    held fixed; a driver input's rate and acceleration are inputs too: eqs.time_partial)."""
+    out = eqs.time_partial(exprs)
     for x, xd in zip(coordinates, rates):
         out += exprs.diff(x) * xd
     return out
@@ -111,12 +112,12 @@ def reduce_constraints(eqs: MechanismEquations, pivots: Sequence[tuple[int, int]
     B = residual.jacobian(i_syms) if R and K else sp.zeros(R, K)
     G_z = g.jacobian(z_syms) if E and R else sp.zeros(E, R)
     G_i = g.jacobian(i_syms) if E and K else sp.zeros(E, K)
-    r_t = residual.diff(t) if R else sp.zeros(0, 1)
-    g_t = g.diff(t) if E else sp.zeros(0, 1)
+    r_t = eqs.time_partial(residual) if R else sp.zeros(0, 1)
+    g_t = eqs.time_partial(g) if E else sp.zeros(0, 1)
     coordinates, rates = z_syms + i_syms, zd_syms + id_syms
     zd_col, id_col = sp.Matrix(R, 1, zd_syms), sp.Matrix(K, 1, id_syms)
     r_rate = S * zd_col + B * id_col + r_t if R else sp.zeros(0, 1)
     g_rate = G_z * zd_col + G_i * id_col + g_t if E else sp.zeros(0, 1)
-    gamma = _time_derivative(r_rate, coordinates, rates, t) if R else sp.zeros(0, 1)
-    kappa = _time_derivative(g_rate, coordinates, rates, t) if E else sp.zeros(0, 1)
+    gamma = _time_derivative(r_rate, coordinates, rates, eqs) if R else sp.zeros(0, 1)
+    kappa = _time_derivative(g_rate, coordinates, rates, eqs) if E else sp.zeros(0, 1)
     return Reduction(tuple(z), tuple(rows), eliminated, closed, residual, S, B, r_t, G_z, G_i, g_t, gamma, kappa)

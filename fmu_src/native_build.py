@@ -265,7 +265,8 @@ def _fmi2_model_description(eqs: MechanismEquations, guid: str, source_files) ->
         "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true"})
     cs = ET.SubElement(root, "CoSimulation", {
         "modelIdentifier": identifier, "needsExecutionTool": "false",
-        "canHandleVariableCommunicationStepSize": "true", "canInterpolateInputs": "false",
+        "canHandleVariableCommunicationStepSize": "true",
+        "canInterpolateInputs": "true" if eqs.inputs else "false",
         "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
         "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
         "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true",

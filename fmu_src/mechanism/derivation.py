@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .description import RATE_PREFIX, Friction, Joint, Load, Mechanism, MechanismError, PointRef, Spring
+from .description import RATE_PREFIX, Friction, Input, Joint, Load, Mechanism, MechanismError, PointRef, Spring
 from .drawing import joint_columns
 
 __all__ = ["MechanismEquations", "OutputSpec", "derive", "RUNTIME_OUTPUTS"]
@@ -74,7 +74,8 @@ class MechanismEquations:
     q: sp.Matrix                # n x 1
     qd: sp.Matrix               # n x 1
     t: sp.Symbol
-    params: tuple[sp.Symbol, ...]    # the [parameters], in file order (p)
+    params: tuple[sp.Symbol, ...]    # the run-time array p: the [parameters] in file order, then the inputs
+    inputs: tuple[sp.Symbol, ...]    # the FMI input variables (the end of params), in file order
     drive: tuple[sp.Symbol, ...]     # per driver (s_ref, t_ref, v): the run-time array d
     mass_matrix: sp.Matrix      # n x n, diagonal
     forces: sp.Matrix           # n x 1, Q
@@ -89,6 +90,16 @@ class MechanismEquations:
     driver_rows: tuple[int, ...]               # the row of each driver, in driver order
     outputs: tuple[OutputSpec, ...]            # in the FMU's output order
     available: tuple[str, ...]                 # every output name the mechanism offers
+    #: A driver input's (u, u_d) and (u_d, u_dd): each input symbol whose time derivative is another
+    input_rates: tuple[tuple[sp.Symbol, sp.Symbol], ...] = ()
+
+    def time_partial(self, expr):
+        """The partial time derivative of ``expr`` (a matrix or an expression of q, t and the
+        inputs; q held): d/dt through t and through each driver input u (u_d, then u_dd)."""
+        out = expr.diff(self.t)
+        for u, rate in self.input_rates:
+            out += expr.diff(u) * rate
+        return out
 
     @property
     def n(self) -> int:
@@ -212,6 +223,13 @@ def _derive(mech: Mechanism) -> MechanismEquations:
             element = _load(load, frames, q, qd)
             Q += element.forces
             load_outputs.append(element)
+    inputs = {v.name: sp.Symbol(v.name, real=True) for i in mech.inputs for v in i.variables}
+    input_outputs = []
+    for entry in mech.inputs:
+        if entry.kind != "position":
+            element = _input(entry, inputs[entry.name], frames, q, qd, {j.name: j for j in mech.joints})
+            Q = sp.Matrix(Q) + element.forces
+            input_outputs.append(element)
 
     # Constraints: joints in file order, then drivers.
     rows: list[sp.Expr] = []
@@ -221,6 +239,7 @@ def _derive(mech: Mechanism) -> MechanismEquations:
         joint_rows[joint.name] = tuple(range(len(rows), len(rows) + len(new)))
         rows += new
     drive: list[sp.Symbol] = []
+    signals: dict = {}
     driver_rows = []
     joints = {j.name: j for j in mech.joints}
     for driver in mech.drivers:
@@ -228,7 +247,13 @@ def _derive(mech: Mechanism) -> MechanismEquations:
         drive += [s_ref, t_ref, v]
         driver_rows.append(len(rows))
         joint_rows[driver.name] = (len(rows),)
-        prescribed = s_ref + v * (t - t_ref) if driver.position is None else driver.position   # (s_ref, t_ref, v) unused
+        if driver.input is not None:        # u(t) from the inputs: differentiated, then u, u_d, u_dd put in
+            prescribed = sp.Function(f"_{driver.input}_of_t", real=True)(t)
+            signals[prescribed] = tuple(inputs[n] for n in (driver.input, f"{driver.input}_d", f"{driver.input}_dd"))
+        elif driver.position is None:
+            prescribed = s_ref + v * (t - t_ref)
+        else:
+            prescribed = driver.position    # (s_ref, t_ref, v) unused
         rows.append(_joint_coordinate(joints[driver.joint], frames) - prescribed)
     Phi = sp.Matrix(rows)
     Phi_q = Phi.jacobian(q)
@@ -237,16 +262,24 @@ def _derive(mech: Mechanism) -> MechanismEquations:
     Phi_t = Phi.diff(t)
     nu = -Phi_t
     gamma = -(Phi_q * qd).jacobian(q) * qd - 2 * Phi_t.jacobian(q) * qd - Phi_t.diff(t)
+    if signals:     # a driver input's u(t), u'(t), u''(t) are the input variables u, u_d, u_dd
+        put = {}
+        for function, (u, u_d, u_dd) in signals.items():
+            put |= {function.diff(t, 2): u_dd, function.diff(t): u_d}
+        Phi, nu, gamma = (x.subs(put).subs({f: u for f, (u, _, _) in signals.items()}) for x in (Phi, nu, gamma))
+        Phi_t = -nu
     gamma = gamma.applyfunc(sp.simplify)
     lam = sp.Matrix([sp.Symbol(f"lambda_{k}", real=True) for k in range(Phi.rows)])
 
     outputs, available = _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, T + V, spring_outputs,
-                                  friction_outputs, load_outputs)
+                                  friction_outputs, load_outputs, input_outputs)
     eqs = MechanismEquations(
-        mechanism=mech, coordinates=names, q=q, qd=qd, t=t, params=tuple(params.values()), drive=tuple(drive),
+        mechanism=mech, coordinates=names, q=q, qd=qd, t=t, params=tuple(params.values()) + tuple(inputs.values()),
+        inputs=tuple(inputs.values()), drive=tuple(drive),
         mass_matrix=M, forces=Q, constraints=Phi, jacobian=Phi_q, nu=nu, gamma=gamma,
         kinetic_energy=T, potential_energy=V, multipliers=lam, joint_rows=joint_rows,
-        driver_rows=tuple(driver_rows), outputs=outputs, available=available)
+        driver_rows=tuple(driver_rows), outputs=outputs, available=available,
+        input_rates=tuple(pair for u, u_d, u_dd in signals.values() for pair in ((u, u_d), (u_d, u_dd))))
     return eqs
 
 
@@ -312,6 +345,35 @@ def _load(load: Load, frames: _Frames, q: sp.Matrix, qd: sp.Matrix) -> _LoadTerm
 
 
 @dataclass(frozen=True)
+class _InputTerms:
+    """An input torque's or force's generalized forces and its power Q^T qd (u times them)."""
+
+    input: Input
+    forces: sp.Matrix          # n x 1
+    power: sp.Expr
+
+
+def _input(entry: Input, u: sp.Symbol, frames: _Frames, q: sp.Matrix, qd: sp.Matrix, joints: dict[str, Joint]
+           ) -> _InputTerms:
+    """An input u acting like a load (``_load``), through its virtual work: a torque on a body
+    u dtheta; at a revolute joint u ds, s the relative angle (on the second body, minus on the
+    first); at a prismatic joint u ds, s the position along the line; a force at a point
+    u e . dp, e the unit direction (turned with the body in the body frame).  Q = u (ds/dq)^T."""
+    if entry.kind == "torque" and entry.body is not None:
+        coordinate = frames.angle(entry.body)
+        grad = sp.Matrix([coordinate]).jacobian(q).T
+    elif entry.joint is not None:
+        grad = sp.Matrix([_joint_coordinate(joints[entry.joint], frames)]).jacobian(q).T
+    else:
+        e = sp.Matrix([sp.Integer(int(v)) if v == int(v) else sp.Float(v) for v in entry.direction])
+        if entry.frame == "body":
+            e = _rotation(frames.angle(entry.point.body)) * e
+        grad = frames.point(entry.point).jacobian(q).T * e
+    forces = (u * grad).applyfunc(sp.simplify)
+    return _InputTerms(entry, forces, sp.simplify((forces.T * qd)[0]))
+
+
+@dataclass(frozen=True)
 class _FrictionTerms:
     """A joint friction's pieces: the joint's rate v, what it exerts F (opposing v) and its
     generalized forces."""
@@ -353,7 +415,7 @@ def _friction_outputs(mech: Mechanism, offered: dict, friction: tuple[_FrictionT
 
 
 def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, springs=(), friction=(),
-             loads=()):
+             loads=(), inputs=()):
     """Every output the mechanism offers, then the ones the file selects, in its order."""
     offered: dict[str, OutputSpec] = {}
     for body in mech.bodies:
@@ -418,6 +480,12 @@ def _outputs(mech, names, q, qd, lam, Phi_q, Phi_t, joint_rows, frames, energy, 
                                  f"the name of another output; rename the load")
         offered[name] = OutputSpec(name, "W", f"Power of load {element.load.name} on the {element.load.body} [W]",
                                    element.power)
+    for element in inputs:
+        name = f"{element.input.name}_power"
+        if name in offered:
+            raise MechanismError(f"{mech.source}: inputs '{element.input.name}': its output {name!r} would have "
+                                 f"the name of another output; rename the input")
+        offered[name] = OutputSpec(name, "W", f"Power of input {element.input.name} [W]", element.power)
     joints = {j.name: j for j in mech.joints}
     for k, driver in enumerate(mech.drivers):
         (row,) = joint_rows[driver.name]

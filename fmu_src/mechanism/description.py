@@ -28,7 +28,7 @@ from .expressions import MAX_MAGNITUDE, ExpressionError, check_expression, parse
 if TYPE_CHECKING:      # sympy is imported once every expression of the file has passed its checks
     import sympy as sp
 
-__all__ = ["Mechanism", "Parameter", "Body", "PointRef", "Joint", "Driver", "Spring", "Friction", "Load", "StartValue", "ExpressionOutput",
+__all__ = ["Mechanism", "Parameter", "Body", "PointRef", "Joint", "Driver", "Spring", "Friction", "Load", "Input", "StartValue", "ExpressionOutput",
            "MechanismError", "load_mechanism", "parse_mechanism", "MECHANISM_DIR", "resolve_mechanism",
            "shipped_mechanisms", "PUBLISHED_BENCHMARKS", "RATE_PREFIX", "POSITIVE"]
 
@@ -123,6 +123,7 @@ class Driver:
     start: str | None
     speed: str | None
     position: sp.Expr | None = None
+    input: str | None = None        # the [[inputs]] entry whose variables give the position
 
 
 @dataclass(frozen=True)
@@ -175,6 +176,58 @@ class Load:
 
 
 @dataclass(frozen=True)
+class InputVariable:
+    """One FMI input variable (``causality="input"``, ``variability="continuous"``)."""
+
+    name: str
+    unit: str
+    start: float
+    description: str
+
+
+#: An input's kinds: what its value is, and its unit (a position's: that of its joint).
+INPUT_KINDS = ("torque", "force", "position")
+
+
+@dataclass(frozen=True)
+class Input:
+    """An ``[[inputs]]`` entry: what an FMI input variable pushes or moves.
+
+    - ``torque`` on a ``body`` (N.m, counter-clockwise positive), or at a revolute ``joint``
+      (on its second body, minus on its first: virtual work u d(theta2 - theta1));
+    - ``force`` at a prismatic ``joint`` (N, along its line, on the second body, minus on the
+      first), or at a ``point`` along a unit ``direction`` in the ``frame`` "global" or "body";
+    - ``position`` of a ``joint``: a driver (named like the input) whose joint coordinate is the
+      input ``name`` (rad or m), with its rate ``name_d`` and acceleration ``name_dd`` inputs too.
+    """
+
+    name: str
+    kind: str                                  # one of INPUT_KINDS
+    start: float
+    description: str
+    body: str | None = None                    # torque on a body
+    joint: str | None = None                   # torque (revolute), force (prismatic), position
+    joint_type: str | None = None              # the joint's type
+    point: PointRef | None = None              # force at a point
+    direction: tuple[float, float] | None = None   # its unit direction
+    frame: str = "global"                      # the direction's frame: "global" or "body"
+
+    @property
+    def variables(self) -> tuple[InputVariable, ...]:
+        """Its FMI input variables: one, or three for a position (value, rate, acceleration)."""
+        if self.kind == "torque":
+            return (InputVariable(self.name, "N.m", self.start, self.description),)
+        if self.kind == "force":
+            return (InputVariable(self.name, "N", self.start, self.description),)
+        unit = "rad" if self.joint_type == "revolute" else "m"
+        return (InputVariable(self.name, unit, self.start, self.description),
+                InputVariable(f"{self.name}_d", f"{unit}/s", 0.0,
+                              f"Rate of {self.name}, its first time derivative [{unit}/s]"),
+                InputVariable(f"{self.name}_dd", f"{unit}/s2", 0.0,
+                              f"Acceleration of {self.name}, its second time derivative [{unit}/s2]"))
+
+
+@dataclass(frozen=True)
 class StartValue:
     """The start value of an independent coordinate or of its rate (a fixed FMU parameter
     named ``<coordinate>_start``)."""
@@ -222,6 +275,7 @@ class Mechanism:
     springs: tuple[Spring, ...] = ()
     friction: tuple[Friction, ...] = ()
     loads: tuple[Load, ...] = ()
+    inputs: tuple[Input, ...] = ()
 
     @property
     def independent(self) -> tuple[str, ...]:
@@ -839,6 +893,111 @@ def _loads(reader: _Reader, items, bodies: tuple[Body, ...], ground, taken: dict
     return tuple(loads)
 
 
+_INPUT_KEYS = {"name", "kind", "body", "joint", "point", "direction", "frame", "start", "description"}
+
+
+def _inputs(reader: _Reader, items, bodies: tuple[Body, ...], ground, joints: tuple[Joint, ...],
+            drivers: tuple[Driver, ...], taken: dict[str, str]) -> tuple[Input, ...]:
+    """The [[inputs]] entries (see :class:`Input`): names unique among every named element and
+    every variable the mechanism makes (they name FMI variables and outputs), the body, joint or
+    point they act on existing, a position's joint without another driver."""
+    if items is None:
+        return ()
+    if not isinstance(items, list):
+        raise reader.fail("inputs", "use [[inputs]] entries")
+    by_name = {b.name: b for b in bodies}
+    by_joint = {j.name: j for j in joints}
+    driven = {d.joint: d.name for d in drivers}
+    inputs: list[Input] = []
+    names: dict[str, str] = {}
+    for k, spec in enumerate(items):
+        where = f"inputs[{k}]"
+        if not isinstance(spec, dict):
+            raise reader.fail(where, "must be a table")
+        name = reader.string(spec, "name", where)
+        where = f"inputs[{k}] '{name}'"
+        reader.unknown_keys(spec, _INPUT_KEYS, where)
+        kind = reader.string(spec, "kind", where)
+        if kind not in INPUT_KINDS:
+            raise reader.fail(f"{where}.kind", f"{kind!r}: expected one of {', '.join(INPUT_KINDS)}")
+        start = reader.number(spec, "start", where, 0.0)
+        given = {key for key in ("body", "joint", "point") if key in spec}
+        allowed = {"torque": ({"body"}, {"joint"}), "force": ({"joint"}, {"point"}), "position": ({"joint"},)}[kind]
+        if given not in allowed:
+            choices = " or ".join(repr(next(iter(a))) for a in allowed)
+            raise reader.fail(where, f"a {kind} input acts through {choices} (one of them), got "
+                                     f"{', '.join(map(repr, sorted(given))) or 'none'}")
+        for key in ("direction", "frame"):
+            if key in spec and given != {"point"}:
+                raise reader.fail(f"{where}.{key}", "only a force at a 'point' has a direction and a frame")
+        body = joint = joint_type = point = direction = None
+        frame = "global"
+        if "body" in given:
+            body = reader.string(spec, "body", where)
+            if body not in by_name:
+                raise reader.fail(f"{where}.body", f"{body!r}: no body named so (bodies: {', '.join(by_name)})")
+            if not by_name[body].rotates:
+                raise reader.fail(f"{where}.body", f"{body!r} does not rotate: a torque on it does no work")
+        elif "joint" in given:
+            joint = reader.string(spec, "joint", where)
+            if joint not in by_joint:
+                raise reader.fail(f"{where}.joint", f"{joint!r}: no joint named so (joints: {', '.join(by_joint)})")
+            joint_type = by_joint[joint].type
+            need = {"torque": "revolute", "force": "prismatic"}.get(kind)
+            if need and joint_type != need:
+                raise reader.fail(f"{where}.joint", f"{joint!r} is a {joint_type} joint: a {kind} input acts at a "
+                                                    f"{need} joint (or give a {'body' if kind == 'torque' else 'point'})")
+            if kind == "position" and joint in driven:
+                raise reader.fail(f"{where}.joint", f"joint {joint!r} already has a driver ({driven[joint]!r})")
+            if kind == "position":
+                driven[joint] = name
+        else:
+            point = _point_ref(reader, spec["point"], f"{where}.point", by_name, ground)
+            if point.body == "ground":
+                raise reader.fail(f"{where}.point", f"{spec['point']!r} is on the ground: a force there does no work")
+            value = spec.get("direction")
+            if (not isinstance(value, list) or len(value) != 2
+                    or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+                    or not all(math.isfinite(v) and abs(v) <= MAX_MAGNITUDE for v in value)
+                    or math.hypot(*value) == 0.0):
+                raise reader.fail(f"{where}.direction", f"must be [dx, dy], two finite numbers not both zero (the "
+                                                        f"force's direction), got {_shown(repr(value))}")
+            norm = math.hypot(*value)
+            direction = (value[0] / norm, value[1] / norm)
+            frame = reader.string(spec, "frame", where, "global")
+            if frame not in ("global", "body"):
+                raise reader.fail(f"{where}.frame", f"{frame!r}: expected 'global' or 'body'")
+            if frame == "body" and not by_name[point.body].rotates:
+                frame = "global"
+        unit = {"torque": "N.m", "force": "N"}.get(kind) or ("rad" if joint_type == "revolute" else "m")
+        on = body or joint or f"{point.body}.{point.point}"
+        default = {"torque": f"Input torque on {on}, counter-clockwise positive [N.m]" if body else
+                   f"Input torque at joint {on}, on its second body (minus on its first) [N.m]",
+                   "force": f"Input force at joint {on}, along its line on the second body [N]" if joint else
+                   f"Input force at {on} along ({direction[0]:.6g}, {direction[1]:.6g}) in the {frame} frame [N]"
+                   if direction else "",
+                   "position": f"Input position of joint {on}: its coordinate (driver {name}) [{unit}]"}[kind]
+        entry = Input(name, kind, start, reader.text(spec, "description", where, default), body, joint, joint_type,
+                      point, direction, frame)
+        for var in entry.variables:
+            if not _NAME.match(var.name) or var.name in _RESERVED or var.name in _GENERATED_NAMES:
+                raise reader.fail(where, f"{var.name!r} cannot be an input's name (letters, digits and _, starting "
+                                         f"with a letter; not one of {', '.join(sorted(_RESERVED | _GENERATED_NAMES))})")
+            clash = taken.get(var.name) or names.get(var.name)
+            if clash:
+                raise reader.fail(where, f"its variable {var.name!r} would have the name of {clash}; rename the input")
+            names[var.name] = f"input {name!r}"
+        if name in taken:
+            raise reader.fail(where, f"{taken[name]} already has this name (it names outputs)")
+        inputs.append(entry)
+    return tuple(inputs)
+
+
+#: Names the generated code uses beside the file's: an input may not take them.
+_GENERATED_NAMES = {"array", "tanh", "sqrt", "sin", "cos", "tan", "asin", "acos", "atan", "atan2", "exp", "log",
+                    "max_evaluations", "q", "qd", "p", "d", "lam"}
+
+
 def _start(reader: _Reader, table: dict, bodies: tuple[Body, ...]) -> tuple[StartValue, ...]:
     coordinates = {c: b for b in bodies for c in b.coordinates}
     rates = {}
@@ -890,7 +1049,7 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
     """A :class:`Mechanism` from the TOML tables (``source`` names the file in messages)."""
     reader = _Reader(source)
     reader.unknown_keys(data, {"mechanism", "parameters", "ground", "bodies", "joints", "drivers", "springs",
-                               "friction", "loads", "start", "outputs"}, "top level")
+                               "friction", "loads", "inputs", "start", "outputs"}, "top level")
     head = reader.table(data, "mechanism", "top level")
     reader.unknown_keys(head, {"name", "description", "gravity"}, "[mechanism]")
     name = reader.string(head, "name", "[mechanism]")
@@ -921,6 +1080,16 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
                    | {d.name: "a driver" for d in drivers} | {s.name: "a spring" for s in springs}
                    | {f.name: "a friction entry" for f in friction}, scope)
     start = _start(reader, reader.table(data, "start", "top level", required=False), bodies)
+    taken = {j.name: "a joint" for j in joints} | {d.name: "a driver" for d in drivers} \
+        | {s.name: "a spring" for s in springs} | {f.name: "a friction entry" for f in friction} \
+        | {x.name: "a load" for x in loads} | {p.name: "a parameter" for p in parameters} \
+        | {s.parameter: "a start-value parameter" for s in start} \
+        | {c: "a coordinate" for b in bodies for c in b.coordinates} \
+        | {f"{c}_d": "a coordinate's rate symbol" for b in bodies for c in b.coordinates} \
+        | {RATE_PREFIX[c[: len(c) - len(b.label)]] + b.label: "a rate" for b in bodies for c in b.coordinates}
+    inputs = _inputs(reader, data.get("inputs"), bodies, ground, joints, drivers, taken)
+    drivers = drivers + tuple(Driver(i.name, i.joint, None, None, input=i.name) for i in inputs
+                              if i.kind == "position")
     names = {p.name for p in parameters}
     for s in start:
         if s.parameter in names:
@@ -940,7 +1109,7 @@ def parse_mechanism(data: dict, source: str = "<mechanism>") -> Mechanism:
             expression_outputs = _expression_outputs(reader, table["expressions"], parameters, bodies, symbols)
     return Mechanism(name, reader.text(head, "description", "[mechanism]", name), source, gravity, parameters,
                      ground, bodies,
-                     joints, drivers, start, outputs, expression_outputs, springs, friction, loads)
+                     joints, drivers, start, outputs, expression_outputs, springs, friction, loads, inputs)
 
 
 def _expression_outputs(reader: _Reader, table, parameters: tuple[Parameter, ...], bodies: tuple[Body, ...],

@@ -113,7 +113,7 @@ def generate_module(eqs: MechanismEquations) -> str:
 
 Do not edit: regenerate with ``python build_fmu.py --mechanism ...``.
 
-q = [{", ".join(eqs.coordinates)}], qd = dq/dt; p = ({", ".join(params)});
+q = [{", ".join(eqs.coordinates)}], qd = dq/dt; p = ({", ".join(str(x) for x in eqs.params)});
 d = the drivers' (s_ref, t_ref, v); lam = the multipliers.
 Equation form: M qdd + Phi_q^T lambda = Q, Phi_q qdd = gamma, Phi_q qd = nu.
 """
@@ -133,6 +133,10 @@ INDEPENDENT = {eqs.independent!r}
 #: The start-value parameters of INDEPENDENT: (position, rate) per coordinate.
 START_PARAMETERS = {tuple((s.parameter, r.parameter) for s, r in zip(mech.start[::2], mech.start[1::2]))!r}
 PARAMETERS = {tuple(params)!r}
+#: The FMI input variables, in value-reference order: p is PARAMETERS' values, then theirs.
+INPUTS = {tuple(str(u) for u in eqs.inputs)!r}
+#: The index in INPUTS of each driver input's position u (its rate u_d and acceleration u_dd follow).
+INPUT_DRIVERS = {tuple([str(u) for u in eqs.inputs].index(d.input) for d in mech.drivers if d.input is not None)!r}
 #: Per driver: (name, index in p of its start, index in p of its speed, its row of Phi).
 DRIVERS = {drivers!r}
 #: Joint (or driver) name -> its rows of Phi.

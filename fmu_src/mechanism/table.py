@@ -3,7 +3,8 @@
 Value-reference order: the file's [parameters] (tunable, or fixed with ``fixed = true``), the
 start values of the independent coordinates (``<coordinate>_start``, fixed), the integrator's
 ``rtol``, ``atol`` and ``integrator``, then the outputs in the file's order, then
-``max_evaluations`` (added after the outputs so that no earlier value reference moved).
+``max_evaluations`` (added after the outputs so that no earlier value reference moved), then the
+``[[inputs]]``' variables (``causality="input"``) in file order.
 """
 from __future__ import annotations
 
@@ -52,6 +53,9 @@ def variable_table(eqs: MechanismEquations) -> tuple[Variable, ...]:
     rows.append(Variable("max_evaluations", "Real", "parameter", "fixed", DEFAULT_MAX_EVALUATIONS, "1",
                          "Most right-hand-side evaluations one communication step may take; beyond it the step "
                          "ends with an error [-]", None, 1.0))
+    for entry in mech.inputs:
+        for var in entry.variables:
+            rows.append(Variable(var.name, "Real", "input", "continuous", var.start, var.unit, var.description))
     names = [v.name for v in rows]
     clash = sorted({n for n in names if names.count(n) > 1})
     if clash:

@@ -182,7 +182,12 @@ class MechanismDAE:
         self._solver = None
         self._dense = None
         self.p = tuple(float(v) for v in p)
+        inputs = getattr(eq, "INPUTS", ())
+        if inputs and len(self.p) == len(eq.PARAMETERS):      # the inputs at their start values
+            start = {v.name: v.start for v in eq.VARIABLES}
+            self.p += tuple(float(start[name]) for name in inputs)
         self.d = self.drive_at(0.0)
+        self._input_poly = None     # (t0, [(index in p, u, u', u'')]): inputs that move within a step
         self.work = [0.0] * len(eq.DRIVERS)
         self.t, self.q, self.qd = 0.0, list(eq.GUESS), [0.0] * self.n
         self._Jp = np.zeros((self.m, self.n), order="F")
@@ -233,7 +238,7 @@ class MechanismDAE:
         """
         target_p = self.p
         start = {v.name: v.start for v in self.eq.VARIABLES}
-        p0 = tuple(float(start[name]) for name in self.eq.PARAMETERS)
+        p0 = tuple(float(start[name]) for name in self.eq.PARAMETERS + getattr(self.eq, "INPUTS", ()))
         base = list(self.eq.GUESS)
         for i, (position, _) in zip(self.independent, self.eq.START_PARAMETERS):
             base[i] = float(start[position])
@@ -450,6 +455,8 @@ class MechanismDAE:
                 f"t = {self._solver.t:.9g} s (raise max_evaluations, a fixed parameter, to allow more work per "
                 f"step, or shorten the step)")
         yl = y.tolist()
+        if self._input_poly is not None:
+            self._inputs_at(t)
         try:
             q, qd = self._state(t, yl)
         except AssemblyError:
@@ -479,6 +486,8 @@ class MechanismDAE:
         lu, piv, info = lapack.dgetrf(self._Jp[:, :self.m])       # _Jp at q (solve filled it)
         self._sign = _det_sign(lu, piv)
         self._base = self._last_eval = (self.t, self.q, self.qd, qdd.tolist(), self._sign)
+        if first_step is not None and first_step > self.t_bound - self.t:
+            first_step = None           # scipy refuses a first step past its bound: its own choice
         kwargs = {} if first_step is None else {"first_step": first_step}
         y0 = [self.q[i] for i in self.independent] + [self.qd[i] for i in self.independent] + list(self.work)
         self._solver = INTEGRATORS[self.method](self._rhs, self.t, np.array(y0, dtype=float), self.t_bound,
@@ -536,6 +545,8 @@ class MechanismDAE:
             y = solver.y.tolist() if abs(solver.t - t_end) <= eps else self._interpolate(t_end)
             if not all(math.isfinite(v) for v in y):
                 raise IntegrationError(f"{self.method} produced a non-finite state before t = {t_end:.9g} s")
+            if self._input_poly is not None:
+                self._inputs_at(t_end)
             q, qd = self._state(t_end, y)
         except AssemblyError as exc:
             raise IntegrationError(f"at t = {t_end:.9g} s {exc}") from None
@@ -679,6 +690,35 @@ class MechanismDAE:
             self._set_partition(used)
         self.q, self.qd = q, qd
         self.start(first_step=getattr(self._solver, "h_abs", None) or None)
+
+    def set_inputs(self, u) -> None:
+        """New values of the FMI inputs (``eq.INPUTS`` order) from the current time t0 on: the
+        dependent coordinates re-solved (a driver's input position moves them) and the integrator
+        restarted, as for a parameter change (raises AssemblyError, state unchanged, likewise).
+        Held, except a driver input's position and rate, which move on with its own rate and
+        acceleration inputs (u + u_d (t - t0) + u_dd (t - t0)^2 / 2, u_d + u_dd (t - t0)): held,
+        the position would contradict the rate."""
+        k = len(self.eq.PARAMETERS)
+        u = tuple(float(v) for v in u)
+        moving = []
+        for j in getattr(self.eq, "INPUT_DRIVERS", ()):
+            if u[j + 1] or u[j + 2]:
+                moving.append((k + j, u[j], u[j + 1], u[j + 2]))
+            if u[j + 2]:
+                moving.append((k + j + 1, u[j + 1], u[j + 2], 0.0))
+        p = self.p[:k] + u
+        if p != self.p or moving or self._input_poly is not None:
+            self._input_poly = (self.t, moving) if moving else None
+            self.change_parameters(p)
+
+    def _inputs_at(self, t: float) -> None:
+        """The inputs that move within the step (set_inputs) at time t, into p."""
+        t0, moving = self._input_poly
+        p = list(self.p)
+        h = t - t0
+        for i, a0, a1, a2 in moving:
+            p[i] = a0 + h * (a1 + 0.5 * h * a2)
+        self.p = tuple(p)
 
     def _reassembled(self, old_p, new_p, d) -> tuple[list, list]:
         """(q, qd) at the new parameters and drivers d keeping the current partition's independent

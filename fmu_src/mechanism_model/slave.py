@@ -10,6 +10,10 @@ the declared ([start]) coordinates and their rates (whatever the integrator uses
 MechanismDAE.change_parameters) before integrating.  Outputs are updated only at
 the end of ``do_step``, so the outputs read at a communication point always show the state
 before a change made at that point.
+
+Inputs (``[[inputs]]``, ``causality="input"``) may be set at any time; ``do_step`` applies them
+at the step's start and holds them over the step (the dependent coordinates re-solved, the
+integrator restarted: a driver's input position moves the linkage there).
 """
 import math
 
@@ -23,7 +27,8 @@ from .variables import POSITIVE
 
 __all__ = ["MechanismSlave"]
 
-_CAUSALITY = {"parameter": Fmi2Causality.parameter, "output": Fmi2Causality.output}
+_CAUSALITY = {"parameter": Fmi2Causality.parameter, "output": Fmi2Causality.output,
+              "input": Fmi2Causality.input}
 _VARIABILITY = {"tunable": Fmi2Variability.tunable, "fixed": Fmi2Variability.fixed,
                 "continuous": Fmi2Variability.continuous}
 _OUTPUTS = tuple(v.name for v in equations.VARIABLES if v.causality == "output")
@@ -74,6 +79,9 @@ class MechanismSlave(Fmi2Slave):
     def _parameters(self) -> tuple:
         return tuple(float(getattr(self, name)) for name in equations.PARAMETERS)
 
+    def _inputs(self) -> tuple:
+        return tuple(float(getattr(self, name)) for name in equations.INPUTS)
+
     def _check_parameters(self) -> list:
         """Every problem with the current parameter values, as messages."""
         problems = [_problem(var, getattr(self, var.name)) for var in _REAL_PARAMETERS]
@@ -113,7 +121,11 @@ class MechanismSlave(Fmi2Slave):
         start = snap_time(getattr(self, "_start_time", 0.0))
         # Let the integrator step a little past the stop time: a master may end on it by round-off.
         bound = self._stop_time + 1.0 if math.isfinite(self._stop_time) else math.inf
-        dae = MechanismDAE(equations, self._parameters(), method=self.integrator, rtol=self.rtol,
+        bad = [f"{name} = {value!r}: must be finite" for name, value in zip(equations.INPUTS, self._inputs())
+               if not math.isfinite(value)]
+        if bad:
+            raise ValueError("invalid inputs: " + "; ".join(bad))
+        dae = MechanismDAE(equations, self._parameters() + self._inputs(), method=self.integrator, rtol=self.rtol,
                            atol=self.atol, t_bound=bound)
         guess, rates = list(equations.GUESS), [0.0] * equations.N_COORDINATES
         for i, (position, rate) in zip(equations.INDEPENDENT, equations.START_PARAMETERS):
@@ -158,18 +170,29 @@ class MechanismSlave(Fmi2Slave):
         if abs(snap_time(current_time) - dae.t) > 1e-9 * max(1.0, abs(dae.t)):
             return self._fail(f"do_step at t = {current_time!r} s, but the model is at t = {dae.t!r} s")
         p = self._parameters()
-        if p != dae.p:
+        if p != dae.p[:len(p)]:
             problems = self._check_parameters()
             if problems:
                 return self._fail(f"at t = {current_time:.9g} s: " + "; ".join(problems))
             changed = ", ".join(f"{n} {a:g} -> {b:g}" for n, a, b in zip(equations.PARAMETERS, dae.p, p) if a != b)
             try:
-                dae.change_parameters(p)
+                dae.change_parameters(p + dae.p[len(p):])
             except AssemblyError as exc:
                 return self._fail(f"cannot apply {changed} at t = {current_time:.9g} s: {exc}")
             self.log(f"applied {changed} at t = {current_time:.9g} s (re-assembled keeping "
                      f"{', '.join(equations.COORDINATES[i] for i in dae.independent) or 'the drivers'})",
                      Fmi2Status.ok)
+        u = self._inputs()
+        if u:                           # inputs: from the step's start (MechanismDAE.set_inputs)
+            bad = [f"{name} = {value!r}: must be finite" for name, value in zip(equations.INPUTS, u)
+                   if not math.isfinite(value)]
+            if bad:
+                return self._fail(f"at t = {current_time:.9g} s: " + "; ".join(bad))
+            try:
+                dae.set_inputs(u)
+            except AssemblyError as exc:
+                return self._fail(f"cannot apply the inputs {', '.join(f'{n} = {v!r}' for n, v in zip(equations.INPUTS, u))}"
+                                  f" at t = {current_time:.9g} s: {exc}")
         try:
             dae.advance(snap_time(current_time + step_size), max_evaluations=float(self.max_evaluations))
             self._publish()

@@ -20,7 +20,7 @@ class Variable(NamedTuple):
 
     name: str
     type: str               # "Real" or "String"
-    causality: str          # "parameter", "output" or "local" (the native FMU's Model Exchange states)
+    causality: str          # "parameter", "input", "output" or "local" (the native FMU's Model Exchange states)
     variability: str        # "tunable", "fixed" or "continuous"
     start: float | str | None   # start value (parameters only)
     unit: str | None        # a unit of UNITS (Real only)

@@ -942,9 +942,25 @@ static int reduced_evaluation(ModelState *s, double t, const double *y, Configur
 
 /* dy/dt for y = (q[independent], qd[independent], work): the Runge-Kutta right-hand side.  The
    evaluation is kept in s->last (a base when it ends an accepted step). */
+/* Co-simulation's inputs at time t within a step (ModelState's input_poly from input_t0): what
+   the host's input derivatives make of them; held (as set) when it gave none. */
+static void inputs_at(ModelState *s, double t)
+{
+#if MECH_N_INPUTS > 0
+    if (!s->interpolating) return;
+    const double h = t - s->input_t0;
+    for (int k = 0; k < MECH_N_INPUTS; k++)
+        s->p[MECH_N_FILE_PARAMETERS + k] = s->input_poly[k][0] + h * (s->input_poly[k][1] + 0.5 * h * s->input_poly[k][2]);
+#else
+    (void)s;
+    (void)t;
+#endif
+}
+
 static int rhs(void *context, double t, const double *y, double *f)
 {
     ModelState *s = (ModelState *)context;
+    inputs_at(s, t);
     DaePoint *e = &s->last;
     Configuration c;
     double lam[MA];
@@ -1118,12 +1134,15 @@ int dae_derivatives(ModelState *s, double *f)
      is zero on every consistent state, so its derivative along them is 0.
    The same cost as about one evaluation of the right-hand side, without Newton-Raphson (the state
    is already consistent).  DAE_INTEGRATION or DAE_ASSEMBLY with the message in s->rhs_message. */
-int dae_directional(ModelState *s, const double *dy, double *df, double *dout)
+int dae_directional(ModelState *s, const double *dy, const double *du, double *df, double *dout)
 {
     Configuration c;
     double qdd[N], lam[MA], dq[N], dqd[N], h[MA], w[MA], dQ[N], dgamma[MA], g[MA], G[N], dmass[N], dqdd[N],
         dlam[MA], mass_q[N];
     double values[MECH_ALLOC(MECH_N_STATE_OUTPUTS)], forces[MECH_ALLOC(MECH_N_FORCE_OUTPUTS)];
+    /* the partial derivatives along the inputs' direction du (q, qd, lambda held) */
+    double u_phi[MA], u_nu[MA], u_Q[N], u_gamma[MA], u_values[MECH_ALLOC(MECH_N_STATE_OUTPUTS)],
+        u_forces[MECH_ALLOC(MECH_N_FORCE_OUTPUTS)], u_w[MA];
     const int *dependent = s->dependent, *independent = s->independent;
     const double t = s->t;
     configuration_init(&c);
@@ -1144,12 +1163,17 @@ int dae_directional(ModelState *s, const double *dy, double *df, double *dout)
         dq[independent[j]] = dy[j];
         dqd[independent[j]] = dy[K + j];
     }
+    /* the inputs' partials at the state (the multipliers only for the force outputs: after eq. 11) */
+    eq_dir_inputs(c.q, c.tr, c.qd, lam, t, s->p, s->d, du, u_phi, u_nu, u_Q, u_gamma, u_values, u_forces);
+    /* Phi_q dq + Phi_u du = 0: the dependent block takes -Phi_u du */
+    block_solve(&c.f, u_phi, u_w);
     for (int i = 0; i < M; i++) {
-        double x = 0.0;
+        double x = -u_w[i];
         for (int j = 0; j < K; j++) x += c.v[j][i] * dy[j];
         dq[dependent[i]] = x;
     }
     eq_dir_jacobian_product(c.q, c.tr, s->p, c.qd, dq, h);
+    for (int i = 0; i < M; i++) h[i] -= u_nu[i];       /* Phi_q qd = nu(u) */
     block_solve(&c.f, h, w);
     for (int i = 0; i < M; i++) {
         double x = -w[i];
@@ -1159,7 +1183,8 @@ int dae_directional(ModelState *s, const double *dy, double *df, double *dout)
     /* accelerations and multipliers */
     eq_dir_dynamics(c.q, c.tr, c.qd, t, s->p, s->d, dq, dqd, dQ, dgamma);
     eq_dir_jacobian_product(c.q, c.tr, s->p, qdd, dq, h);
-    for (int i = 0; i < M; i++) g[i] = dgamma[i] - h[i];
+    for (int i = 0; i < M; i++) g[i] = dgamma[i] + u_gamma[i] - h[i];
+    for (int k = 0; k < N; k++) dQ[k] += u_Q[k];
     eq_dir_jacobian_transpose_product(c.q, c.tr, s->p, lam, dq, G);
     eq_dir_mass_diagonal(c.q, c.tr, s->p, dq, dmass);
     for (int k = 0; k < N; k++) dQ[k] -= G[k] + dmass[k] * qdd[k];
@@ -1173,15 +1198,15 @@ int dae_directional(ModelState *s, const double *dy, double *df, double *dout)
     }
     for (int k = 0; k < N_DRIVERS; k++) {
         const int row = DRIVERS[k][2];
-        df[2 * K + k] = -dlam[row] * c.nu[row];
+        df[2 * K + k] = -dlam[row] * c.nu[row] - lam[row] * u_nu[row];
     }
     /* outputs */
     eq_dir_outputs_state(c.q, c.tr, c.qd, t, s->p, s->d, dq, dqd, values);
     eq_dir_outputs_force(c.q, c.tr, c.qd, lam, t, s->p, s->d, dq, dqd, dlam, forces);
     for (int k = 0; k < MECH_N_OUTPUTS; k++)
         switch (OUTPUT_KINDS[k]) {
-        case MECH_OUTPUT_STATE: dout[k] = values[OUTPUT_INDICES[k]]; break;
-        case MECH_OUTPUT_FORCE: dout[k] = forces[OUTPUT_INDICES[k]]; break;
+        case MECH_OUTPUT_STATE: dout[k] = values[OUTPUT_INDICES[k]] + u_values[OUTPUT_INDICES[k]]; break;
+        case MECH_OUTPUT_FORCE: dout[k] = forces[OUTPUT_INDICES[k]] + u_forces[OUTPUT_INDICES[k]]; break;
         case MECH_OUTPUT_WORK: dout[k] = dy[2 * K + OUTPUT_INDICES[k]]; break;
         default: dout[k] = 0.0; break;
         }
@@ -1622,6 +1647,7 @@ static int advance(ModelState *s, double t_end)
         memcpy(y, solver->y, sizeof y);
     else if (rk_dense(solver, rhs, s, t_end, y) != RK_OK)
         return rhs_failure(s, t_end);
+    inputs_at(s, t_end);
     for (int j = 0; j < RK_N; j++)
         if (!isfinite(y[j])) {
             snprintf(s->rhs_message, MODEL_MESSAGE, "%s produced a non-finite state before t = %.9g s", method, t_end);

@@ -94,8 +94,9 @@ int dae_me_evaluate(ModelState *s, double t, const double *y, double *f);
 void dae_me_accept(ModelState *s);
 int dae_derivatives(ModelState *s, double *f);
 /* Model Exchange's directional derivatives at the current consistent state: along dy (DAE_N_STATES)
-   of the states, df of their derivatives (DAE_N_STATES) and dout of the outputs (MECH_N_OUTPUTS). */
-int dae_directional(ModelState *s, const double *dy, double *df, double *dout);
+   of the states and du (MECH_N_INPUTS) of the inputs, df of their derivatives (DAE_N_STATES) and dout of the
+   outputs (MECH_N_OUTPUTS). */
+int dae_directional(ModelState *s, const double *dy, const double *du, double *df, double *dout);
 void dae_outputs_residual(const double *p, const double *d, double t, const double *q, const double *qd,
                           double *out);
 int dae_outputs_force(const double *p, const double *d, double t, const double *q, const double *qd, double *out,

@@ -184,9 +184,9 @@ fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 /* -- directional derivatives ------------------------------------------------------------ */
 
 /* Model exchange only: the states' derivatives or outputs (vUnknown_ref) along a direction of the
-   states (vKnown_ref, dvKnown), exact (model.h: model_me_directional).  In co-simulation the FMU
-   has no inputs, so nothing to differentiate with respect to (providesDirectionalDerivative is
-   false there).  In initialization mode: at the state the start values give, the states' start
+   states and inputs (vKnown_ref, dvKnown), exact (model.h: model_me_directional).  Not in
+   co-simulation (providesDirectionalDerivative is false there: its outputs are those of the
+   step's end).  In initialization mode: at the state the start values give, the states' start
    parameters also accepted as knowns (the states are initial unknowns there); a failure there
    leaves the instance in initialization mode (fmi_directional). */
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
@@ -196,7 +196,7 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
     ENTER(CALL_GET_DEFINED);
     if (!m->model_exchange) {
         model_log(m, MODEL_ERROR, "logStatusError", "fmi2GetDirectionalDerivative: not provided in co-simulation "
-                  "(providesDirectionalDerivative is false there: the FMU has no inputs)");
+                  "(providesDirectionalDerivative is false there)");
         return fmi2Error;
     }
     REQUIRE_ARRAY(vUnknown_ref, nUnknown);
@@ -216,9 +216,14 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference
     REQUIRE_ARRAY(order, nvr);
     REQUIRE_ARRAY(value, nvr);
     if (nvr == 0) return fmi2OK;
-    model_log(m, MODEL_ERROR, "logStatusError", "fmi2SetRealInputDerivatives: the FMU has no inputs "
-              "(value reference %u)", (unsigned)vr[0]);
-    return fmi2Error;
+    int orders[64];
+    for (size_t start = 0; start < nvr; start += 64) {        /* fmi2Integer is int: copied in chunks */
+        const size_t n = nvr - start < 64 ? nvr - start : 64;
+        for (size_t i = 0; i < n; i++) orders[i] = (int)order[start + i];
+        if (model_set_input_derivatives(m, __func__, vr + start, n, orders, value + start) != MODEL_OK)
+            return fmi2Error;
+    }
+    return fmi2OK;
 }
 
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,

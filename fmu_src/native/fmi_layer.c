@@ -11,7 +11,8 @@ static const char *const INTEGRATORS[FMU_N_INTEGRATORS] = FMU_INTEGRATOR_NAMES;
 static const int READ_COMPUTED[FMU_N_VARIABLES] = FMU_READ_COMPUTED;
 static const int STATE_VRS[] = FMU_STATE_VRS;
 static const int DERIVATIVE_VRS[] = FMU_DERIVATIVE_VRS;
-enum { KIND_TUNABLE = 0, KIND_FIXED = 1, KIND_STRING = 2, KIND_OUTPUT = 3, KIND_LOCAL = 4, KIND_TIME = 5 };
+enum { KIND_TUNABLE = 0, KIND_FIXED = 1, KIND_STRING = 2, KIND_OUTPUT = 3, KIND_LOCAL = 4, KIND_TIME = 5,
+       KIND_INPUT = 6 };
 #define KIND(k) (1 << (k))
 
 /* -- the FMI state machines ------------------------------------------------------------ */
@@ -30,7 +31,7 @@ enum { KIND_TUNABLE = 0, KIND_FIXED = 1, KIND_STRING = 2, KIND_OUTPUT = 3, KIND_
 #define FMI3_ALL (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_EVENT | MODE_CONTINUOUS | \
                   MODE_TERMINATED | MODE_ERROR)
 #define FMI3_READABLE (MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED)
-/* Both: parameters only (the FMU has no inputs), so not in continuousTimeMode. */
+/* Both: parameters and inputs; in continuousTimeMode inputs only (fmi_set_float64 checks). */
 #define SETTABLE (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_EVENT)
 #define ME_READABLE (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED)
 
@@ -51,7 +52,7 @@ static const struct {
        mode): the start values, and the outputs and states they give */
     [CALL_GET]                  = {{FMI2_READABLE,              MODE_INSTANTIATED | FMI3_READABLE}, BOTH},
     [CALL_GET_DEFINED]          = {{FMI2_READABLE,              FMI3_READABLE},             BOTH},
-    [CALL_SET]                  = {{SETTABLE,                   SETTABLE},                  BOTH},
+    [CALL_SET]                  = {{SETTABLE | MODE_CONTINUOUS, SETTABLE | MODE_CONTINUOUS}, BOTH},
     [CALL_ENTER_CONFIGURATION]  = {{0,                          MODE_INSTANTIATED | MODE_STEP_COMPLETE | MODE_EVENT},
                                    BOTH},
     [CALL_EXIT_CONFIGURATION]   = {{0,                          MODE_CONFIGURATION | MODE_RECONFIGURATION}, BOTH},
@@ -88,7 +89,8 @@ static const FmiState FMI2_STATES[] = {
     {MODE_STEP_FAILED, "stepFailed"}, {MODE_EVENT, "eventMode"}, {MODE_CONTINUOUS, "continuousTimeMode"},
     {MODE_TERMINATED, "terminated"}, {MODE_ERROR, "error"}};
 static const char *const FMI2_KIND_TEXT[] = {"a tunable Real parameter", "a fixed Real parameter",
-                                             "a String parameter", "a Real output", "a Real local variable"};
+                                             "a String parameter", "a Real output", "a Real local variable",
+                                             "(time)", "a Real input"};
 /* FMI 3.0's stepMode is MODE_STEP_COMPLETE. */
 static const FmiState FMI3_STATES[] = {
     {MODE_INSTANTIATED, "instantiated"}, {MODE_CONFIGURATION, "configurationMode"},
@@ -100,7 +102,7 @@ static const FmiState FMI3_STATES[] = {
 /* The variable kinds, and the independent variable (FMI 3.0 requires one: causality="independent"). */
 static const char *const FMI3_KIND_TEXT[] = {"a tunable Float64 parameter", "a fixed Float64 parameter",
                                              "a String parameter", "a Float64 output", "a Float64 local variable",
-                                             "the independent variable (Float64)"};
+                                             "the independent variable (Float64)", "a Float64 input"};
 
 /* The marks of the layers' serialized FMU states (saved_state.c) differ: one layer's state is
    refused by the other. */
@@ -196,10 +198,21 @@ static int check_refs(ModelInstance *m, const FmiLayer *layer, const char *funct
     return 1;
 }
 
-/* Fixed parameters (and the String integrator) can be set only before initialization ends. */
+/* Fixed parameters (and the String integrator) can be set only before initialization ends; in
+   continuousTimeMode only inputs (a tunable parameter changes in event mode, as FMI says). */
 static int settable_now(ModelInstance *m, const FmiLayer *layer, const char *function, const unsigned int vr[],
                         size_t nvr)
 {
+    if (m->state.mode == MODE_CONTINUOUS) {
+        for (size_t i = 0; i < nvr; i++)
+            if (KINDS[vr[i]] != KIND_INPUT) {
+                model_log(m, MODEL_ERROR, "logStatusError", "%s: %s is a parameter; in state %s only inputs can be "
+                          "set (a tunable parameter changes in eventMode)", function, NAMES[vr[i]],
+                          state_name(layer, m->state.mode));
+                return 0;
+            }
+        return 1;
+    }
     if (m->state.mode != MODE_STEP_COMPLETE && m->state.mode != MODE_EVENT) return 1;
     for (size_t i = 0; i < nvr; i++)
         if (KINDS[vr[i]] == KIND_FIXED || KINDS[vr[i]] == KIND_STRING) {
@@ -234,7 +247,7 @@ ModelStatus fmi_get_float64(ModelInstance *m, const FmiLayer *layer, const char 
     char expected[40];
     snprintf(expected, sizeof expected, "a %s", layer->real);
     if (!check_refs(m, layer, function, vr, nvr, KIND(KIND_TUNABLE) | KIND(KIND_FIXED) | KIND(KIND_OUTPUT) |
-                    KIND(KIND_LOCAL) | KIND(KIND_TIME), expected))
+                    KIND(KIND_LOCAL) | KIND(KIND_TIME) | KIND(KIND_INPUT), expected))
         return MODEL_ERROR;
     const int groups = nvr > 0 ? groups_read(layer, vr, nvr) & m->state.outputs_pending : 0;
     const int before_start = m->state.mode == MODE_INSTANTIATED || m->state.mode == MODE_INITIALIZATION;
@@ -253,11 +266,16 @@ ModelStatus fmi_set_float64(ModelInstance *m, const FmiLayer *layer, const char 
                             size_t nvr, const double value[])
 {
     char expected[40];
-    snprintf(expected, sizeof expected, "a %s parameter", layer->real);
-    if (!check_refs(m, layer, function, vr, nvr, KIND(KIND_TUNABLE) | KIND(KIND_FIXED), expected)
+    snprintf(expected, sizeof expected, "a %s parameter or input", layer->real);
+    if (!check_refs(m, layer, function, vr, nvr, KIND(KIND_TUNABLE) | KIND(KIND_FIXED) | KIND(KIND_INPUT), expected)
         || !settable_now(m, layer, function, vr, nvr) || model_non_finite_values(m, function, vr, value, nvr))
         return MODEL_ERROR;
-    for (size_t i = 0; i < nvr; i++) m->state.values[vr[i]] = value[i];   /* checked, and applied, at the next step */
+    int inputs = 0;
+    for (size_t i = 0; i < nvr; i++) {      /* parameters: checked, and applied, at the next step or event */
+        if (KINDS[vr[i]] == KIND_INPUT) inputs = 1;
+        m->state.values[vr[i]] = value[i];
+    }
+    if (inputs) model_inputs_set(m, vr, nvr);
     return MODEL_OK;
 }
 

@@ -99,9 +99,18 @@ static int check_parameters(const ModelState *s, char *out, size_t n)
     return count;
 }
 
+/* p: the file's parameters, then the inputs (as set: held). */
 static void parameters_from_values(const ModelState *s, double *p)
 {
     for (int i = 0; i < MECH_N_PARAMETERS; i++) p[i] = s->values[PARAMETER_VRS[i]];
+}
+
+/* The index among the inputs of value reference vr, or -1. */
+static int input_index(unsigned long vr)
+{
+    for (int k = MECH_N_FILE_PARAMETERS; k < MECH_N_PARAMETERS; k++)
+        if ((unsigned long)PARAMETER_VRS[k] == vr) return k - MECH_N_FILE_PARAMETERS;
+    return -1;
 }
 
 /* Where assembly starts (the file's positions) and the rates, with the start parameters' values. */
@@ -154,6 +163,8 @@ static ModelStatus me_evaluate(ModelInstance *m)
     ModelState *s = &m->state;
     if (s->me_fresh) return MODEL_OK;
     const double t = s->t;
+    for (int k = MECH_N_FILE_PARAMETERS; k < MECH_N_PARAMETERS; k++)     /* the inputs as set now */
+        s->p[k] = s->values[PARAMETER_VRS[k]];
     if (dae_me_evaluate(s, s->me_t, s->me_y, s->me_f)) {
         s->t = t;
         return fail(m, "at t = %.9g s: %s", s->me_t, s->rhs_message);
@@ -305,7 +316,8 @@ ModelStatus model_initialize(ModelInstance *m)
     return publish(m);
 }
 
-/* Apply the set parameters when they differ from the ones in use (re-assembly). */
+/* Apply the set parameters when they differ from the ones in use (re-assembly; the inputs as
+   they are in use). */
 static ModelStatus apply_parameter_changes(ModelInstance *m, double current_time)
 {
     ModelState *s = &m->state;
@@ -313,9 +325,10 @@ static ModelStatus apply_parameter_changes(ModelInstance *m, double current_time
     char changed[MSG], problems[4 * MSG], kept[MSG];
     size_t used = 0;
     int differs = 0;
-    parameters_from_values(s, p);
+    memcpy(p, s->p, sizeof p);
+    for (int i = 0; i < MECH_N_FILE_PARAMETERS; i++) p[i] = s->values[PARAMETER_VRS[i]];
     changed[0] = '\0';
-    for (int i = 0; i < MECH_N_PARAMETERS; i++)
+    for (int i = 0; i < MECH_N_FILE_PARAMETERS; i++)
         if (p[i] != s->p[i]) {
             if (used < sizeof changed)
                 used += snprintf(changed + used, sizeof changed - used, "%s%s %g -> %g", differs ? ", " : "",
@@ -342,6 +355,84 @@ static ModelStatus apply_parameter_changes(ModelInstance *m, double current_time
     return MODEL_OK;
 }
 
+/* Co-simulation: the inputs over the step from current_time (the values set, with the derivatives
+   set, if any, as a polynomial: dae.c's inputs_at); when they differ from those in use, or vary
+   within a step, the dependent coordinates are re-solved with them (a driver's input position
+   moves the linkage) and the integrator restarted there. */
+static ModelStatus apply_inputs(ModelInstance *m, double current_time)
+{
+#if MECH_N_INPUTS > 0
+    ModelState *s = &m->state;
+    double p[MECH_ALLOC(MECH_N_PARAMETERS)];
+    int differs = 0, interpolating = 0;
+    static const int INPUT_DRIVERS[MECH_ALLOC(MECH_N_INPUT_DRIVERS)] = MECH_INPUT_DRIVERS;
+    memcpy(p, s->p, sizeof p);
+    for (int k = 0; k < MECH_N_INPUTS; k++) {
+        const double u = s->values[PARAMETER_VRS[MECH_N_FILE_PARAMETERS + k]];
+        if (u != p[MECH_N_FILE_PARAMETERS + k]) differs = 1;
+        p[MECH_N_FILE_PARAMETERS + k] = u;
+        s->input_poly[k][0] = u;
+        s->input_poly[k][1] = s->input_der[k][0];
+        s->input_poly[k][2] = s->input_der[k][1];
+    }
+    /* A driver input without derivatives from the host moves on its own rate and acceleration over
+       the step (u + u_d (t - t0) + u_dd (t - t0)^2 / 2, u_d + u_dd (t - t0)): held, its position
+       would contradict its rate. */
+    for (int j = 0; j < MECH_N_INPUT_DRIVERS; j++) {
+        const int k = INPUT_DRIVERS[j];
+        int given = 0;
+        for (int i = k; i < k + 3; i++) given |= s->input_der[i][0] != 0.0 || s->input_der[i][1] != 0.0;
+        if (given) continue;
+        s->input_poly[k][1] = s->input_poly[k + 1][0];
+        s->input_poly[k][2] = s->input_poly[k + 2][0];
+        s->input_poly[k + 1][1] = s->input_poly[k + 2][0];
+    }
+    for (int k = 0; k < MECH_N_INPUTS; k++)
+        if (s->input_poly[k][1] != 0.0 || s->input_poly[k][2] != 0.0) interpolating = 1;
+    if (!differs && !interpolating && !s->interpolating) return MODEL_OK;
+    s->input_t0 = s->t;
+    s->interpolating = interpolating;
+    int r = dae_change_parameters(s, p);
+    if (!r) r = dae_start(s, s->solver.h_abs);
+    if (r == DAE_ASSEMBLY) return fail(m, "cannot apply the inputs at t = %.9g s: %s", current_time, s->rhs_message);
+    if (r) return fail(m, "%s", s->rhs_message);
+#else
+    (void)m;
+    (void)current_time;
+#endif
+    return MODEL_OK;
+}
+
+void model_inputs_set(ModelInstance *m, const unsigned int *vr, size_t nvr)
+{
+    (void)vr;
+    (void)nvr;
+    if (m->model_exchange && m->state.mode != MODE_INSTANTIATED && m->state.mode != MODE_INITIALIZATION) {
+        m->state.me_fresh = 0;
+        publish(m);
+    }
+}
+
+ModelStatus model_set_input_derivatives(ModelInstance *m, const char *function, const unsigned int *vr, size_t nvr,
+                                        const int *order, const double *value)
+{
+    char buf[40], num[40];
+    for (size_t i = 0; i < nvr; i++) {
+        if (input_index(vr[i]) < 0)
+            return fail(m, "%s: %s is not an input (nothing was set)", function,
+                        vr[i] < FMU_N_VARIABLES ? NAMES[vr[i]] : (snprintf(buf, sizeof buf, "value reference %u",
+                                                                          (unsigned)vr[i]), buf));
+        if (order[i] != 1 && order[i] != 2)
+            return fail(m, "%s: order %d for %s: the FMU interpolates inputs with derivatives of order 1 and 2 "
+                        "(nothing was set)", function, order[i], NAMES[vr[i]]);
+        if (!isfinite(value[i]))
+            return fail(m, "%s: the derivative of order %d of %s = %s: must be finite (nothing was set)", function,
+                        order[i], NAMES[vr[i]], real_text(num, sizeof num, value[i]));
+    }
+    for (size_t i = 0; i < nvr; i++) m->state.input_der[input_index(vr[i])][order[i] - 1] = value[i];
+    return MODEL_OK;
+}
+
 ModelStatus model_do_step(ModelInstance *m, double current_time, double step)
 {
     ModelState *s = &m->state;
@@ -350,6 +441,7 @@ ModelStatus model_do_step(ModelInstance *m, double current_time, double step)
         return fail(m, "do_step at t = %s s, but the model is at t = %s s", real_text(a, sizeof a, current_time),
                     real_text(b, sizeof b, s->t));
     if (apply_parameter_changes(m, current_time) != MODEL_OK) return MODEL_ERROR;
+    if (apply_inputs(m, current_time) != MODEL_OK) return MODEL_ERROR;
     const unsigned long before = s->rhs_evaluations;
     if (dae_advance(s, dae_snap_time(current_time + step), s->values[VR_max_evaluations]))
         return fail(m, "%s", s->rhs_message);
@@ -408,6 +500,10 @@ ModelStatus model_me_seed(ModelInstance *m, const char *function, Directional *d
 {
     char buf[40];
     const int initializing = m->state.mode == MODE_INITIALIZATION;
+    if (input_index(vr) >= 0) {
+        d->du[input_index(vr)] += seed;
+        return MODEL_OK;
+    }
     for (int k = 0; k < FMU_N_STATES; k++)
         /* in initialization mode a state's start parameter too: the state is its start value there */
         if ((unsigned long)STATE_VRS[k] == vr || (initializing && STATE_START_VRS[k] >= 0 &&
@@ -416,11 +512,11 @@ ModelStatus model_me_seed(ModelInstance *m, const char *function, Directional *d
             return MODEL_OK;
         }
     if (initializing)
-        return fail(m, "%s: %s is neither a continuous state nor a state's start parameter: in initialization mode "
-                    "those are the knowns of a directional derivative (derivatives with respect to other parameters "
-                    "are not provided)", function, variable_name(vr, buf, sizeof buf));
-    return fail(m, "%s: %s is not a continuous state: the knowns of a directional derivative are the states "
-                "(the FMU has no inputs)", function, variable_name(vr, buf, sizeof buf));
+        return fail(m, "%s: %s is neither a continuous state, an input nor a state's start parameter: in "
+                    "initialization mode those are the knowns of a directional derivative (derivatives with respect "
+                    "to other parameters are not provided)", function, variable_name(vr, buf, sizeof buf));
+    return fail(m, "%s: %s is not a continuous state or an input: the knowns of a directional derivative are "
+                "the states and the inputs", function, variable_name(vr, buf, sizeof buf));
 }
 
 ModelStatus model_me_directional(ModelInstance *m, Directional *d)
@@ -431,12 +527,12 @@ ModelStatus model_me_directional(ModelInstance *m, Directional *d)
         char why[MSG];
         if (initial_state(s, &scratch, why, sizeof why))
             return fail(m, "the start values give no state to differentiate at: %s", why);
-        if (dae_me_start(&scratch) || dae_directional(&scratch, d->dy, d->df, d->dout))
+        if (dae_me_start(&scratch) || dae_directional(&scratch, d->dy, d->du, d->df, d->dout))
             return fail(m, "at the start: %s", scratch.rhs_message);
         return MODEL_OK;
     }
     if (me_evaluate(m) != MODEL_OK) return MODEL_ERROR;
-    if (dae_directional(s, d->dy, d->df, d->dout)) return fail(m, "at t = %.9g s: %s", s->t, s->rhs_message);
+    if (dae_directional(s, d->dy, d->du, d->df, d->dout)) return fail(m, "at t = %.9g s: %s", s->t, s->rhs_message);
     return MODEL_OK;
 }
 

@@ -78,6 +78,13 @@ typedef struct {
        their evaluation (dae_me_evaluate) and me_f its derivatives. */
     double me_t, me_y[RK_N], me_f[RK_N];
     int me_fresh;
+    /* Co-simulation inputs over a step (dae.c's inputs_at): from input_t0, the step's start, input k is
+       input_poly[k][0] + input_poly[k][1] (t - t0) + input_poly[k][2] (t - t0)^2 / 2 when interpolating, else
+       held; input_der: the derivatives of order 1 and 2 the host set (fmi2SetRealInputDerivatives). */
+    double input_poly[MECH_ALLOC(MECH_N_INPUTS)][3];
+    double input_der[MECH_ALLOC(MECH_N_INPUTS)][2];
+    double input_t0;
+    int interpolating;
 } ModelState;
 
 typedef struct {
@@ -147,13 +154,14 @@ ModelStatus model_me_event_update(ModelInstance *m);
 /* Model Exchange's directional derivatives (fmi2GetDirectionalDerivative, fmi3GetDirectionalDerivative):
    sensitivity_i = sum_j d unknown_i / d known_j seed_j at the current state (in initialization
    mode, the state the start values give), the knowns being
-   continuous states (the FMU has no inputs) and the unknowns the states' derivatives or outputs
+   continuous states and the inputs and the unknowns the states' derivatives or outputs
    (dae_directional: exact, from the generated derivatives).  A layer starts a Directional with
    model_me_directional_start, adds each known's seed (model_me_seed), computes
    (model_me_directional) and reads each unknown (model_me_sensitivity); a value reference of the
    wrong kind is MODEL_ERROR, logged naming the variable and the function. */
 typedef struct {
     double dy[RK_N], df[RK_N], dout[MECH_N_OUTPUTS];
+    double du[MECH_ALLOC(MECH_N_INPUTS)];        /* the inputs' seeds */
 } Directional;
 void model_me_directional_start(Directional *d);
 ModelStatus model_me_seed(ModelInstance *m, const char *function, Directional *d, unsigned long vr, double seed);
@@ -171,5 +179,13 @@ void model_preview_outputs(ModelInstance *m, int groups);
 #define MODEL_FEW_OUTPUTS 4
 int model_few_outputs(const ModelInstance *m, int groups, size_t nvr);
 void model_output_one(ModelInstance *m, unsigned long vr);
+/* The host set the inputs vr[] (their values are in values[]): model exchange evaluates the
+   derivatives and outputs with them at once; co-simulation applies them at the next step. */
+void model_inputs_set(ModelInstance *m, const unsigned int *vr, size_t nvr);
+/* Co-simulation: derivatives of order 1 or 2 of inputs (fmi2SetRealInputDerivatives), applied over
+   the next steps as u + u' (t - t0) + u'' (t - t0)^2 / 2 from each step's start t0; MODEL_ERROR,
+   logged, for a value reference that is not an input or another order (nothing set). */
+ModelStatus model_set_input_derivatives(ModelInstance *m, const char *function, const unsigned int *vr, size_t nvr,
+                                        const int *order, const double *value);
 
 #endif

@@ -431,7 +431,7 @@ fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference
 /* Model exchange only: the states' derivatives or outputs (unknowns) along a direction of the
    states (knowns, seed), exact (model.h: model_me_directional; in initializationMode at the state
    the start values give, the states' start parameters also accepted as knowns, and a failure
-   leaves the instance in initializationMode).  In co-simulation the FMU has no inputs (providesDirectionalDerivatives
+   leaves the instance in initializationMode).  Not in co-simulation (providesDirectionalDerivatives
    is false there).  Every value reference is checked before anything is computed. */
 fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
                                         const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
@@ -439,8 +439,7 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueRe
 {
     ENTER(CALL_GET_DEFINED);
     if (!m->model_exchange)
-        return not_provided(m, __func__, "in co-simulation: providesDirectionalDerivatives is false there, the FMU "
-                            "has no inputs");
+        return not_provided(m, __func__, "in co-simulation: providesDirectionalDerivatives is false there");
     REQUIRE_ARRAY(unknowns, nUnknowns);
     REQUIRE_ARRAY(knowns, nKnowns);
     REQUIRE_ARRAY(seed, nSeed);
