@@ -275,7 +275,7 @@ class Case:
 
     def as_dict(self) -> dict:
         """The case as a TOML-shaped dict (what run.json records and what overrides edit)."""
-        data = {"name": self.name, "description": self.description, "fmu": str(self.fmu),
+        data = {"name": self.name, "description": self.description, "fmu": str(self.fmu), "fmi_type": self.fmi_type,
                 "experiment": {k: v for k, v in self.experiment.as_dict().items() if v is not None},
                 "parameters": dict(self.parameters),
                 "events": [e.as_dict() for e in self.events],
