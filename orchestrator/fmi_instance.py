@@ -268,14 +268,12 @@ class FmuInstance(abc.ABC):
             raise ValueError(f"{self.PREFIX} {self.fmi_type} takes no input derivatives (order {order})")
         self._input_vrs = [self.variables[n].valueReference for n in names]
         self._input_signals = tuple(signals)
-        self._input_jumps = tuple(sorted({t for s in signals for t in s.jumps}))
         self._input_order = order
         self._input_names = tuple(names)
 
     #: Whether the flavour sets input derivatives (``fmi2SetRealInputDerivatives``).
     _takes_input_derivatives: ClassVar[bool] = False
     _input_signals: tuple = ()
-    _input_jumps: tuple[float, ...] = ()    # when a driven input's value jumps (s, sorted)
 
     def set_inputs(self, t: float) -> None:
         """Set the driven inputs (:meth:`drive_inputs`) to their values at ``t`` (and their

@@ -10,7 +10,6 @@ integrate across).
 """
 from __future__ import annotations
 
-import math
 from typing import Any, Iterable
 
 from fourbar_common.formatting import format_time
@@ -57,24 +56,8 @@ class ModelExchange(FmuInstance):
         self._start_solver()
 
     def do_step(self, t: float, h: float) -> None:
-        """CVode over the step; restarted where a driven input jumps (a step input, a table's
-        time given twice), so that it does not integrate across the jump with its history."""
-        t_end = t + h
-        if self._input_jumps:
-            import bisect
-
-            jumps = self._input_jumps
-            for jump in jumps[bisect.bisect_left(jumps, t):bisect.bisect_left(jumps, t_end)]:
-                if jump > t:
-                    self._inputs.until = jump       # CVode may look past it: the values before it
-                    try:
-                        self._integrate(t, jump)
-                    finally:
-                        self._inputs.until = None
-                    t = jump
-                self.set_inputs(t)              # the value from the jump on
-                self._solver.reset(t)
-        self._integrate(t, t_end)
+        """CVode over the step."""
+        self._integrate(t, t + h)
 
     def set_values(self, values: Iterable[tuple[str, Any]]) -> None:
         """Set variables by name; after initialisation in event mode at the current time, then the
@@ -149,17 +132,11 @@ class _SolverInputs:
     def __init__(self, instance: FmuInstance):
         self._instance = instance
         self._error: BaseException | None = None
-        #: While CVode integrates up to a jump of an input: its time.  CVode's steps may pass the
-        #: end asked for (FMPy's binding has no CVodeSetStopTime), so from there the inputs keep
-        #: their values just before the jump (the left limit of the right-continuous signals).
-        self.until: float | None = None
 
     def set_time(self, time: float) -> None:
         if self._error is not None:
             return
         self._instance._fmu.setTime(time)
-        if self.until is not None and time >= self.until:
-            time = math.nextafter(self.until, -math.inf)
         try:
             self._instance.set_inputs(time)
         except Exception as exc:        # raised again by check(), outside the C solver

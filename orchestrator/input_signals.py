@@ -58,11 +58,6 @@ class Constant:
     KIND: ClassVar[str] = "constant"
     value: float
 
-    @property
-    def jumps(self) -> tuple[float, ...]:
-        """The times where the value jumps (none)."""
-        return ()
-
     def at(self, t: float, order: int = 0) -> float:
         _check_order(order)
         return self.value if order == 0 else 0.0
@@ -83,11 +78,6 @@ class Step:
     before: float
     after: float
     time: float
-
-    @property
-    def jumps(self) -> tuple[float, ...]:
-        """The times where the value jumps: the step's (when it changes the value)."""
-        return (self.time,) if self.before != self.after else ()
 
     def at(self, t: float, order: int = 0) -> float:
         _check_order(order)
@@ -121,11 +111,6 @@ class Ramp:
     @property
     def to(self) -> float | None:
         return None if self.duration is None else self.from_ + self.slope * self.duration
-
-    @property
-    def jumps(self) -> tuple[float, ...]:
-        """The times where the value jumps (none)."""
-        return ()
 
     def at(self, t: float, order: int = 0) -> float:
         _check_order(order)
@@ -163,11 +148,6 @@ class Sine:
     phase: float = 0.0
     offset: float = 0.0
 
-    @property
-    def jumps(self) -> tuple[float, ...]:
-        """The times where the value jumps (none)."""
-        return ()
-
     def at(self, t: float, order: int = 0) -> float:
         _check_order(order)
         w = 2.0 * math.pi * self.frequency
@@ -200,12 +180,6 @@ class Table:
         """Index ``i`` of the piece ``[times[i], times[i+1])`` holding ``t``; None outside the rows."""
         i = bisect.bisect_right(self.times, t) - 1
         return i if 0 <= i < len(self.times) - 1 else None
-
-    @property
-    def jumps(self) -> tuple[float, ...]:
-        """The times where the value jumps: each time given twice with two values."""
-        return tuple(t for i, t in enumerate(self.times[1:], 1)
-                     if t == self.times[i - 1] and self.values[i] != self.values[i - 1])
 
     def at(self, t: float, order: int = 0) -> float:
         _check_order(order)
