@@ -212,16 +212,21 @@ def pendulum_run(folder: Path, fmu: Path, name: str, **settings) -> pd.DataFrame
     return pd.read_csv(result.exchange_path)
 
 
-@pytest.mark.parametrize("fmi_type", ["CoSimulation", "ModelExchange"])
-def test_a_constant_input_moves_the_mechanism_as_the_same_constant_load(pendulum_native, tmp_path, fmi_type):
+@pytest.mark.parametrize("kind, fmi_type", [
+    ("native", "CoSimulation"), ("native", "ModelExchange"),
+    # the FMI 3.0 build costs ~18 s (shared with tests/test_fmu_inputs.py's, slow there too)
+    pytest.param("native3", "CoSimulation", marks=pytest.mark.slow),
+    pytest.param("native3", "ModelExchange", marks=pytest.mark.slow)])
+def test_a_constant_input_moves_the_mechanism_as_the_same_constant_load(mechanism_fmus, tmp_path, kind, fmi_type):
     """F_P = 3 N and tau_arm = 0.5 N*m as inputs, or 0 and their [[loads]] twins at 3 N and
     0.5 N*m: the same generalized forces, so the same motion (to integrator round-off: the
-    two forces enter through different generated expressions)."""
+    two forces enter through different generated expressions), in FMI 2.0 and 3.0."""
+    fmu = mechanism_fmus.get(str(INPUT_PENDULUM), kind)
     flavour = f'fmi_type = "{fmi_type}"'
-    driven = pendulum_run(tmp_path, pendulum_native, "driven", step=0.01, extra=flavour,
-                          inputs="F_P = 3.0\ntau_arm = 0.5\n")
-    loaded = pendulum_run(tmp_path, pendulum_native, "loaded", step=0.01, extra=flavour,
+    driven = pendulum_run(tmp_path, fmu, "driven", step=0.01, extra=flavour, inputs="F_P = 3.0\ntau_arm = 0.5\n")
+    loaded = pendulum_run(tmp_path, fmu, "loaded", step=0.01, extra=flavour,
                           parameters="F_P_load = 3.0\ntau_arm_load = 0.5\n")
+    assert read_run_record(tmp_path / "driven" / "run.json").fmu.fmi_type == fmi_type
     assert list(driven.columns) == ["time", *PENDULUM_OUTPUTS, "F_P", "tau_arm"]
     assert list(driven["F_P"]) == [3.0] * len(driven)
     # rtol 1e-10 over 2 s of motion of O(1) m and rad: round-off differences stay far below 1e-8
