@@ -275,9 +275,10 @@ class FmuInstance(abc.ABC):
     _takes_input_derivatives: ClassVar[bool] = False
     _input_signals: tuple = ()
 
-    def set_inputs(self, t: float) -> None:
+    def set_inputs(self, t: float, derivatives: bool = True) -> None:
         """Set the driven inputs (:meth:`drive_inputs`) to their values at ``t`` (and their
-        derivatives, when driven with an order), for the step that starts at ``t``."""
+        derivatives, when driven with an order and ``derivatives``), for the step that starts
+        at ``t``.  Before initialisation FMI 2.0 allows the values only (``derivatives=False``)."""
         if not self._input_signals:
             return
         values = [s.at(t) for s in self._input_signals]
@@ -288,7 +289,7 @@ class FmuInstance(abc.ABC):
             shown = ", ".join(f"{n} = {v!r}" for n, v in zip(self._input_names, values))
             raise self._failure(f"{self.PREFIX}Set{self.FLOAT}({shown}) at t = {format_time(t)} s", exc.status,
                                 mark) from None
-        for order in range(1, self._input_order + 1):
+        for order in range(1, self._input_order + 1 if derivatives else 1):
             self._set_input_derivatives(t, order)
 
     def _set_input_derivatives(self, t: float, order: int) -> None:

@@ -445,7 +445,7 @@ class _Run:
             if self.case.inputs:     # the inputs' values at the start, before initialisation
                 fmu.drive_inputs(tuple(self.case.inputs), tuple(self.case.inputs.values()),
                                  self.case.input_derivative_order)
-                fmu.set_inputs(exp.start)
+                fmu.set_inputs(exp.start, derivatives=False)
             fmu.enter_initialization_mode()
             fmu.exit_initialization_mode()
         except FmuError as exc:

@@ -285,3 +285,20 @@ def test_model_exchange_follows_a_step_input(pendulum_native, tmp_path):
     # rtol 1e-10 in both integrators over 2 s: the runs agree far below 1e-7 (the table is
     # linear within each step: derivatives order 1 by default make co-simulation exact too)
     assert_allclose(me[list(PENDULUM_OUTPUTS)], cs[list(PENDULUM_OUTPUTS)], rtol=0, atol=1e-7)
+
+
+def test_input_derivatives_are_set_only_after_initialisation(pendulum_native, tmp_path, monkeypatch):
+    """FMI 2.0 allows fmi2SetRealInputDerivatives in initialisation mode and between steps, not
+    before: the start values of the inputs are set alone, the derivatives from the first step on."""
+    from orchestrator.fmi_instance import FmuInstance
+    from orchestrator.instance import Fmi2CoSimulation
+
+    calls: list[tuple[str, float]] = []
+    exit_init, set_derivatives = FmuInstance.exit_initialization_mode, Fmi2CoSimulation._set_input_derivatives
+    monkeypatch.setattr(FmuInstance, "exit_initialization_mode",
+                        lambda self: (calls.append(("initialised", 0.0)), exit_init(self))[1])
+    monkeypatch.setattr(Fmi2CoSimulation, "_set_input_derivatives",
+                        lambda self, t, order: (calls.append((f"order {order}", t)), set_derivatives(self, t, order))[1])
+    pendulum_run(tmp_path, pendulum_native, "driven", step=0.5, stop=1.0, extra="input_derivatives = 2",
+                 inputs='F_P = { type = "sine", amplitude = 2.0, frequency = 1.0 }\n')
+    assert calls == [("initialised", 0.0), ("order 1", 0.0), ("order 2", 0.0), ("order 1", 0.5), ("order 2", 0.5)]
