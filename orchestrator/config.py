@@ -243,7 +243,7 @@ class _Validator(ProblemReporter):
                 why = f"{self.fmu_name} does not say canInterpolateInputs (FMI 2.0 co-simulation)"
             self.problem("input_derivatives", value, f"{why}; expected false or leave it out")
             return 0
-        return wanted
+        return wanted if inputs else 0
 
     def name(self) -> str:
         """``name``, or the case file's name made a folder name when the file has none."""
