@@ -987,8 +987,6 @@ def _inputs(reader: _Reader, items, bodies: tuple[Body, ...], ground, joints: tu
             if clash:
                 raise reader.fail(where, f"its variable {var.name!r} would have the name of {clash}; rename the input")
             names[var.name] = f"input {name!r}"
-        if name in taken:
-            raise reader.fail(where, f"{taken[name]} already has this name (it names outputs)")
         inputs.append(entry)
     return tuple(inputs)
 
