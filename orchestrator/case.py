@@ -284,7 +284,8 @@ class Case:
         if self.noise is not None:
             data["noise"] = self.noise.as_dict()
         if self.inputs:
-            data["inputs"] = {name: signal.as_toml() for name, signal in self.inputs.items()}
+            data["inputs"] = {name: signal.as_toml() for name, signal in self.inputs.items()
+                              if signal.KIND != "derivative"}     # derived again from the position
             data["input_derivatives"] = self.input_derivative_order
         return data
 

@@ -27,7 +27,7 @@ from fourbar_common.contract.layout import EXCHANGE
 
 from .case import (DEFAULT_OUTPUTS, Case, Event, ExchangeSettings, Experiment, FmuDescription, Noise,
                    RampEvent, StepEvent, Value, describe_fmu)
-from .input_signals import InputSignal, derivative_order, parse_inputs
+from .input_signals import InputSignal, derivative_order, driver_rates, parse_inputs
 from .limits import MAX_STEP, MIN_REALTIME_FACTOR, UNIT_LIMITS
 from .validation import ConfigError, ProblemReporter, kind_of, name_from_file, read_toml
 
@@ -199,17 +199,24 @@ class _Validator(ProblemReporter):
                     inputs=inputs, input_derivative_order=order)
 
     def inputs(self, experiment: Experiment | None) -> dict[str, InputSignal]:
-        """``[inputs]``: a signal for each named input of the FMU (orchestrator.input_signals)."""
+        """``[inputs]``: a signal for each named input of the FMU (orchestrator.input_signals),
+        and the derivatives of a driver input's position for its rate and acceleration inputs
+        the case does not give (:func:`~orchestrator.input_signals.driver_rates`)."""
         inputs = ({v.name: v for v in self.md.modelVariables if v.causality == "input"}
                   if self.md is not None else None)
         span = (experiment.start, experiment.stop) if experiment is not None else None
-        return parse_inputs(self, self.raw.get("inputs"), inputs, self.base_dir, span, self.fmu_name)
+        signals = parse_inputs(self, self.raw.get("inputs"), inputs, self.base_dir, span, self.fmu_name)
+        return {**signals, **driver_rates(signals, inputs)} if inputs is not None else signals
 
     def given_twice(self, inputs: dict[str, InputSignal]) -> None:
         """An input ``[inputs]`` drives may not also be set by ``[parameters]`` (or ``--set``) or an event."""
         params = self.raw.get("parameters")
         for name in params if isinstance(params, dict) else ():
-            if name in inputs:
+            if name in inputs and inputs[name].KIND == "derivative":
+                self.problem(f"parameters.{name}", params[name], f"{name} is the rate or acceleration of the driver "
+                                                                 f"input {inputs[name].of}, which [inputs] drives: "
+                                                                 f"it follows the signal; give it in [inputs] instead")
+            elif name in inputs:
                 self.problem(f"parameters.{name}", params[name], f"{name} is given in [inputs] already; expected "
                                                                  f"each input given once, in [inputs]")
         events = self.raw.get("events")

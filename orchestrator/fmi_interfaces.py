@@ -101,6 +101,7 @@ class ModelExchange(FmuInstance):
                 state_event, _roots, t = self._solver.step(t, t_end)
                 self._inputs.check()
                 self._fmu.setTime(t)
+                self.set_inputs(t)       # CVode's last evaluation may lie past t (it interpolates back)
                 step_event, terminate = self._fmu.completedIntegratorStep()
                 if terminate:
                     raise FmuError(self._describe(f"the FMU asked to end the simulation at t = {format_time(t)} s",

@@ -39,16 +39,21 @@ from fourbar_common.files import NotRegularFileError, open_regular
 
 from .validation import ProblemReporter, kind_of, show_value
 
-__all__ = ["INPUT_TYPES", "MAX_CSV_BYTES", "Constant", "CsvColumn", "InputSignal", "Ramp", "Sine", "Step", "Table",
-           "derivative_order", "parse_inputs", "recorded_signals"]
+__all__ = ["INPUT_TYPES", "MAX_CSV_BYTES", "MAX_ORDER", "Constant", "CsvColumn", "Derivative", "InputSignal", "Ramp",
+           "Sine", "Step", "Table", "derivative_order", "driver_rates", "parse_inputs", "recorded_signals"]
 
 #: The largest CSV file an input is read from (bytes): 64 MB is a million rows of two columns.
 MAX_CSV_BYTES = 64 << 20
 
 
+#: The highest derivative order a signal gives: 2 for an input's own interpolation, 4 for the
+#: second derivative of a driver's acceleration input (:class:`Derivative` of order 2).
+MAX_ORDER = 4
+
+
 def _check_order(order: int) -> None:
-    if order not in (0, 1, 2):
-        raise ValueError(f"order: expected 0 (value), 1 or 2 (derivative), got {order!r}")
+    if not isinstance(order, int) or not 0 <= order <= MAX_ORDER:
+        raise ValueError(f"order: expected 0 (value) to {MAX_ORDER} (derivative), got {order!r}")
 
 
 @dataclass(frozen=True)
@@ -115,7 +120,7 @@ class Ramp:
     def at(self, t: float, order: int = 0) -> float:
         _check_order(order)
         end = self.end
-        if order == 2:
+        if order >= 2:
             return 0.0
         if order == 1:
             return self.slope if t >= self.start and (end is None or t < end) else 0.0
@@ -154,9 +159,8 @@ class Sine:
         arg = w * t + self.phase
         if order == 0:
             return self.offset + self.amplitude * math.sin(arg)
-        if order == 1:
-            return self.amplitude * w * math.cos(arg)
-        return -self.amplitude * w * w * math.sin(arg)
+        # d^n/dt^n sin(arg) = w^n sin(arg + n*pi/2): cos, -sin, -cos, sin
+        return self.amplitude * w ** order * (math.cos, _neg_sin, _neg_cos, math.sin)[(order - 1) % 4](arg)
 
     def as_dict(self) -> dict:
         return {"type": self.KIND, "amplitude": self.amplitude, "frequency": self.frequency, "phase": self.phase,
@@ -165,6 +169,14 @@ class Sine:
     def as_toml(self) -> dict:
         """The signal as the case file gives it (what a re-validation reads)."""
         return self.as_dict()
+
+
+def _neg_sin(x: float) -> float:
+    return -math.sin(x)
+
+
+def _neg_cos(x: float) -> float:
+    return -math.cos(x)
 
 
 @dataclass(frozen=True)
@@ -186,7 +198,7 @@ class Table:
         i = self._segment(t)
         if i is None:
             return (self.values[0] if t < self.times[0] else self.values[-1]) if order == 0 else 0.0
-        if order == 2:
+        if order >= 2:
             return 0.0
         t0, t1, v0, v1 = self.times[i], self.times[i + 1], self.values[i], self.values[i + 1]
         if order == 1:
@@ -219,7 +231,26 @@ class CsvColumn(Table):
         return {"type": self.KIND, "file": self.file, "time": self.time_column, "column": self.column}
 
 
-InputSignal = Union[Constant, Step, Ramp, Sine, Table, CsvColumn]
+@dataclass(frozen=True)
+class Derivative:
+    """The ``order``-th time derivative of the signal of input ``of``: what a driver's rate and
+    acceleration inputs (``<name>_d``, ``<name>_dd``, docs/mechanisms.md) are given when the
+    case gives the position ``<name>`` alone, so that the FMU's Φt and Φtt stay exact."""
+
+    KIND: ClassVar[str] = "derivative"
+    signal: Constant | Step | Ramp | Sine | Table
+    order: int
+    of: str
+
+    def at(self, t: float, order: int = 0) -> float:
+        _check_order(order + self.order)
+        return self.signal.at(t, order + self.order)
+
+    def as_dict(self) -> dict:
+        return {"type": self.KIND, "of": self.of, "order": self.order}
+
+
+InputSignal = Union[Constant, Step, Ramp, Sine, Table, CsvColumn, Derivative]
 
 #: The keys of each signal type in a case file: (required, optional).
 INPUT_TYPES: Mapping[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
@@ -251,6 +282,25 @@ def derivative_order(model_description) -> int:
 
 # ---------------------------------------------------------------------------- the case file
 
+#: The suffixes of a driver input's rate and acceleration inputs, by derivative order.
+DRIVER_RATES = {1: "_d", 2: "_dd"}
+
+
+def driver_rates(signals: Mapping[str, InputSignal], inputs: Mapping[str, Any]) -> dict[str, Derivative]:
+    """The rate and acceleration inputs a case leaves to the orchestrator: for each input
+    ``<name>`` it gives whose FMU also has the inputs ``<name>_d`` and ``<name>_dd`` (a driver
+    input, docs/mechanisms.md), each of those the case does not give is the signal's exact
+    first or second derivative (a driver's Φt and Φtt stay exact)."""
+    derived: dict[str, Derivative] = {}
+    for name, signal in signals.items():
+        if isinstance(signal, Derivative) or not all(name + suffix in inputs for suffix in DRIVER_RATES.values()):
+            continue
+        for order, suffix in DRIVER_RATES.items():
+            if name + suffix not in signals:
+                derived[name + suffix] = Derivative(signal=signal, order=order, of=name)
+    return derived
+
+
 def recorded_signals(inputs: Mapping[str, Mapping[str, Any]], source: str = "run.json") -> dict[str, InputSignal]:
     """The signals a run recorded (run.json's ``inputs``, :class:`~fourbar_common.contract.run_record.RecordedInput`
     ``signal`` by name), to drive a replay as the run did.  A CSV column is read again from its
@@ -264,8 +314,12 @@ def recorded_signals(inputs: Mapping[str, Mapping[str, Any]], source: str = "run
 
     reporter = _Reporter()
     table = {}
+    derived = {}
     for name, signal in inputs.items():
         signal = dict(signal)
+        if signal.get("type") == Derivative.KIND:
+            derived[name] = signal
+            continue
         if signal.get("type") == "ramp" and "duration" in signal:
             signal.pop("to", None)          # recorded for readers; slope and duration define it
         if signal.get("type") == "csv":
@@ -278,6 +332,13 @@ def recorded_signals(inputs: Mapping[str, Mapping[str, Any]], source: str = "run
         if isinstance(signal, CsvColumn) and want is not None and signal.sha256 != want:
             reporter.problems.append(f"inputs.{name}.file = {show_value(signal.file)}: changed since the run "
                                      f"(SHA-256 {signal.sha256[:12]}..., the run read {str(want)[:12]}...)")
+    for name, item in derived.items():
+        of, order = item.get("of"), item.get("order")
+        if of not in signals or order not in DRIVER_RATES:
+            reporter.problems.append(f"inputs.{name}: the derivative of order {order!r} of {of!r}, which is not "
+                                     f"a recorded signal (or not of order 1 or 2)")
+        else:
+            signals[name] = Derivative(signal=signals[of], order=order, of=of)
     if reporter.problems:
         raise ConfigError(source, reporter.problems)
     return signals

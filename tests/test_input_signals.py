@@ -78,9 +78,37 @@ def test_constant():
     assert Constant(2.5).at(7.0) == 2.5 and Constant(2.5).at(7.0, 1) == 0.0
 
 
-def test_an_order_above_two_is_refused():
+def test_an_order_above_four_is_refused():
     with pytest.raises(ValueError, match="order"):
-        Sine(1.0, 1.0).at(0.0, 3)
+        Sine(1.0, 1.0).at(0.0, 5)
+
+
+@given(t=st.floats(0.0, 10.0))
+def test_sine_derivatives_of_order_three_and_four_are_the_closed_forms(t):
+    """A driver input's acceleration input needs the position's 3rd and 4th derivatives (its
+    own first and second, for the FMU's interpolation)."""
+    s = Sine(0.5, 0.5, 0.2, 1.0)
+    w = np.pi
+    # w^4 ~ 97: a few ulps of the largest term
+    assert_allclose(s.at(t, 3), -0.5 * w ** 3 * math.cos(w * t + 0.2), rtol=0, atol=1e-12)
+    assert_allclose(s.at(t, 4), 0.5 * w ** 4 * math.sin(w * t + 0.2), rtol=0, atol=1e-12)
+
+
+def test_a_driver_inputs_rates_are_derived_from_its_position():
+    """An FMU input <name> with inputs <name>_d and <name>_dd (a driver input): those the case
+    does not give follow the position's exact derivatives."""
+    from orchestrator.input_signals import Derivative, driver_rates
+
+    crank = Sine(0.5, 0.5, 0.0, 0.5)
+    inputs = {n: Var(n) for n in ("crank", "crank_d", "crank_dd", "tau")}
+    derived = driver_rates({"crank": crank, "tau": Constant(1.0)}, inputs)
+    assert derived == {"crank_d": Derivative(crank, 1, "crank"), "crank_dd": Derivative(crank, 2, "crank")}
+    for t in (0.0, 0.3, 1.7):
+        assert derived["crank_d"].at(t) == crank.at(t, 1) and derived["crank_d"].at(t, 2) == crank.at(t, 3)
+        assert derived["crank_dd"].at(t) == crank.at(t, 2) and derived["crank_dd"].at(t, 2) == crank.at(t, 4)
+    # a rate the case gives is kept; an FMU without both rate inputs gets none
+    assert set(driver_rates({"crank": crank, "crank_d": Constant(0.0)}, inputs)) == {"crank_dd"}
+    assert driver_rates({"crank": crank}, {"crank": Var("crank"), "crank_d": Var("crank_d")}) == {}
 
 
 #: Table times on a 0.01 s grid: rows a subnormal apart make numpy.interp's slope overflow (the
@@ -274,13 +302,14 @@ def test_derivative_order_follows_the_model_description():
 def test_recorded_signals_drive_a_replay_as_the_run_did(tmp_path):
     """run.json's record of each signal (as_dict) gives the same signal back; a CSV file changed
     since the run is refused."""
-    from orchestrator.input_signals import recorded_signals
+    from orchestrator.input_signals import Derivative, recorded_signals
     from orchestrator.validation import ConfigError
 
     (tmp_path / "u.csv").write_text("time,torque\n0,1\n2,3\n")
     signals, problems = parse({"u": {"type": "csv", "file": "u.csv", "column": "torque"}}, tmp_path, (0.0, 2.0))
     assert problems == [] and isinstance(signals["u"], CsvColumn)
     signals.update(r=Ramp(0.0, 1.0, 0.5, 2.0), s=Sine(1.0, 2.0, 0.5, 0.1), e=Ramp(1.0, 0.0, -1.0))
+    signals.update(s_d=Derivative(signals["s"], 1, "s"), s_dd=Derivative(signals["s"], 2, "s"))
     records = {name: s.as_dict() for name, s in signals.items()}
     assert recorded_signals(records) == signals
     (tmp_path / "u.csv").write_text("time,torque\n0,1\n2,4\n")

@@ -302,3 +302,45 @@ def test_input_derivatives_are_set_only_after_initialisation(pendulum_native, tm
     pendulum_run(tmp_path, pendulum_native, "driven", step=0.5, stop=1.0, extra="input_derivatives = 2",
                  inputs='F_P = { type = "sine", amplitude = 2.0, frequency = 1.0 }\n')
     assert calls == [("initialised", 0.0), ("order 1", 0.0), ("order 2", 0.0), ("order 1", 0.5), ("order 2", 0.5)]
+
+
+# ---------------------------------------------------------------------------- a driver input
+
+CRANK = REPO / "tests" / "mechanisms" / "input_driven_crank.toml"      # inputs crank, crank_d, crank_dd
+SINE_CRANK = REPO / "tests" / "mechanisms" / "sine_driven_crank.toml"  # theta2_start + A sin(w t) in the file
+CRANK_OUTPUTS = ("theta2", "theta3", "theta4", "omega2", "omega3", "omega4")
+#: sine_driven_crank.toml's driver: theta2_start = 30 deg, A = 0.5 rad, w = pi rad/s (0.5 Hz)
+CRANK_SIGNAL = f'{{ type = "sine", amplitude = 0.5, frequency = 0.5, offset = {math.radians(30.0)!r} }}'
+
+
+def crank_run(folder: Path, fmu: Path, name: str, inputs: str = "", extra: str = "") -> pd.DataFrame:
+    path = folder / f"{name}.toml"
+    path.write_text(f'name = "{name}"\nfmu = {json.dumps(str(fmu))}\n{extra}\n'
+                    f'[experiment]\nstop = 2.0\nstep = 0.01\ntolerance = 1e-10\n\n'
+                    f'[parameters]\nrtol = 1e-10\natol = 1e-12\n\n'
+                    f'[outputs]\nvariables = {json.dumps(list(CRANK_OUTPUTS))}\ndrawing = false\n\n[inputs]\n{inputs}\n')
+    result = run_case(load_case(path), out_dir=folder / name)
+    assert result.status == "finished", result.error
+    return pd.read_csv(result.exchange_path)
+
+
+@pytest.mark.parametrize("fmi_type", ["ModelExchange", "CoSimulation"])
+def test_a_driver_input_given_its_position_alone_is_the_driver_in_the_file(mechanism_fmus, tmp_path, fmi_type):
+    """The case gives the crank's angle only; its rate and acceleration inputs (crank_d,
+    crank_dd) follow the sine's exact derivatives, so the linkage moves as the same sine written
+    as a driver in the mechanism file.  Model exchange: exact at every evaluation (rtol 1e-10:
+    1e-9 rad and rad/s).  Co-simulation (order 2 derivatives): each step's position is the sine's
+    second-order Taylor polynomial from the step's start, off by at most A w^3 h^3/6 = 2.6e-6 rad
+    at h = 0.01 s (tests/test_fmu_inputs.py measures the same with FMPy), within 1 %."""
+    flavour = f'fmi_type = "{fmi_type}"' + ("\ninput_derivatives = 2" if fmi_type == "CoSimulation" else "")
+    fed = crank_run(tmp_path, mechanism_fmus.get(str(CRANK), "native"), "fed", f"crank = {CRANK_SIGNAL}\n", flavour)
+    written = crank_run(tmp_path, mechanism_fmus.get(str(SINE_CRANK), "native"), "written",
+                        extra=f'fmi_type = "{fmi_type}"')
+    t = fed["time"].to_numpy()
+    assert_allclose(fed["crank_d"], 0.5 * np.pi * np.cos(np.pi * t), rtol=0, atol=1e-14)    # written exactly
+    assert_allclose(fed["crank_dd"], -0.5 * np.pi ** 2 * np.sin(np.pi * t), rtol=0, atol=1e-13)
+    bound = 1e-9 if fmi_type == "ModelExchange" else 1.01 * 0.5 * np.pi ** 3 * 0.01 ** 3 / 6
+    assert np.max(np.abs(fed["theta2"] - written["theta2"])) <= bound
+    assert np.ptp(fed["theta2"]) > 0.9                                     # the crank swings +-A
+    signals = {i.name: dict(i.signal) for i in read_run_record(tmp_path / "fed" / "run.json").inputs}
+    assert signals["crank_dd"] == {"type": "derivative", "of": "crank", "order": 2}
