@@ -19,6 +19,9 @@ from orchestrator.input_signals import (Constant, CsvColumn, Ramp, Sine, Step, T
 from orchestrator.validation import ProblemReporter
 
 finite = st.floats(min_value=-1e3, max_value=1e3, allow_nan=False)
+#: Every property test: no time limit per example (the machine may be loaded) and the same
+#: examples on every run (derandomized, no example database), as the project's other fuzzers.
+PROPERTY = settings(deadline=None, derandomize=True, database=None, max_examples=100)
 
 
 class Reporter(ProblemReporter):
@@ -35,6 +38,7 @@ def parse(table, tmp_path: Path = Path("."), span=(0.0, 10.0), inputs=None):
 
 # ---------------------------------------------------------------------------- closed forms
 
+@PROPERTY
 @given(amplitude=finite, frequency=st.floats(0.0, 50.0), phase=st.floats(-7.0, 7.0), offset=finite,
        t=st.floats(0.0, 100.0))
 def test_sine_and_its_derivatives_are_the_closed_forms(amplitude, frequency, phase, offset, t):
@@ -83,6 +87,7 @@ def test_an_order_above_four_is_refused():
         Sine(1.0, 1.0).at(0.0, 5)
 
 
+@PROPERTY
 @given(t=st.floats(0.0, 10.0))
 def test_sine_derivatives_of_order_three_and_four_are_the_closed_forms(t):
     """A driver input's acceleration input needs the position's 3rd and 4th derivatives (its
@@ -117,6 +122,7 @@ grid_times = st.integers(-5000, 5000).map(lambda k: k / 100)
 table_rows = st.lists(st.tuples(grid_times, finite), min_size=1, max_size=12)
 
 
+@PROPERTY
 @given(rows=table_rows, t=st.floats(-60.0, 60.0))
 def test_table_interpolates_as_numpy_interp_away_from_repeated_times(rows, t):
     rows = sorted(rows, key=lambda r: r[0])
@@ -128,6 +134,7 @@ def test_table_interpolates_as_numpy_interp_away_from_repeated_times(rows, t):
     assert_allclose(table.at(t), np.interp(t, times, [r[1] for r in rows]), rtol=0, atol=1e-9)
 
 
+@PROPERTY
 @given(rows=st.lists(st.tuples(grid_times, finite), min_size=2, max_size=8, unique_by=lambda r: r[0]),
        jump=finite)
 def test_a_repeated_time_is_a_step_to_the_later_row(rows, jump):
