@@ -21,7 +21,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from fourbar_common.contract.run_record import read_run_record
-from orchestrator import ConfigError, load_case, run_case
+from orchestrator import load_case, run_case
 from support import FOURBAR_RUN, REPO
 
 ECHO = textwrap.dedent('''
