@@ -22,6 +22,7 @@ from typing import Any, Mapping
 from fourbar_common import Drawing, DrawingError, Event, RampEvent, StepEvent, Value
 from fourbar_common.contract.run_record import ParameterStart
 
+from .input_signals import InputSignal
 from .validation import grid_steps
 
 __all__ = [
@@ -241,6 +242,11 @@ class Case:
     #: The FMI interface the run uses (``fmi_type``): "CoSimulation", or "ModelExchange" with
     #: FMPy's CVode integrating (orchestrator.instance); by default co-simulation when offered.
     fmi_type: str = "CoSimulation"
+    #: ``[inputs]``: the signal each FMU input is given, by input name (orchestrator.input_signals).
+    inputs: Mapping[str, InputSignal] = field(default_factory=dict)
+    #: The input derivatives set at each step's start (``fmi2SetRealInputDerivatives``): 0 (inputs
+    #: held over the step), 1 or 2 (``input_derivatives``; by default what the FMU accepts).
+    input_derivative_order: int = 0
 
     @property
     def fault_time(self) -> float | None:
@@ -249,15 +255,27 @@ class Case:
 
     @property
     def recorded(self) -> tuple[str, ...]:
-        """The exchange file's columns after ``time``: ``outputs``, then the drawing's columns
+        """The columns read from the FMU after ``time``: ``outputs``, then the drawing's columns
         they do not already name."""
         if self.drawing is None:
             return self.outputs
         return self.outputs + tuple(c for c in self.drawing.columns if c not in self.outputs)
 
+    @property
+    def input_columns(self) -> tuple[str, ...]:
+        """The inputs written after :attr:`recorded` (each signal's value at the row's time),
+        those :attr:`recorded` does not already name."""
+        recorded = self.recorded
+        return tuple(name for name in self.inputs if name not in recorded)
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """The exchange file's columns after ``time``: :attr:`recorded`, then :attr:`input_columns`."""
+        return self.recorded + self.input_columns
+
     def as_dict(self) -> dict:
         """The case as a TOML-shaped dict (what run.json records and what overrides edit)."""
-        data = {"name": self.name, "description": self.description, "fmu": str(self.fmu),
+        data = {"name": self.name, "description": self.description, "fmu": str(self.fmu), "fmi_type": self.fmi_type,
                 "experiment": {k: v for k, v in self.experiment.as_dict().items() if v is not None},
                 "parameters": dict(self.parameters),
                 "events": [e.as_dict() for e in self.events],
@@ -265,5 +283,9 @@ class Case:
                 "exchange": self.exchange.as_dict()}
         if self.noise is not None:
             data["noise"] = self.noise.as_dict()
+        if self.inputs:
+            data["inputs"] = {name: signal.as_toml() for name, signal in self.inputs.items()
+                              if signal.KIND != "derivative"}     # derived again from the position
+            data["input_derivatives"] = self.input_derivative_order
         return data
 

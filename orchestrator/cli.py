@@ -35,6 +35,12 @@ The row at an event's time shows the state before the change (the change acts fr
 next step on).  A run writes at most exchange.max_rows rows (default 10,000,000) unless
 --max-rows allows more.  The FMU is initialised before anything is written; once the run
 starts, the folder's previous monitor/ and diagnosis/ outputs are removed.
+FMU inputs are driven by the case's [inputs] table, one signal per input, e.g.
+  [inputs]
+  tau = { type = "sine", amplitude = 2.0, frequency = 0.5 }   # N*m; also a number (constant),
+  # type = "step", "ramp", "table" (rows = [[t, u], ...]) or "csv" (file, time, column)
+set at each step's start (with their derivatives when the FMU can interpolate inputs) and
+written after the outputs in exchange.csv.
 Case-file keys: docs/orchestrator.md.
 One run writes into a folder at a time (a lock, DIR/.lock); a case file's fmu is native
 code this command loads, so run only case files you would run as programs.

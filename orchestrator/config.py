@@ -27,13 +27,14 @@ from fourbar_common.contract.layout import EXCHANGE
 
 from .case import (DEFAULT_OUTPUTS, Case, Event, ExchangeSettings, Experiment, FmuDescription, Noise,
                    RampEvent, StepEvent, Value, describe_fmu)
+from .input_signals import InputSignal, derivative_order, driver_rates, parse_inputs
 from .limits import MAX_STEP, MIN_REALTIME_FACTOR, UNIT_LIMITS
 from .validation import ConfigError, ProblemReporter, kind_of, name_from_file, read_toml
 
 __all__ = ["apply_overrides", "load_case"]
 
 _TOP_KEYS = ("name", "description", "fmu", "fmi_type", "experiment", "parameters", "events", "outputs", "noise",
-             "exchange")
+             "exchange", "inputs", "input_derivatives")
 #: The FMI 2.0 interfaces a case may run (``fmi_type``), as FMPy names them.
 FMI_TYPES = ("CoSimulation", "ModelExchange")
 _EXPERIMENT_KEYS = ("start", "stop", "step", "tolerance")
@@ -185,13 +186,71 @@ class _Validator(ProblemReporter):
         recorded = outputs + tuple(c for c in drawing.columns if c not in outputs) if drawing else outputs
         events = self.events(experiment)
         noise = self.noise(recorded)
-        exchange = self.exchange(experiment, recorded)
+        inputs = self.inputs(experiment)
+        self.given_twice(inputs)
+        order = self.input_derivatives(inputs, fmi_type)
+        exchange = self.exchange(experiment, recorded + tuple(n for n in inputs if n not in recorded))
         if self.problems:
             raise ConfigError(self.label, self.problems)
         return Case(name=name, fmu=fmu, experiment=experiment, parameters=parameters, events=events,
                     outputs=outputs, drawing=drawing, record_drawing=record_drawing, noise=noise, exchange=exchange, description=description,
                     source=self.source, fmu_description=self.description, fmi_type=fmi_type,
-                    overridden=frozenset(n for n in parameters if f"parameters.{n}" in self.origins))
+                    overridden=frozenset(n for n in parameters if f"parameters.{n}" in self.origins),
+                    inputs=inputs, input_derivative_order=order)
+
+    def inputs(self, experiment: Experiment | None) -> dict[str, InputSignal]:
+        """``[inputs]``: a signal for each named input of the FMU (orchestrator.input_signals),
+        and the derivatives of a driver input's position for its rate and acceleration inputs
+        the case does not give (:func:`~orchestrator.input_signals.driver_rates`)."""
+        inputs = ({v.name: v for v in self.md.modelVariables if v.causality == "input"}
+                  if self.md is not None else None)
+        span = (experiment.start, experiment.stop) if experiment is not None else None
+        signals = parse_inputs(self, self.raw.get("inputs"), inputs, self.base_dir, span, self.fmu_name)
+        return {**signals, **driver_rates(signals, inputs)} if inputs is not None else signals
+
+    def given_twice(self, inputs: dict[str, InputSignal]) -> None:
+        """An input ``[inputs]`` drives may not also be set by ``[parameters]`` (or ``--set``) or an event."""
+        params = self.raw.get("parameters")
+        for name in params if isinstance(params, dict) else ():
+            if name in inputs and inputs[name].KIND == "derivative":
+                self.problem(f"parameters.{name}", params[name], f"{name} is the rate or acceleration of the driver "
+                                                                 f"input {inputs[name].of}, which [inputs] drives: "
+                                                                 f"it follows the signal; give it in [inputs] instead")
+            elif name in inputs:
+                self.problem(f"parameters.{name}", params[name], f"{name} is given in [inputs] already; expected "
+                                                                 f"each input given once, in [inputs]")
+        events = self.raw.get("events")
+        for i, item in enumerate(events if isinstance(events, list) else ()):
+            if isinstance(item, dict) and isinstance(item.get("variable"), str) and item["variable"] in inputs:
+                self.problem(f"events[{i}].variable", item["variable"],
+                             f"{item['variable']} is given in [inputs] already; expected each input given once "
+                             f"(a step or a ramp is an input signal: type = \"step\" or \"ramp\" in [inputs])")
+
+    def input_derivatives(self, inputs: dict[str, InputSignal], fmi_type: str) -> int:
+        """``input_derivatives``: the order of the input derivatives set at each step's start:
+        false (0: inputs held over the step), true (the FMU's default order,
+        :func:`~orchestrator.input_signals.derivative_order`), 1 or 2 (FMI 2.0 declares no highest
+        input order: an FMU that says canInterpolateInputs may be given 2).  Default: true when
+        the case has inputs and runs an FMU that can interpolate them in co-simulation."""
+        value = self.raw.get("input_derivatives")
+        can = derivative_order(self.md) if self.md is not None and fmi_type == "CoSimulation" else 0
+        if value is None:
+            return can if inputs else 0
+        if isinstance(value, bool):
+            wanted = can if value else 0
+        elif isinstance(value, int) and value in (0, 1, 2):
+            wanted = value
+        else:
+            self.problem("input_derivatives", value, "expected true, false, or the order 0, 1 or 2")
+            return 0
+        if (value is True or wanted > 0) and can == 0 and self.md is not None:
+            if fmi_type != "CoSimulation":
+                why = "with fmi_type = \"ModelExchange\" the inputs are set at every evaluation of the model"
+            else:
+                why = f"{self.fmu_name} does not say canInterpolateInputs (FMI 2.0 co-simulation)"
+            self.problem("input_derivatives", value, f"{why}; expected false or leave it out")
+            return 0
+        return wanted if inputs else 0
 
     def name(self) -> str:
         """``name``, or the case file's name made a folder name when the file has none."""

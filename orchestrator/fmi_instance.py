@@ -22,6 +22,8 @@ import abc
 import collections
 from typing import Any, Callable, ClassVar, Iterable, Sequence
 
+from fourbar_common.formatting import format_time
+
 from .case import FmuDescription
 from .pythonfmu_workarounds import clean_message, install_exit_guard, release_library
 
@@ -257,6 +259,41 @@ class FmuInstance(abc.ABC):
         for kind, (vrs, vals) in groups.items():
             setter = getattr(self._fmu, f"set{kind}")
             self._call(f"{self.PREFIX}Set{kind}({', '.join(_names(self.md, vrs))})", setter, vrs, vals)
+
+    def drive_inputs(self, names: Sequence[str], signals: Sequence, order: int = 0) -> None:
+        """From now on, :meth:`set_inputs` sets the Real inputs ``names`` to ``signals[i].at(t)``
+        (each an :mod:`orchestrator.input_signals` signal), with their time derivatives up to
+        ``order`` where the flavour takes them (FMI 2.0 co-simulation)."""
+        if order and not self._takes_input_derivatives:
+            raise ValueError(f"{self.PREFIX} {self.fmi_type} takes no input derivatives (order {order})")
+        self._input_vrs = [self.variables[n].valueReference for n in names]
+        self._input_signals = tuple(signals)
+        self._input_order = order
+        self._input_names = tuple(names)
+
+    #: Whether the flavour sets input derivatives (``fmi2SetRealInputDerivatives``).
+    _takes_input_derivatives: ClassVar[bool] = False
+    _input_signals: tuple = ()
+
+    def set_inputs(self, t: float, derivatives: bool = True) -> None:
+        """Set the driven inputs (:meth:`drive_inputs`) to their values at ``t`` (and their
+        derivatives, when driven with an order and ``derivatives``), for the step that starts
+        at ``t``.  Before initialisation FMI 2.0 allows the values only (``derivatives=False``)."""
+        if not self._input_signals:
+            return
+        values = [s.at(t) for s in self._input_signals]
+        mark = self._log_count
+        try:
+            getattr(self._fmu, f"set{self.FLOAT}")(self._input_vrs, values)
+        except self._call_error as exc:
+            shown = ", ".join(f"{n} = {v!r}" for n, v in zip(self._input_names, values))
+            raise self._failure(f"{self.PREFIX}Set{self.FLOAT}({shown}) at t = {format_time(t)} s", exc.status,
+                                mark) from None
+        for order in range(1, self._input_order + 1 if derivatives else 1):
+            self._set_input_derivatives(t, order)
+
+    def _set_input_derivatives(self, t: float, order: int) -> None:
+        """Set the driven inputs' ``order``-th derivatives at ``t`` (flavours that take them)."""
 
     def reader(self, names: Sequence[str]) -> Callable[[], list]:
         """A function returning the current values of ``names`` (in that order) as Python numbers."""

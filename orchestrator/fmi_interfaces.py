@@ -45,6 +45,7 @@ class ModelExchange(FmuInstance):
 
     FMI_TYPE = "ModelExchange"
     _solver = None                       # FMPy's CVodeSolver, after initialisation
+    _inputs: "_SolverInputs"             # what sets the driven inputs at CVode's evaluations
 
     @staticmethod
     def _interface(md) -> Any:
@@ -85,10 +86,11 @@ class ModelExchange(FmuInstance):
         from fmpy.sundials import CVodeSolver
 
         md, fmu = self.md, self._fmu
+        self._inputs = _SolverInputs(self)
         self._solver = CVodeSolver(
             nx=md.numberOfContinuousStates, nz=md.numberOfEventIndicators, get_x=fmu.getContinuousStates,
             set_x=fmu.setContinuousStates, get_dx=self._derivatives(), get_z=fmu.getEventIndicators,
-            get_nominals=fmu.getNominalsOfContinuousStates, set_time=fmu.setTime, input=_NoInputs(),
+            get_nominals=fmu.getNominalsOfContinuousStates, set_time=self._inputs.set_time, input=self._inputs,
             startTime=self._time, **({"relativeTolerance": self._tolerance} if self._tolerance else {}))
 
     def _integrate(self, t: float, t_end: float) -> None:
@@ -97,7 +99,9 @@ class ModelExchange(FmuInstance):
         try:
             while t < t_end:
                 state_event, _roots, t = self._solver.step(t, t_end)
+                self._inputs.check()
                 self._fmu.setTime(t)
+                self.set_inputs(t)       # CVode's last evaluation may lie past t (it interpolates back)
                 step_event, terminate = self._fmu.completedIntegratorStep()
                 if terminate:
                     raise FmuError(self._describe(f"the FMU asked to end the simulation at t = {format_time(t)} s",
@@ -119,8 +123,30 @@ class ModelExchange(FmuInstance):
         self._time = t_end
 
 
-class _NoInputs:
-    """FMPy's CVodeSolver applies the inputs at every evaluation; the orchestrator sets none."""
+class _SolverInputs:
+    """The driven inputs (:meth:`~orchestrator.fmi_instance.FmuInstance.drive_inputs`) set to their
+    values at every time CVode evaluates the model: FMPy's CVodeSolver calls ``set_time`` before
+    each evaluation of the derivatives and of the event indicators (its ``input.apply`` only
+    before the latter).  A failure inside CVode's callback cannot raise through the C solver:
+    it is kept and raised by :meth:`check` after the solver's step."""
+
+    def __init__(self, instance: FmuInstance):
+        self._instance = instance
+        self._error: BaseException | None = None
+
+    def set_time(self, time: float) -> None:
+        if self._error is not None:
+            return
+        self._instance._fmu.setTime(time)
+        try:
+            self._instance.set_inputs(time)
+        except Exception as exc:        # raised again by check(), outside the C solver
+            self._error = exc
 
     def apply(self, time, continuous=True, discrete=True, after_event=False) -> None:
-        return None
+        return None                     # set_time has set them
+
+    def check(self) -> None:
+        error, self._error = self._error, None
+        if error is not None:
+            raise error

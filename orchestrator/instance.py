@@ -25,7 +25,20 @@ __all__ = ["FLAVOURS", "Fmi2CoSimulation", "Fmi2ModelExchange", "Fmi3CoSimulatio
 
 
 class Fmi2CoSimulation(CoSimulation, Fmi2Instance):
-    """FMI 2.0 co-simulation (``FMU2Slave``), with the replay's fast loop :meth:`step_through`."""
+    """FMI 2.0 co-simulation (``FMU2Slave``), with the replay's fast loop :meth:`step_through`
+    and input derivatives (``fmi2SetRealInputDerivatives``, for an FMU that says canInterpolateInputs)."""
+
+    _takes_input_derivatives = True
+
+    def _set_input_derivatives(self, t: float, order: int) -> None:
+        values = [s.at(t, order) for s in self._input_signals]
+        mark = self._log_count
+        try:
+            self._fmu.setRealInputDerivatives(self._input_vrs, [order] * len(values), values)
+        except self._call_error as exc:
+            shown = ", ".join(f"{n} = {v!r}" for n, v in zip(self._input_names, values))
+            raise self._failure(f"fmi2SetRealInputDerivatives(order {order}: {shown}) at t = {format_time(t)} s",
+                                exc.status, mark) from None
 
     @staticmethod
     def _fmpy_class() -> type:

@@ -55,7 +55,8 @@ from typing import Mapping
 from fourbar_common.contract.exchange import TIME_COLUMN
 from fourbar_common.contract.layout import DIAGNOSIS, DIAGNOSIS_FOLDER, MONITOR_FOLDER, SUMMARY, RunFolder
 from fourbar_common.contract.run_record import (SCHEMA_VERSION, ParameterStart, RecordedExchange, RecordedExperiment,
-                                               RecordedFmu, RecordedNoise, RecordedWriter, RunRecord, write_run_record)
+                                               RecordedFmu, RecordedInput, RecordedNoise, RecordedWriter, RunRecord,
+                                               write_run_record)
 
 from .case import Case, RampEvent, StepEvent, Value
 from .config import apply_overrides, load_case
@@ -296,8 +297,10 @@ class _Run:
             parameters=_parameter_starts(case),
             events=tuple(case.events),
             fault_time=case.fault_time,
-            outputs=tuple(case.recorded),
-            units=described.units(case.recorded),
+            outputs=tuple(case.columns),
+            units=described.units(case.columns),
+            inputs=tuple(RecordedInput(name=name, signal=signal.as_dict()) for name, signal in case.inputs.items()),
+            input_derivatives=case.input_derivative_order,
             drawing=case.drawing,
             noise=RecordedNoise(seed=case.noise.seed, std=dict(case.noise.std)) if case.noise is not None else None,
             exchange=RecordedExchange(flush_interval=exchange.flush_interval,
@@ -439,6 +442,10 @@ class _Run:
             fmu.setup_experiment(exp.start, max(exp.stop, exp.time(exp.n_steps)), exp.tolerance)
             if self.case.parameters:
                 fmu.set_values(self.case.parameters.items())
+            if self.case.inputs:     # the inputs' values at the start, before initialisation
+                fmu.drive_inputs(tuple(self.case.inputs), tuple(self.case.inputs.values()),
+                                 self.case.input_derivative_order)
+                fmu.set_inputs(exp.start, derivatives=False)
             fmu.enter_initialization_mode()
             fmu.exit_initialization_mode()
         except FmuError as exc:
@@ -480,7 +487,7 @@ class _Run:
         except FolderLocked as exc:
             raise OutputRefused(str(exc), exc.holder) from None
         try:
-            self.writer = ExchangeWriter(self.exchange_path, (TIME_COLUMN, *self.case.recorded))
+            self.writer = ExchangeWriter(self.exchange_path, (TIME_COLUMN, *self.case.columns))
         except ExchangeRefused as exc:
             raise OutputRefused(f"{exc.filename}: {exc.strerror}") from None
         self.started = True         # from here on, run.json reports what happens
@@ -620,7 +627,9 @@ class _Run:
         steps, timed = _schedule(case)
         ramps = any(isinstance(event, RampEvent) for _, _, event in timed)
         read = fmu.reader(case.recorded)
+        written = tuple(case.inputs[name] for name in case.input_columns)   # after what is read
         do_step, set_values = fmu.do_step, fmu.set_values
+        set_inputs = fmu.set_inputs if case.inputs else None
         lock = self._io_lock
 
         self.loop_wall0 = time.monotonic()
@@ -629,6 +638,8 @@ class _Run:
         t = start
         for k in range(n + 1):
             row = read()
+            if written:          # each input's value at the row's time
+                row = [*row, *(signal.at(t) for signal in written)]
             with lock:
                 if self._worker_gone:
                     return
@@ -646,6 +657,8 @@ class _Run:
             actions = _actions(k, timed, n) if ramps else steps.get(k)
             if actions:
                 set_values(actions)
+            if set_inputs is not None:
+                set_inputs(t)
             flag.check()
             t_next = start + (k + 1) * step
             do_step(t, t_next - t)

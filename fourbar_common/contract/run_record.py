@@ -45,6 +45,7 @@ __all__ = [
     "RecordedExchange",
     "RecordedExperiment",
     "RecordedFmu",
+    "RecordedInput",
     "RecordedNoise",
     "RecordedWriter",
     "RUN_STATUSES",
@@ -149,6 +150,20 @@ class ParameterStart:
 
 
 @dataclass(frozen=True)
+class RecordedInput:
+    """An FMU input the case drove (``[inputs]``): its name and its signal as the case gave it,
+    ``{"type": "sine", "amplitude": ..., ...}`` (a CSV column also records its file's row count
+    and SHA-256).  Its values are the input's column of the exchange file."""
+
+    name: str
+    signal: Mapping[str, Any]
+
+    @property
+    def kind(self) -> str:
+        return str(self.signal.get("type", ""))
+
+
+@dataclass(frozen=True)
 class RecordedNoise:
     """Measurement noise added to the written values: seed and standard deviation per output."""
 
@@ -236,6 +251,10 @@ class RunRecord:
     #: How to draw the mechanism (the FMU's drawing annotation); None when the FMU declares
     #: none, the run recorded no drawing columns, or the record predates drawings.
     drawing: Drawing | None = None
+    #: The inputs the case drove (optional: records without inputs, or written before them, have none).
+    inputs: tuple[RecordedInput, ...] = ()
+    #: The order of the input derivatives set at each step's start (0: inputs held over the step).
+    input_derivatives: int = 0
     schema: int = SCHEMA_VERSION
 
     # -- what readers ask -------------------------------------------------------------
@@ -303,6 +322,8 @@ class RunRecord:
             "wall_time_s": self.wall_time_s, "error": self.error,
             "writer": self.writer.to_json() if self.writer is not None else None,
             "drawing": self.drawing.to_json() if self.drawing is not None else None,
+            "inputs": {i.name: dict(i.signal) for i in self.inputs},
+            "input_derivatives": self.input_derivatives,
         }
 
     @classmethod
@@ -453,6 +474,9 @@ class _Parser:
             error=self.text(data, "error", "", nullable=True),
             writer=self.writer(data),
             drawing=self.drawing(data),
+            inputs=self.inputs(data),
+            input_derivatives=self.get(data, "input_derivatives", "", lambda v: self.is_int(v) and 0 <= v <= 2,
+                                            "an integer 0, 1 or 2", default=0) if "input_derivatives" in data else 0,
             schema=schema,
         )
 
@@ -580,6 +604,15 @@ class _Parser:
         items = self.get(data, "outputs", "", lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v),
                          "an array of output names", default=[])
         return tuple(items)
+
+    def inputs(self, data: dict) -> tuple[RecordedInput, ...]:
+        """The optional ``inputs``: input name -> its signal (an object with a string ``type``)."""
+        if "inputs" not in data:
+            return ()
+        table = self.get(data, "inputs", "", lambda v: isinstance(v, dict) and all(
+            isinstance(x, dict) and isinstance(x.get("type"), str) for x in v.values()),
+            "an object input name = signal (an object with a string \"type\")", default={})
+        return tuple(RecordedInput(name=name, signal=dict(signal)) for name, signal in table.items())
 
     def units(self, data: dict) -> dict[str, str]:
         table = self.get(data, "units", "", lambda v: isinstance(v, dict) and all(isinstance(x, str) for x in v.values()),
