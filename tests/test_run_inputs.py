@@ -282,9 +282,12 @@ def test_model_exchange_follows_a_step_input(pendulum_native, tmp_path):
              '[[0.0, 0.0], [1.0, 1.0], [1.0, -1.0], [2.0, 0.0]] }\n'
     cs = pendulum_run(tmp_path, pendulum_native, "cs", step=0.05, inputs=signal)
     me = pendulum_run(tmp_path, pendulum_native, "me", step=0.05, inputs=signal, extra='fmi_type = "ModelExchange"')
-    # rtol 1e-10 in both integrators over 2 s: the runs agree far below 1e-7 (the table is
-    # linear within each step: derivatives order 1 by default make co-simulation exact too)
-    assert_allclose(me[list(PENDULUM_OUTPUTS)], cs[list(PENDULUM_OUTPUTS)], rtol=0, atol=1e-7)
+    # rtol 1e-10 in both integrators over 2 s (the table is linear within each step: derivatives
+    # order 1 by default make co-simulation exact too); CVode crosses the jumps under its error
+    # control alone: measured 1.0e-7 (omega3, rad/s) once the work outputs (the loads' and inputs' works) are
+    # continuous states too (i39-energy), so 1e-6 is asked; a step set late or not at all is off
+    # by far more (F_P's 20 N on ~3.5 kg moves x1 by a h^2 / 2 ~ 7e-3 m within one 0.05 s step)
+    assert_allclose(me[list(PENDULUM_OUTPUTS)], cs[list(PENDULUM_OUTPUTS)], rtol=0, atol=1e-6)
 
 
 def test_input_derivatives_are_set_only_after_initialisation(pendulum_native, tmp_path, monkeypatch):
