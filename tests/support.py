@@ -290,7 +290,8 @@ def build_fmu_refusal(path: Path, tmp_path: Path) -> subprocess.CompletedProcess
     """``build_fmu.py`` run on the mechanism file ``path``, into ``tmp_path/out``: expected to refuse it."""
     out = tmp_path / "out"
     proc = subprocess.run([sys.executable, "build_fmu.py", "--mechanism", str(path), "--out", str(out / "a.fmu"),
-                           "--native-out", str(out / "b.fmu")], cwd=REPO, capture_output=True, text=True)
+                           "--native-out", str(out / "b.fmu")], cwd=REPO, capture_output=True, text=True,
+                          timeout=600)     # a hang guard only: a refusal takes seconds
     proc.out = out
     return proc
 

@@ -11,17 +11,15 @@ the file and the field named.
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from support import REPO, build_fmu_refusal
 from fmpy import simulate_fmu
 
 from fmu_src.mechanism.description import MechanismError, load_mechanism
 
-REPO = Path(__file__).resolve().parents[1]
 MECHANISM = REPO / "tests" / "mechanisms" / "sine_driven_crank.toml"
 TH0, A, W = math.radians(30), 0.5, math.pi      # the file's theta2_start, A and w
 TIGHT = 1e-10
@@ -112,10 +110,8 @@ def test_position_with_start_and_speed_is_refused(tmp_path):
 
 def test_build_fmu_exits_2_on_a_bad_position(tmp_path):
     path = _edited(tmp_path, "theta2_start + A*sin(w*tau)")
-    out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "build_fmu.py", "--mechanism", str(path), "--out", str(out / "a.fmu"),
-                           "--native-out", str(out / "b.fmu")], cwd=REPO, capture_output=True, text=True,
-                          timeout=300)
+    proc = build_fmu_refusal(path, tmp_path)
+    out = proc.out
     assert proc.returncode == 2, proc
     assert "Traceback" not in proc.stderr and str(path) in proc.stderr, proc.stderr
     assert "drivers[0] 'motor'.position" in proc.stderr, proc.stderr

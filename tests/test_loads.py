@@ -11,17 +11,15 @@ form, a torque changed mid-run takes effect, and a bad load is refused naming fi
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from support import REPO, build_fmu_refusal
 from fmpy import simulate_fmu
 
 from fmu_src.mechanism.description import MechanismError, load_mechanism
 
-REPO = Path(__file__).resolve().parents[1]
 MECHANISM = REPO / "tests" / "mechanisms" / "loaded_pendulum.toml"
 L, TAU, FB, FX, FY = 1.0, 3.0, -1.5, 4.0, 2.0      # the file's values
 TH0 = math.radians(-45)
@@ -108,10 +106,8 @@ def test_a_bad_load_is_refused_naming_the_file_and_field(tmp_path, old, new, wor
 
 def test_build_fmu_exits_2_on_a_bad_load(tmp_path):
     path = _edited(tmp_path, 'frame = "body"', 'frame = "local"')
-    out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "build_fmu.py", "--mechanism", str(path), "--out", str(out / "a.fmu"),
-                           "--native-out", str(out / "b.fmu")], cwd=REPO, capture_output=True, text=True,
-                          timeout=300)
+    proc = build_fmu_refusal(path, tmp_path)
+    out = proc.out
     assert proc.returncode == 2, proc
     assert "Traceback" not in proc.stderr and str(path) in proc.stderr, proc.stderr
     assert "loads[1] 'push'.frame" in proc.stderr, proc.stderr
