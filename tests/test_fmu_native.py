@@ -361,7 +361,7 @@ def test_an_output_read_alone_is_the_one_read_with_the_others(mechanism_fmus, na
     together = simulate(fmu, stop=1.0, output=outputs)
     from fmu_src.mechanism.check import prepare_mechanism
     eqs = prepare_mechanism(mechanism).equations
-    state = [o.name for o in eqs.outputs if o.name in outputs and (o.work is not None or (
+    state = [o.name for o in eqs.outputs if o.name in outputs and (o.integrand is not None or (
         o.expression is not None and not o.expression.free_symbols & set(eqs.multipliers)))]
     assert len(state) >= 8
     for name in state:
