@@ -74,12 +74,13 @@ def test_model_exchange_directional_derivatives_of_the_work_states(mechanism_fmu
     """The native FMU's Model Exchange integrates the work outputs as states: the directional
     derivatives of their derivatives (the powers, dae.c's eq_dir_powers_*) against finite
     differences, as tests/test_fmu_directional.py checks the shipped mechanisms' (its host, step
-    and tolerance: AGREE).  Only those rows: the others are that file's (Andrews' squeezer's
-    accelerations, ~1e5 rad/s2, leave a round-off of 1e-16 |f| / h ~ 1e-6 in their finite
-    differences, above AGREE)."""
+    and tolerance: AGREE), and, for a mechanism with torque or force inputs, along each input
+    (eq_dir_inputs' dpowers; without them der(F_P_work) along F_P is 0 against 2.8).  Only those
+    rows: the others are that file's (Andrews' squeezer's accelerations, ~1e5 rad/s2, leave a
+    round-off of 1e-16 |f| / h ~ 1e-6 in their finite differences, above AGREE)."""
     if not sys.platform.startswith("linux"):
         pytest.skip("FMPy loads the platform's binary; measured on x86_64-linux")
-    from test_fmu_directional import AGREE, _away_from_start, _Host
+    from test_fmu_directional import AGREE, STEP, _away_from_start, _Host
 
     fmu = mechanism_fmus.get(mechanism.source, "native")
     host = _Host(fmu, tmp_path)
@@ -103,6 +104,25 @@ def test_model_exchange_directional_derivatives_of_the_work_states(mechanism_fmu
             assert error[worst] <= AGREE, (mechanism.label, list(direction), names[rows[worst]], exact[worst],
                                            estimate[worst])
             largest = max(largest, float(np.abs(estimate).max(initial=0.0)))
+        for k, name in enumerate(mechanism.inputs):
+            # along an input (q, qd held): the inputs' powers depend on them (eq_dir_inputs' dpowers)
+            values = [input_signal(j, 0.3) for j in range(len(mechanism.inputs))]
+
+            def at(u):
+                host.fmu.setReal([vr[name]], [u])
+                return host.evaluate(x)[rows]
+
+            def central(h):
+                return (at(values[k] + h) - at(values[k] - h)) / (2 * h)
+
+            estimate = (4 * central(STEP / 2) - central(STEP)) / 3
+            at(values[k])
+            exact = host.directional(x, [1.0], unknowns=[host.v.derivatives[r] for r in rows],
+                                     knowns=[vr[name]])
+            error = np.abs(exact - estimate) / np.maximum(1.0, np.abs(estimate))
+            worst = int(np.argmax(error))
+            assert error[worst] <= AGREE, (mechanism.label, name, names[rows[worst]], exact[worst], estimate[worst])
+            assert np.abs(estimate).max() > 1e-3, f"{mechanism.label}: no power depends on input {name}"
         if len(rows) < host.n:
             assert largest > 1e-3, f"{mechanism.label}: the powers do not depend on the state here"
         else:       # no degree of freedom (fourbar_press): the powers depend on time alone
