@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import ctypes
 import math
-import shutil
 import subprocess
 import sys
 from pathlib import Path
