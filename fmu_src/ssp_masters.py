@@ -65,7 +65,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["MASTERS", "MasterError", "MasterMissing", "MasterRun", "available", "bound_parameters", "run_ecos",
+__all__ = ["MASTERS", "MasterError", "MasterMissing", "MasterRun", "available", "bound_parameters", "main", "run_ecos",
            "run_fmpy", "run_libcosim", "run_master", "steps_of"]
 
 MASTERS = ("FMPy", "libcosim", "Ecos")
@@ -359,3 +359,46 @@ def run_master(master: str, ssp: str | Path, stop_time: float, step: float, vari
     if master not in _RUNNERS:
         raise MasterError(f"unknown master {master!r}: one of {', '.join(MASTERS)}")
     return _RUNNERS[master](ssp, stop_time, step, list(variables))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m fmu_src.ssp_masters SYSTEM.ssp --stop S --step H VAR...``: run the system in
+    every master installed here and print, per master, its wall time and its largest difference
+    from the first one's values (rows matched by step number).  Exit 2 on bad input."""
+    import argparse
+    import sys
+    import time
+
+    parser = argparse.ArgumentParser(prog="python -m fmu_src.ssp_masters", description=main.__doc__.split("\n\n")[0])
+    parser.add_argument("ssp", help="the SSP 1.0 archive (.ssp)")
+    parser.add_argument("variables", nargs="+", metavar="COMPONENT.VARIABLE", help="the values to compare")
+    parser.add_argument("--stop", type=float, required=True, help="stop time, s (a whole number of steps)")
+    parser.add_argument("--step", type=float, required=True, help="macro step, s")
+    args = parser.parse_args(argv)
+    if not Path(args.ssp).is_file():
+        print(f"{parser.prog}: {args.ssp}: no such file", file=sys.stderr)
+        return 2
+    first: MasterRun | None = None
+    for master in MASTERS:
+        missing = available(master)
+        if missing is not None:
+            print(f"{master:9s} skipped: {missing}")
+            continue
+        began = time.perf_counter()
+        try:
+            run = run_master(master, args.ssp, args.stop, args.step, args.variables)
+        except MasterError as exc:
+            print(f"{parser.prog}: {exc}", file=sys.stderr)
+            return 2
+        wall = time.perf_counter() - began
+        if first is None:
+            first = run
+            print(f"{master:9s} {wall:7.2f} s  {len(run.times)} steps (the reference)")
+        else:
+            worst, where = max((float(np.max(np.abs(run[v] - first[v]))), v) for v in args.variables)
+            print(f"{master:9s} {wall:7.2f} s  largest |{master} - {first.master}| = {worst:.3g} ({where})")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

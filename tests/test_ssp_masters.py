@@ -27,6 +27,7 @@ of order 0.1..10, so 1e-12 is ~10^3..10^4 ulp: a pass means "the same numbers".
 from __future__ import annotations
 
 import itertools
+import re
 import subprocess
 from pathlib import Path
 
@@ -259,3 +260,16 @@ def test_fourbar_run_jacobi_matches_the_other_masters(systems, runs, tmp_path):
             column = data.values[v][after]
             worst = float(np.max(np.abs(column - other[v])))
             assert worst <= TOL, f"fourbar-run (jacobi) and {master} differ by {worst:.3e} in {v}"
+
+
+def test_the_command_compares_the_masters_and_exits_2_on_bad_input(systems, capsys):
+    from fmu_src.ssp_masters import main
+
+    assert main([str(systems["inline"]), "arm.x1", "rod.theta3", "--stop", "0.1", "--step", str(STEP)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == len(MASTERS) and "10 steps (the reference)" in lines[0], lines
+    for line in lines[1:]:
+        found = re.search(r"\| = (\S+) \(", line)
+        assert "skipped" in line or (found and float(found.group(1)) <= TOL), line
+    assert main([str(systems["inline"]), "arm.x1", "--stop", "0.105", "--step", str(STEP)]) == 2
+    assert "0.105 s is not a whole number of steps" in capsys.readouterr().err
