@@ -30,7 +30,10 @@ parameter      read, NOT applied by applied: inline      applied only for the
 bindings       simulate_ssp; this   ssv:ParameterSet     ParameterSet NAME
                module passes them   and resources/*.ssv  given to init(); this
                as its parameter_set both                 module passes the
-               argument (both forms)                     SSD's one set name
+               argument (both forms)                     SSD's one set name, or
+                                                         sets the values before
+                                                         init() when the sets
+                                                         have several names
 time           ``time += step``     integer ns: the step (float seconds)
                (accumulates; its    must be a whole
                loop ``while time <  number of ns, t_n =
@@ -38,9 +41,10 @@ time           ``time += step``     integer ns: the step (float seconds)
                step more: this
                module passes stop =
                (N - 1/2) step)
-what it        the SSD's connectors any variable         any variable
-records        only                 (time-series         (``component::
-                                    observer)            variable``)
+what it        the SSD's input and  any variable         any variable
+records        output connectors    (time-series         (``component::
+               (a parameter one is  observer)            variable``)
+               0.0: refused here)
 FMI versions   1.0, 2.0 (3.0 is     1.0, 2.0 (3.0 is     2.0 and 3.0
                loaded as 2.0 and    not loaded):
                fails): refused here refused here
@@ -249,6 +253,11 @@ def run_fmpy(ssp: str | Path, stop_time: float, step: float, variables: Sequence
     except Exception as exc:          # FMPy raises bare Exceptions (an FMU's failed call, a missing variable)
         raise MasterError(f"{ssp}: FMPy's simulate_ssp failed: {exc}") from None
     missing = [v for v in variables if v not in (result.dtype.names or ())]
+    kinds = {f"{c.name}.{k.name}": k.kind for c in find_components(ssd.system) for k in c.connectors}
+    unread = [v for v in variables if kinds.get(v, "output") not in ("input", "output")]
+    if unread:            # simulate_ssp records such a connector but never reads it: 0.0 throughout
+        raise MasterError(f"{ssp}: FMPy's simulate_ssp records {', '.join(unread)} (a {kinds[unread[0]]} "
+                          "connector) as 0.0: it reads output connectors only")
     if missing:
         raise MasterError(f"{ssp}: FMPy's simulate_ssp records the SSD's connectors only; {', '.join(missing)} "
                           "is not one (declare it as an output connector)")
@@ -318,11 +327,10 @@ def run_ecos(ssp: str | Path, stop_time: float, step: float, variables: Sequence
     n = steps_of(stop_time, step)
     ecospy = _import("Ecos")
     # Ecos loads every ParameterSet of the SSD but applies one, the one whose name init() is
-    # given: every component's set must carry the same name for one init to apply them all.
-    names = sorted({b.set_name or "" for b in _bindings(ssp)})
-    if len(names) > 1:
-        raise MasterError(f"{ssp}: Ecos applies one named parameter set at a time; the SSD's sets are named "
-                          f"{', '.join(map(repr, names))}: give every component's ssv:ParameterSet the same name")
+    # given.  When every component's set carries the same name, that name is given; else each
+    # bound value is set before init() (a start value, as the binding would be).
+    bindings = _bindings(ssp)
+    names = sorted({b.set_name or "" for b in bindings})
     ecospy.EcosLib.set_log_level("warn")
     try:
         simulation = ecospy.EcosSimulation(ssp_path=str(ssp.resolve()), step_size=step)
@@ -333,7 +341,11 @@ def run_ecos(ssp: str | Path, stop_time: float, step: float, variables: Sequence
         for variable in variables:
             component, name = _split(variable)
             identifiers[variable] = f"{component}::{name}"
-        if not simulation.init(0.0, names[0] if names else None):
+        if len(names) > 1:
+            for binding in bindings:
+                for name, value in binding.values.items():
+                    simulation.set_real(f"{binding.component}::{name}", float(value))
+        if not simulation.init(0.0, names[0] if len(names) == 1 else None):
             raise MasterError(f"{ssp}: Ecos could not initialise it: {ecospy.EcosLib.get_last_error()}")
         rows, labels = [], []
         for _ in range(n):

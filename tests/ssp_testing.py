@@ -47,11 +47,14 @@ def _parameter_set(name: str, values: dict[str, float], *, namespaces: bool) -> 
 
 def write_ssp(path: Path, name: str, components: list[TestComponent],
               connections: list[tuple[str, str]], *, bindings: str = "inline",
-              stop_time: float | None = None, set_name: str | None = "parameters") -> Path:
+              stop_time: float | None = None, set_name: str | None = "parameters",
+              parameter_connectors: bool = False) -> Path:
     """Write ``path`` (an .ssp); ``connections`` are ("a.out", "b.in") pairs; ``bindings`` is
     "inline", "ssv" or "none" (no ParameterBindings at all, whatever the components hold).
     Every component's ssv:ParameterSet is named ``set_name`` (None: after its component), the
-    one name Ecos is told to apply (fmu_src/ssp_masters.py)."""
+    one name Ecos is told to apply (fmu_src/ssp_masters.py).  ``parameter_connectors``: each
+    bound parameter is also a connector of kind "parameter" (as the project's system builder
+    writes them)."""
     if bindings not in ("inline", "ssv", "none"):
         raise ValueError(f"bindings: {bindings!r}")
     resources: dict[str, bytes] = {}
@@ -61,6 +64,9 @@ def write_ssp(path: Path, name: str, components: list[TestComponent],
                              for n in c.inputs)
         connectors += "".join(f'<ssd:Connector name={quoteattr(n)} kind="output"><ssc:Real/></ssd:Connector>'
                               for n in c.outputs)
+        if parameter_connectors:
+            connectors += "".join(f'<ssd:Connector name={quoteattr(n)} kind="parameter"><ssc:Real/></ssd:Connector>'
+                                  for n in c.parameters)
         binding = ""
         if c.parameters and bindings == "inline":
             binding = ("<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>"

@@ -182,11 +182,20 @@ def test_fmpy_records_connectors_only(systems):
         run_fmpy(systems["none"], 0.1, STEP, ["arm.m1"])
 
 
-def test_ecos_refuses_parameter_sets_of_several_names(pendulum, press, tmp_path):
-    _skip_missing("Ecos")
-    ssp = write_ssp(tmp_path / "named.ssp", "Named", _components(pendulum), CONNECTIONS, set_name=None)
-    with pytest.raises(MasterError, match=r"one named parameter set.*'arm', 'press', 'rod'"):
-        run_ecos(ssp, 0.1, STEP, ["arm.vx1"])
+def test_parameter_sets_of_several_names_and_parameter_connectors(pendulum, press, runs, tmp_path):
+    """The project's system builder names each component's ssv:ParameterSet after the component
+    and lists bound parameters as connectors of kind "parameter": each master still applies
+    every bound value (Ecos: set before init, as it applies one named set only), and FMPy, which
+    records a parameter connector as 0.0, is refused that column."""
+    ssp = write_ssp(tmp_path / "named.ssp", "Named", _components(pendulum), CONNECTIONS, set_name=None,
+                    parameter_connectors=True)
+    for master in MASTERS:
+        if available(master) is None:
+            run = run_master(master, ssp, STOP, STEP, VARIABLES)
+            worst, where = _worst(run, runs(master, "inline"))
+            assert worst == 0.0, f"{master}: {worst:.3e} in {where}"
+    with pytest.raises(MasterError, match=r"arm\.m1 \(a parameter connector\) as 0\.0"):
+        run_fmpy(ssp, 0.1, STEP, ["arm.m1"])
 
 
 def test_fmi3_components_run_in_ecos_only(tmp_path):
