@@ -20,7 +20,10 @@ row label      the step's START     the step's end, on   the step's end
 first step's   0.0 in every input   the connected        the connected
 inputs         connector (the       outputs' values      outputs' values
                outputs at t = 0     after initialisation after initialisation
-               are never read)
+               are never read)      settled through      settled through
+                                    feed-through         feed-through
+input column   the value set for    the value held over  the value set for
+               the next step        the step that ended  the next step
 unconnected    fed the source of    left alone (start    left alone (start
 input conn.    the input connector  value / binding)     value / binding)
                before it (FMPy

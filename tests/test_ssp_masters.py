@@ -149,6 +149,22 @@ def test_each_master_labels_its_rows_its_way(runs):
         np.testing.assert_allclose(labels["Ecos"], times, rtol=0, atol=1e-12)
 
 
+def test_an_input_column_is_the_next_steps_value_in_fmpy_and_ecos_the_last_steps_in_libcosim(systems):
+    """arm.tau_arm is fed press.motor_work.  In the row after step n, FMPy and Ecos show the value
+    set for step n + 1 (the source's output at t_n+1, the same row); libcosim shows the value held
+    over step n (the source's output at t_n, the row before; 0.0 in the first row)."""
+    names = ["press.motor_work", "arm.tau_arm"]
+    for master in MASTERS:
+        if available(master) is not None:
+            continue
+        run = run_master(master, systems["none"], 0.1, STEP, names)
+        source, column = run["press.motor_work"], run["arm.tau_arm"]
+        if master == "libcosim":
+            np.testing.assert_array_equal(column, np.concatenate([[0.0], source[:-1]]))
+        else:
+            np.testing.assert_array_equal(column, source)
+
+
 def test_a_nonzero_initial_output_separates_fmpy_from_the_others(pendulum, press, tmp_path):
     """press.motor_torque is 46.7 N.m at t = 0: libcosim and Ecos give it to the arm in the first
     step, FMPy gives 0.0.  The press (no inputs) still agrees; the arm does not, from row 1."""
@@ -233,22 +249,74 @@ def test_an_unknown_variable_is_named(systems):
                 run_master(master, systems["none"], 0.02, STEP, ["arm.nosuch"])
 
 
+# -- feed-through: the initial exchange --------------------------------------------------------
+# press.motor_torque (46.7 N.m at t = 0) -> arm.tau_arm, and arm.O_Fx (the reaction at the arm's
+# pin: it depends on tau_arm directly, through the accelerations) -> rod.F_P.  Which O_Fx the rod
+# gets over the first step depends on whether the master settles the connections through
+# feed-through before the first step: libcosim and Ecos do (the reaction with tau_arm = 46.7),
+# a master that reads the outputs once after initialisation gives the reaction with tau_arm's
+# start value 0.  (FMPy gives 0.0 to both inputs: not compared here.)
+FT_VARIABLES = ["press.motor_torque", "arm.O_Fx", "arm.x1", "rod.x1"]
+FT_CONNECTIONS = [("press.motor_torque", "arm.tau_arm"), ("arm.O_Fx", "rod.F_P")]
+
+
+@pytest.fixture(scope="module")
+def feedthrough(pendulum, press, tmp_path_factory) -> Path:
+    components = [TestComponent("press", press, outputs=("motor_torque",)),
+                  TestComponent("arm", pendulum, inputs=("tau_arm",), outputs=("O_Fx", "x1")),
+                  TestComponent("rod", pendulum, inputs=("F_P",), outputs=("x1",))]
+    return write_ssp(tmp_path_factory.mktemp("ft") / "feedthrough.ssp", "Feedthrough", components, FT_CONNECTIONS,
+                     bindings="none")
+
+
+def _initial_outputs(fmu: Path, inputs: dict[str, float], names: list[str], folder: Path) -> list[float]:
+    """The outputs ``names`` of ``fmu`` after initialisation with ``inputs`` set (FMPy's FMU2Slave)."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    md = read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu), str(folder)),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="probe")
+    slave.instantiate()
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    if inputs:
+        slave.setReal([vr[k] for k in inputs], list(inputs.values()))
+    slave.exitInitializationMode()
+    values = slave.getReal([vr[n] for n in names])
+    slave.terminate()
+    slave.freeInstance()
+    return values
+
+
+def test_libcosim_and_ecos_settle_the_initial_exchange_through_feedthrough(feedthrough, pendulum, press, tmp_path):
+    _skip_missing("libcosim")
+    _skip_missing("Ecos")
+    a = run_libcosim(feedthrough, STOP, STEP, [*FT_VARIABLES, "rod.F_P"])
+    b = run_ecos(feedthrough, STOP, STEP, FT_VARIABLES)
+    worst, where = max((float(np.max(np.abs(a[v] - b[v]))), v) for v in FT_VARIABLES)
+    assert worst <= TOL, f"libcosim and Ecos differ by {worst:.3e} in {where}"
+    (torque,) = _initial_outputs(press, {}, ["motor_torque"], tmp_path / "press")
+    (settled,) = _initial_outputs(pendulum, {"tau_arm": torque}, ["O_Fx"], tmp_path / "settled")
+    (unsettled,) = _initial_outputs(pendulum, {}, ["O_Fx"], tmp_path / "unsettled")
+    assert abs(settled - unsettled) > 1.0, (settled, unsettled)     # the test can tell them apart
+    # libcosim records an input as the value it held over the step that ended at the row's time.
+    assert abs(a["rod.F_P"][0] - settled) <= TOL, (a["rod.F_P"][0], settled, unsettled)
+
+
 # -- fourbar-run's Jacobi master (issue 40, point 3) -------------------------------------------
 
-def test_fourbar_run_jacobi_matches_the_other_masters(systems, runs, tmp_path):
-    """Skipped until fourbar-run runs a case naming `system = "X.ssp"` (engineer C's part).
-
-    Detected by what fourbar-run does: the case is run; while fourbar-run's case reader answers
-    "system: unknown key" (exit 2), the feature is not there yet; any other failure fails.  Its rows are
-    matched to the others' by time: fourbar-run labels a row with its communication point
-    (start + k * step, k = 0..N), so its rows k = 1..N are the others' rows after step k."""
-    ssp = systems["inline"]
-    case = tmp_path / "ssp_jacobi.toml"
-    columns = ", ".join(f'"{v}"' for v in VARIABLES)
+def _fourbar_run(ssp: Path, variables: list[str], folder: Path):
+    """fourbar-run's Jacobi run of ``ssp``: (k, the exchange columns), or a skip while fourbar-run
+    does not know `system =`: its case reader then answers "system: unknown key" (exit 2);
+    any other failure fails."""
+    case = folder / "ssp_jacobi.toml"
+    columns = ", ".join(f'"{v}"' for v in variables)
     case.write_text(f'name = "ssp_jacobi"\nsystem = "{ssp.as_posix()}"\n\n'
                     f'[experiment]\nstart = 0.0\nstop = {STOP}\nstep = {STEP}\n\n'
                     f'[master]\nalgorithm = "jacobi"\n\n[outputs]\nvariables = [{columns}]\n', encoding="utf-8")
-    out = tmp_path / "out"
+    out = folder / "out"
     proc = subprocess.run([FOURBAR_RUN, str(case), "--out", str(out), "--quiet"], capture_output=True, text=True,
                           timeout=300, cwd=REPO)
     if proc.returncode == 2 and "system: unknown key" in proc.stderr:
@@ -257,18 +325,34 @@ def test_fourbar_run_jacobi_matches_the_other_masters(systems, runs, tmp_path):
     assert proc.returncode == 0, proc.stderr[-3000:]
     from fourbar_common.contract.exchange import read_exchange
 
-    data = read_exchange(out / "exchange.csv", VARIABLES)
-    k = np.rint(np.asarray(data.time) / STEP).astype(int)
+    data = read_exchange(out / "exchange.csv", variables)
+    return np.rint(np.asarray(data.time) / STEP).astype(int), data.values
+
+
+@pytest.mark.parametrize("system", ["loop", "feedthrough"])
+def test_fourbar_run_jacobi_matches_the_other_masters(system, systems, feedthrough, runs, tmp_path):
+    """Skipped until fourbar-run runs a case naming `system = "X.ssp"` (engineer C's part).
+
+    Rows are matched by time: fourbar-run labels a row with its communication point
+    (start + k * step, k = 0..N), so its rows k = 1..N are the others' rows after step k.
+    "loop": the bound test system, against all three masters.  "feedthrough": against libcosim
+    and Ecos, which settle the initial exchange through feed-through (FMPy gives 0.0)."""
+    if system == "loop":
+        ssp, variables, masters = systems["inline"], VARIABLES, MASTERS
+    else:
+        ssp, variables, masters = feedthrough, FT_VARIABLES, ("libcosim", "Ecos")
+    k, values = _fourbar_run(ssp, variables, tmp_path)
     after = k >= 1
-    for master in MASTERS:
+    for master in masters:
         if available(master) is not None:
             continue
-        other = runs(master, "inline")
+        other = runs(master, "inline") if system == "loop" else run_master(master, ssp, STOP, STEP, variables)
         assert np.array_equal(k[after], np.arange(1, len(other.times) + 1)), "fourbar-run's grid is not k * step"
-        for v in VARIABLES:
-            column = data.values[v][after]
-            worst = float(np.max(np.abs(column - other[v])))
-            assert worst <= TOL, f"fourbar-run (jacobi) and {master} differ by {worst:.3e} in {v}"
+        for v in variables:
+            worst = float(np.max(np.abs(values[v][after] - other[v])))
+            assert worst <= TOL, (f"fourbar-run (jacobi) and {master} differ by {worst:.3e} in {v}"
+                                  + (" (does fourbar-run settle the initial exchange through feed-through, "
+                                     "as libcosim and Ecos do?)" if system == "feedthrough" else ""))
 
 
 def test_the_command_compares_the_masters_and_exits_2_on_bad_input(systems, capsys):
