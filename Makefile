@@ -16,7 +16,7 @@ FMU_SOURCES := build_fmu.py $(wildcard fmu_src/*.py fmu_src/mechanism/*.py fmu_s
                fmu_src/mechanisms/*.toml fmu_src/native/*.[ch] fmu_src/native/fmi3/*.[ch])
 MECHANISMS  := $(basename $(notdir $(wildcard fmu_src/mechanisms/*.toml)))
 
-.PHONY: demo test check fmu mechanisms browser benchmarks figures clean help
+.PHONY: demo test check fmu mechanisms browser tbb benchmarks figures clean help
 
 help:
 	@echo "make demo       build the FMU, run Case 2 with orchestrator and monitor, print the verdict"
@@ -29,6 +29,7 @@ help:
 	@echo "make fmu        build $(FMU) and build/FourBarNative.fmu (when a C compiler exists)"
 	@echo "make mechanisms build the FMUs of every mechanism in fmu_src/mechanisms/ into build/"
 	@echo "make browser    install Debian's chromium for the browser tests (make test does it)"
+	@echo "make tbb        install Debian's libtbb12, which Ecos (ecospy) needs, for the SSP tests (make test does it)"
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -70,11 +71,24 @@ browser:
 	    echo "make browser: no chromium; install Debian's chromium (apt-get install chromium) to run the browser tests"; \
 	  fi; }
 
+# Ecos (ecospy, the third SSP master of tests/test_ssp_masters.py) loads Intel TBB's run-time,
+# Debian's libtbb12.  Installed here when missing and run as root; else those tests skip.
+tbb:
+	@ldconfig -p 2>/dev/null | grep -q 'libtbb\.so\.12 ' || { \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    echo "make tbb: installing Debian's libtbb12 for Ecos (ecospy)"; \
+	    DEBIAN_FRONTEND=noninteractive apt-get install -y -q libtbb12 >/dev/null 2>&1 || \
+	    { apt-get update -q >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -q libtbb12 >/dev/null; } || \
+	    echo "make tbb: could not install libtbb12; the Ecos tests will be skipped"; \
+	  else \
+	    echo "make tbb: no libtbb12; install Debian's libtbb12 (apt-get install libtbb12) to run the Ecos tests"; \
+	  fi; }
+
 # The suite runs on two workers (pytest-xdist; TEST_WORKERS=0 runs it in one process) and
 # finds every mechanism's FMUs in build/, built once here rather than once per worker
 # ($(MECH_STAMP) first: it builds $(FMU) too, in parallel with the other mechanisms).
 TEST_WORKERS ?= 2
-test: $(MECH_STAMP) $(FMU) browser
+test: $(MECH_STAMP) $(FMU) browser tbb
 	$(BIN)/python -m pytest -q $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist worksteal)
 
 check: $(FMU)
