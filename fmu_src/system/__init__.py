@@ -7,11 +7,11 @@ from __future__ import annotations
 
 from .build import ComponentBuildError, ComponentFmu, SystemBuildResult, build_system, component_fmu, write_ssp
 from .description import (ComponentSpec, ConnectionSpec, Experiment, SystemDescription, SystemFileError,
-                          load_system, resolve_system, shipped_systems)
+                          load_system, parse_system, resolve_system, shipped_systems)
 from .interface import FmuInterface, Port, check_system, read_interface
 from .ssd import schema_problems, ssd_bytes
 
 __all__ = ["ComponentBuildError", "ComponentFmu", "SystemBuildResult", "build_system", "component_fmu", "write_ssp",
            "ComponentSpec", "ConnectionSpec", "Experiment", "SystemDescription", "SystemFileError", "load_system",
-           "resolve_system", "shipped_systems", "FmuInterface", "Port", "check_system", "read_interface",
+           "parse_system", "resolve_system", "shipped_systems", "FmuInterface", "Port", "check_system", "read_interface",
            "schema_problems", "ssd_bytes"]
