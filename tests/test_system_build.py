@@ -169,6 +169,26 @@ def test_libcosim_and_fmpy_load_and_run_the_ssp_with_its_bindings(follower_ssp):
                                rtol=0, atol=1e-9)
 
 
+def test_ecos_loads_and_runs_the_ssp_and_applies_the_named_bindings(follower_ssp):
+    pytest.importorskip("ecospy", reason="ecospy is not installed (pip install ecospy)")
+    from ecospy import EcosSimulation
+    from fmu_src.system.ssd import PARAMETER_SET
+    values = {}
+    for parameter_set in (None, PARAMETER_SET):
+        simulation = EcosSimulation(step_size=STEP, ssp_path=str(follower_ssp.path))
+        try:
+            simulation.init(parameter_set=parameter_set)
+            simulation.step_until(STOP)
+            values[parameter_set] = [simulation.get_real(name) for name in
+                                     ("fourbar::crank_torque", "fourbar::T4", "fourbar::c2", "follower::m3")]
+        finally:
+            simulation.terminate()
+            simulation.free()
+    # Ecos applies a parameter set only when init names it: every component's has one name
+    assert values[None] == [0.0, 2.0, 0.1, 1.0]
+    assert values[PARAMETER_SET] == [12.0, 1.5, 0.2, 2.0]
+
+
 # -- mistakes in a system file -----------------------------------------------------------------
 
 def _edited(tmp_path: Path, edit) -> Path:

@@ -213,7 +213,7 @@ def _component(table, index: int, folder: Path, problems: list[str]) -> Componen
     else:
         for key, value in parameters.items():
             if not _NAME.match(str(key)):
-                problems.append(f"{where}.parameters.{key}: not a variable name")
+                problems.append(f"{where}.parameters: {str(key)!r} is not a variable name")
                 continue
             number = _number(value, f"{where}.parameters.{key}", problems)
             if number is not None:

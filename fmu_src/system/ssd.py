@@ -4,9 +4,10 @@ Layout (docs/systems.md, *The SSP file*): one ``ssd:System`` named after the sys
 ``ssd:Elements`` one ``ssd:Component`` per instance (type ``application/x-fmu-sharedlibrary``,
 source ``resources/<Model>.fmu``) with its ``ssd:Connectors`` (every output, every connected
 input and every bound parameter, each ``ssc:Real`` with its FMU unit) and, when the system file
-binds values, one ``ssd:ParameterBinding`` holding an inline ``ssv:ParameterSet`` (names relative
-to the component); ``ssd:Connections``; ``ssd:Units`` (each unit used, with its SI base-unit
-exponents from the FMU); ``ssd:DefaultExperiment``.  An unconnected input with a bound value is
+binds values, one ``ssd:ParameterBinding`` holding an inline ``ssv:ParameterSet`` named
+``initialValues`` (:data:`PARAMETER_SET`; the names in it relative to the component);
+``ssd:Connections``; ``ssd:Units`` (each unit used, with its SI base-unit exponents from the
+FMU); ``ssd:DefaultExperiment``.  An unconnected input with a bound value is
 in the parameter set but not among the connectors: FMPy's ``simulate_ssp`` sets every input
 connector before each step (0 when unconnected), which would undo the binding.
 
@@ -21,13 +22,17 @@ from pathlib import Path
 from .description import SystemDescription
 from .interface import FmuInterface
 
-__all__ = ["SSD", "SSC", "SSV", "FMU_TYPE", "ssd_bytes", "schema_problems", "resource_name"]
+__all__ = ["SSD", "SSC", "SSV", "FMU_TYPE", "PARAMETER_SET", "ssd_bytes", "schema_problems", "resource_name"]
 
 SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
 SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
 #: The component type SSP 1.0 gives an FMU.
 FMU_TYPE = "application/x-fmu-sharedlibrary"
+#: The name of every component's parameter set.  libcosim applies every inline set whatever its
+#: name; Ecos applies the sets of the name given to ``EcosSimulation.init(parameter_set=...)``
+#: (none without one), so one name for all of them makes one call apply them all.
+PARAMETER_SET = "initialValues"
 _SCHEMA = "SystemStructureDescription.xsd"
 
 
@@ -73,7 +78,7 @@ def ssd_bytes(system: SystemDescription, interfaces: dict[str, FmuInterface]) ->
             bindings = ET.SubElement(component, f"{{{SSD}}}ParameterBindings")
             binding = ET.SubElement(bindings, f"{{{SSD}}}ParameterBinding")
             values = ET.SubElement(binding, f"{{{SSD}}}ParameterValues")
-            parameter_set = ET.SubElement(values, f"{{{SSV}}}ParameterSet", {"version": "1.0", "name": spec.name})
+            parameter_set = ET.SubElement(values, f"{{{SSV}}}ParameterSet", {"version": "1.0", "name": PARAMETER_SET})
             parameters = ET.SubElement(parameter_set, f"{{{SSV}}}Parameters")
             for name, value in spec.parameters:
                 parameter = ET.SubElement(parameters, f"{{{SSV}}}Parameter", {"name": name})
