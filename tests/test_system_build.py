@@ -285,6 +285,17 @@ def test_the_unedited_system_passes_the_same_checks(interfaces, tmp_path):
     check_system(load_system(_edited(tmp_path, lambda d: None)), interfaces)
 
 
+def test_a_system_its_fmus_refuse_leaves_an_earlier_ssp_as_it_was(follower_ssp, follower_fmus, tmp_path):
+    path = _edited(tmp_path, _connection(0, **{"from": "fourbar.omega2", "to": "follower.crank"}))
+    out = tmp_path / "out" / "FourBarFollower.ssp"
+    out.parent.mkdir()
+    out.write_bytes(follower_ssp.path.read_bytes())
+    copied = str((tmp_path / "mechanisms" / FOLLOWER.name).resolve())
+    with pytest.raises(SystemFileError, match="units differ"):
+        build_system(path, out, prebuilt={**follower_fmus, copied: follower_fmus[str(FOLLOWER)]})
+    assert out.read_bytes() == follower_ssp.path.read_bytes() and list(out.parent.iterdir()) == [out]
+
+
 def test_every_problem_is_listed_at_once(tmp_path):
     data = tomllib.loads(SYSTEM.read_text(encoding="utf-8"))
     data["connections"][0]["from"] = "nobody.theta2"
