@@ -10,9 +10,13 @@
 The mechanism is a description file (docs/mechanisms.md): a name shipped in
 fmu_src/mechanisms/ (default: fourbar, Table 1's linkage, giving FourBar.fmu) or a path.
 
+A system of FMUs (docs/systems.md: a name in systems/ or a path) builds into one SSP 1.0 file,
+build/<Name>.ssp, holding every component's native FMI 2.0 FMU.
+
 Usage: python build_fmu.py [--mechanism NAME|PATH] [--only {pythonfmu,native}] [--fmi {2,3,all}]
                            [--out PATH] [--native-out PATH] [--native3-out PATH] [--force]
                            [--no-validate] [--list]
+       python build_fmu.py --system NAME|PATH [--out PATH] [--force] [--no-validate]
 """
 from __future__ import annotations
 
@@ -26,7 +30,9 @@ examples:
   python build_fmu.py                      # build/FourBar.fmu, FourBarNative.fmu and FourBarNative3.fmu (Table 1)
   python build_fmu.py --mechanism slider_crank      # build/SliderCrank.fmu and SliderCrankNative.fmu
   python build_fmu.py --mechanism my_machine.toml   # your own mechanism file (docs/mechanisms.md)
-  python build_fmu.py --list               # the shipped mechanisms
+  python build_fmu.py --list               # the shipped mechanisms and systems
+  python build_fmu.py --system motor_fourbar        # build/MotorFourBar.ssp (SSP 1.0, docs/systems.md)
+  python build_fmu.py --system my_bench.toml        # your own system file
   python build_fmu.py --only native        # just the native FMUs (FMI 2.0 and 3.0)
   python build_fmu.py --only native --fmi 3 # just build/FourBarNative3.fmu (FMI 3.0)
   CC=clang python build_fmu.py             # choose the C compiler
@@ -35,7 +41,7 @@ examples:
 file only with --force, a directory never, nor a file in a folder this user cannot write in
 (exit 2, nothing written).  The new FMU replaces the old one only once it is complete.
 exit status: 0 built (and valid), 1 a build failed or fmpy validate found problems, 2 usage error
-or a mistake in the mechanism file (the message names the item), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM); an interrupted build leaves no partial file.
+or a mistake in the mechanism or system file (the message names the item), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM); an interrupted build leaves no partial file.
 """
 
 
@@ -127,16 +133,20 @@ def _main(argv=None) -> int:
                     "FMI 2.0 co-simulation), <Name>Native.fmu and <Name>Native3.fmu (generated C, no Python "
                     "needed; FMI 2.0 and FMI 3.0, co-simulation and model exchange each), then validate them "
                     "with FMPy.")
-    parser.add_argument("--mechanism", default="fourbar", metavar="NAME|PATH",
+    parser.add_argument("--mechanism", metavar="NAME|PATH",
                         help="a mechanism shipped in fmu_src/mechanisms/ or the path of a mechanism file "
-                             "(default: %(default)s)")
+                             "(default: fourbar)")
+    parser.add_argument("--system", metavar="NAME|PATH",
+                        help="build a system of FMUs instead: a system shipped in systems/ or the path of a "
+                             "system file (docs/systems.md), into build/<Name>.ssp (or --out)")
     parser.add_argument("--list", action="store_true", help="list the shipped mechanisms and exit")
     parser.add_argument("--only", choices=("pythonfmu", "native"),
                         help="build just one of the two FMUs (default: both; native only if a C compiler exists)")
     parser.add_argument("--fmi", choices=("2", "3", "all"), default="all",
                         help="the FMI versions of the native FMU: 2 (<Name>Native.fmu), 3 (<Name>Native3.fmu) "
                              "or all (default: %(default)s; the pythonfmu FMU is FMI 2.0 only)")
-    parser.add_argument("--out", help="where to write the pythonfmu FMU (default: build/<Name>.fmu)")
+    parser.add_argument("--out", help="where to write the pythonfmu FMU (default: build/<Name>.fmu); "
+                                      "with --system, the .ssp (default: build/<Name>.ssp)")
     parser.add_argument("--native-out", help="where to write the FMI 2.0 native FMU (default: build/<Name>Native.fmu)")
     parser.add_argument("--native3-out",
                         help="where to write the FMI 3.0 native FMU (default: beside --native-out, its name with a 3 "
@@ -153,14 +163,24 @@ def _main(argv=None) -> int:
     from fmu_src.mechanism.description import MechanismError, load_mechanism, shipped_mechanisms
 
     if args.list:
-        for name in shipped_mechanisms():
+        for name in shipped_mechanisms(systems=True):
             try:
                 mech = load_mechanism(name)
                 print(f"{name:16s} {mech.name}.fmu / {mech.name}Native.fmu / {mech.name}Native3.fmu: "
                       f"{mech.description}")
             except MechanismError as exc:
                 print(f"{name:16s} (broken: {exc})")
+        from fmu_src.system import SystemFileError, load_system, shipped_systems
+        for name in shipped_systems():
+            try:
+                system = load_system(name)
+                print(f"{name:16s} {system.name}.ssp (system): {system.description}")
+            except SystemFileError as exc:
+                print(f"{name:16s} (broken: {exc})")
         return 0
+    if args.system is not None:
+        return _system_main(args)
+    args.mechanism = args.mechanism or "fourbar"
     try:
         mech = load_mechanism(args.mechanism)
     except MechanismError as exc:
@@ -195,6 +215,77 @@ def _main(argv=None) -> int:
             signum = signal_of(exc)
             print(f"build_fmu.py: {stop_reason(signum)}; no partial FMU was left", file=sys.stderr)
             return exit_code(signum)
+
+
+def _is_ssp(path: Path) -> bool:
+    """A zip archive with a SystemStructure.ssd (what --system would overwrite freely)."""
+    try:
+        with zipfile.ZipFile(path) as z:
+            return "SystemStructure.ssd" in z.namelist()
+    except (OSError, zipfile.BadZipFile):
+        return False
+
+
+def _system_main(args) -> int:
+    """--system: build the system's component FMUs and its .ssp (fmu_src/system/)."""
+    from fourbar_common.signals import StopSignals, exit_code, signal_of, stop_reason
+    from fmu_src.system import ComponentBuildError, SystemFileError, build_system, load_system
+
+    unused = [option for option, value in (("--mechanism", args.mechanism), ("--only", args.only),
+                                           ("--native-out", args.native_out), ("--native3-out", args.native3_out))
+              if value is not None] + (["--fmi"] if args.fmi != "all" else [])
+    if unused:
+        print(f"build_fmu.py: error: --system builds an .ssp with each component's FMI 2.0 native FMU inside; "
+              f"{', '.join(unused)} {'does' if len(unused) == 1 else 'do'} not apply to it", file=sys.stderr)
+        return 2
+    try:
+        system = load_system(args.system)
+    except SystemFileError as exc:
+        print(f"build_fmu.py: error: {exc}", file=sys.stderr)
+        return 2
+    out = Path(args.out or f"build/{system.name}.ssp")
+    problem = None
+    if out.is_dir():
+        problem = f"--out {out}: is a directory; expected the path of the .ssp file to write, e.g. {out / (system.name + '.ssp')}"
+    elif out.exists() and not args.force and not _is_ssp(out):
+        problem = (f"--out {out}: exists and is not an SSP file (no zip with a SystemStructure.ssd); not "
+                   f"overwritten: choose another path, or add --force to replace it")
+    else:
+        parent = next((p for p in out.absolute().parents if p.exists()), None)
+        if parent is not None and not parent.is_dir():
+            problem = f"--out {out}: {parent} is a file, not a directory"
+        elif parent is not None and (reason := _cannot_write_in(parent)):
+            problem = f"--out {out}: cannot write in {parent}: {reason}; choose a writable folder"
+    if problem:
+        print(f"build_fmu.py: error: {problem}", file=sys.stderr)
+        return 2
+    with StopSignals():
+        try:
+            result = build_system(args.system, out, validate=args.validate)
+        except SystemFileError as exc:
+            print(f"build_fmu.py: error: {exc}", file=sys.stderr)
+            return 2
+        except ComponentBuildError as exc:
+            print(f"build_fmu.py: error: {exc}; {out} was not written", file=sys.stderr)
+            return 1
+        except OSError as exc:
+            print(f"build_fmu.py: error: {_write_failure(str(out), exc)}", file=sys.stderr)
+            return 1
+        except KeyboardInterrupt as exc:
+            signum = signal_of(exc)
+            print(f"build_fmu.py: {stop_reason(signum)}; no partial file was left", file=sys.stderr)
+            return exit_code(signum)
+    if result.problems:
+        print(f"build_fmu.py: error: SystemStructure.ssd does not follow the SSP 1.0 schema; {out} was not "
+              f"written:", file=sys.stderr)
+        for problem in result.problems:
+            print(f"    - {problem}", file=sys.stderr)
+        return 1
+    print(f"built system: {result.path} (SSP 1.0)")
+    for c in result.components:
+        print(f"  {c.name}: {c.kind} {c.source} -> {c.resource} (GUID {c.guid})")
+    print("  SystemStructure.ssd: " + ("SSP 1.0 schema: no problems" if args.validate else "validation skipped"))
+    return 0
 
 
 def _build(args) -> int:

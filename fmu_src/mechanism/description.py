@@ -30,7 +30,7 @@ if TYPE_CHECKING:      # sympy is imported once every expression of the file has
 
 __all__ = ["Mechanism", "Parameter", "Body", "PointRef", "Joint", "Driver", "Spring", "Friction", "Load", "Input", "StartValue", "ExpressionOutput",
            "MechanismError", "load_mechanism", "parse_mechanism", "MECHANISM_DIR", "resolve_mechanism",
-           "shipped_mechanisms", "PUBLISHED_BENCHMARKS", "RATE_PREFIX", "POSITIVE"]
+           "shipped_mechanisms", "PUBLISHED_BENCHMARKS", "SYSTEM_MECHANISMS", "RATE_PREFIX", "POSITIVE"]
 
 #: Where the shipped mechanism files live (``--mechanism NAME`` looks here).
 MECHANISM_DIR = Path(__file__).resolve().parent.parent / "mechanisms"
@@ -299,13 +299,19 @@ class Mechanism:
 #: out (``shipped_mechanisms(benchmarks=False)``); each has its own test against its publication.
 #: The IFToMM simple pendulum (A01) is cheap but its reference spans 2000 s: its test runs that.
 PUBLISHED_BENCHMARKS = {"andrews_squeezer": 0.03, "iftomm_pendulum": 2000.0}
+#: Shipped mechanisms made to be a component of a system (systems/, docs/systems.md), each with
+#: the system file that uses it: an input another FMU sets drives them (a free crank turned by a
+#: motor's torque), so they have no case of their own; tests/test_system_build.py builds and
+#: runs them, the loops over the shipped mechanisms leave them out.
+SYSTEM_MECHANISMS = {"fourbar_motor": "systems/motor_fourbar.toml"}
 
 
-def shipped_mechanisms(*, benchmarks: bool = True) -> tuple[str, ...]:
+def shipped_mechanisms(*, benchmarks: bool = True, systems: bool = False) -> tuple[str, ...]:
     """Names of the mechanism files in fmu_src/mechanisms/ (without the PUBLISHED_BENCHMARKS
-    when ``benchmarks`` is false)."""
+    when ``benchmarks`` is false; with the SYSTEM_MECHANISMS only when ``systems`` is true)."""
     names = sorted(p.stem for p in MECHANISM_DIR.glob("*.toml"))
-    return tuple(n for n in names if benchmarks or n not in PUBLISHED_BENCHMARKS)
+    return tuple(n for n in names if (benchmarks or n not in PUBLISHED_BENCHMARKS)
+                 and (systems or n not in SYSTEM_MECHANISMS))
 
 
 def resolve_mechanism(name_or_path: str) -> Path:
@@ -318,7 +324,7 @@ def resolve_mechanism(name_or_path: str) -> Path:
     shipped = MECHANISM_DIR / f"{name_or_path}.toml"
     if not shipped.is_file():
         raise MechanismError(f"unknown mechanism {name_or_path!r}: the shipped ones are "
-                             f"{', '.join(shipped_mechanisms())}; or give the path of a .toml file")
+                             f"{', '.join(shipped_mechanisms(systems=True))}; or give the path of a .toml file")
     return shipped
 
 
