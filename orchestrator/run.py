@@ -259,6 +259,13 @@ def _system_record(case: Case, parameters: tuple[ParameterStart, ...]) -> Record
     for p in parameters:
         component, _, variable = p.name.partition(".")
         effective.setdefault(component, {})[variable] = p.start
+    for bound in ssp.parameters:     # a binding may set an (unconnected) input's start value too
+        if bound.name not in case.parameters:
+            kind = described.variables[bound.name].type
+            effective.setdefault(bound.component, {})[bound.variable] = _bound_value(kind, bound.value)
+    for name, value in case.parameters.items():
+        component, _, variable = name.partition(".")
+        effective.setdefault(component, {})[variable] = value
     components = tuple(
         RecordedComponent(name=c.name, source=c.source, sha256=c.sha256,
                           model_identifier=c.model.coSimulation.modelIdentifier, model_name=c.model.modelName,
@@ -269,6 +276,11 @@ def _system_record(case: Case, parameters: tuple[ParameterStart, ...]) -> Record
     return RecordedSystem(path=str(case.system), sha256=ssp.sha256, name=ssp.name, algorithm=master.algorithm,
                           inputs=master.inputs, step=case.experiment.step, order=tuple(order), components=components,
                           connections=tuple(RecordedConnection(c.source, c.target) for c in ssp.connections))
+
+
+def _bound_value(kind: str, value: Value) -> Value:
+    """An SSP binding's value as the variable's type (a Real bound as an Integer is a float)."""
+    return float(value) if kind == "Real" else value
 
 
 class _Run:

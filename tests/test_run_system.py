@@ -295,3 +295,15 @@ def test_sigterm_keeps_the_rows_of_a_system_run(system, tmp_path):
     assert record.status == "interrupted" and record.error.startswith("terminated by SIGTERM at t = ")
     lines = (out / "exchange.csv").read_text(encoding="utf-8").splitlines()
     assert len(lines) - 1 == record.rows_written >= 2
+
+
+def test_a_binding_on_an_input_is_recorded(pendulum, tmp_path):
+    """An inline binding may give an unconnected input its start value (a.F_P here, with the
+    .ssv's b.mr): both are applied and recorded among the component's effective values."""
+    ssp = write_ssp(tmp_path / "Bound.ssp", {"a": pendulum, "b": pendulum}, COMPONENTS, CONNECTIONS,
+                    parameters={"a.F_P": 0.25, "b.ma": 1.5})
+    rows = run(tmp_path, ssp, name="bound", outputs=["a.F_P", "a.omega2"])
+    assert np.all(rows[:, 1] == 0.25)
+    record = read_run_record(tmp_path / "out_bound" / "run.json")
+    assert record.system.component("a").parameters["F_P"] == 0.25
+    assert record.system.component("b").parameters["ma"] == 1.5 and record.parameter("b.ma").source == "ssp"

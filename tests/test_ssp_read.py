@@ -92,3 +92,45 @@ def test_not_a_zip(tmp_path):
     path.write_text("not a zip", encoding="utf-8")
     with pytest.raises(SspError, match="not an SSP archive"):
         read_ssp(path)
+
+
+# ---------------------------------------------------------------------------------- Gauss-Seidel order
+
+def _system(names, connections, feedthrough: set[str]):
+    """A system description of fake components: each has input ``u`` and output ``y``; ``y``
+    depends directly on ``u`` for the components in ``feedthrough``, on nothing for the others."""
+    from types import SimpleNamespace
+
+    from orchestrator.ssp import SspComponent, SspSystem
+    from orchestrator.system_description import ComponentDescription, SystemDescription
+
+    components = []
+    for name in names:
+        u = SimpleNamespace(name="u", causality="input")
+        y = SimpleNamespace(name="y", causality="output")
+        model = SimpleNamespace(modelVariables=[u, y], fmiVersion="2.0",
+                                outputs=[SimpleNamespace(variable=y, dependencies=[u] if name in feedthrough else [])])
+        components.append(ComponentDescription(name=name, source=f"resources/{name}.fmu", sha256="0", model=model))
+    links = tuple(SspConnection(a, "y", b, "u") for a, b in connections)
+    ssp = SspSystem(path=Path("S.ssp"), sha256="0", name="S",
+                    components=tuple(SspComponent(n, f"resources/{n}.fmu") for n in names), connections=links,
+                    parameters=())
+    return SystemDescription(path=Path("S.ssp"), stamp=(0, 0), ssp=ssp, components=tuple(components))
+
+
+def test_gauss_seidel_order_follows_the_connections():
+    from orchestrator.system import gauss_seidel_order
+
+    chain = _system(["c3", "c1", "c2"], [("c1", "c2"), ("c2", "c3")], feedthrough={"c1", "c2", "c3"})
+    assert gauss_seidel_order(chain) == ("c1", "c2", "c3")
+
+
+def test_a_loop_is_broken_where_no_output_feeds_through():
+    from orchestrator.system import gauss_seidel_order
+
+    loop = [("ctrl", "plant"), ("plant", "ctrl")]
+    assert gauss_seidel_order(_system(["ctrl", "plant"], loop, feedthrough={"ctrl"})) == ("plant", "ctrl")
+    assert gauss_seidel_order(_system(["ctrl", "plant"], loop, feedthrough={"ctrl", "plant"})) == ("ctrl", "plant")
+    # a loop behind a component feeding it: the feeder first, then the loop's break
+    fed = _system(["a", "b", "src"], [("src", "a"), ("a", "b"), ("b", "a")], feedthrough={"a"})
+    assert gauss_seidel_order(fed) == ("src", "b", "a")
