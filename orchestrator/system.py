@@ -108,6 +108,7 @@ class SystemInstance:
         self.order = step_order(description, master)
         self.links = [_Link(c.start_component, c.start_connector, c.end_component, c.end_connector)
                       for c in description.ssp.connections]
+        self._feeding = {name: [link for link in self.links if link.target == name] for name in self.names}
         self.instances: dict[str, Any] = {}
         self._stack: contextlib.ExitStack | None = None
         self._folder: Path | None = None
@@ -256,7 +257,7 @@ class SystemInstance:
         self._before, self._now, self._h_before = start, newest, h
 
     def _give_inputs(self, name: str, start: dict, newest: dict, stepped: set, h: float) -> None:
-        links = [link for link in self.links if link.target == name]
+        links = self._feeding[name]
         if not links:
             return
         instance = self.instances[name]
