@@ -1,5 +1,6 @@
-"""What case validation reads from an ``.ssp``: :class:`SystemDescription`, the system seen as
-one model whose variables are named ``component.variable``.
+"""What case validation reads from an ``.ssp``: :class:`SystemDescription`, one model of it.
+
+The system is seen as one model whose variables are named ``component.variable``.
 
 The system description answers what case validation and run.json ask of an
 :class:`~orchestrator.case.FmuDescription` (``model.modelVariables``, ``variables``,
