@@ -229,7 +229,8 @@ def read_ssp(path: str | Path) -> SspSystem:
     """Read the ``.ssp`` at ``path`` (module docstring); :class:`SspError` when it cannot be run."""
     path = Path(path)
     try:
-        digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        with open(path, "rb") as stream:
+            digest = hashlib.file_digest(stream, "sha256").hexdigest()
     except FileNotFoundError:
         raise SspError(f"{path}: file not found") from None
     except OSError as exc:
