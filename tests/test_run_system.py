@@ -307,3 +307,16 @@ def test_a_binding_on_an_input_is_recorded(pendulum, tmp_path):
     record = read_run_record(tmp_path / "out_bound" / "run.json")
     assert record.system.component("a").parameters["F_P"] == 0.25
     assert record.system.component("b").parameters["ma"] == 1.5 and record.parameter("b.ma").source == "ssp"
+
+
+@pytest.mark.slow        # one more FMU build (InputPendulum's FMI 3.0 twin, ~15-20 s)
+def test_an_fmi3_component_gives_the_same_run(pendulum, mechanism_fmus, runs, tmp_path):
+    """b as the FMI 3.0 build of the same model: the same C model behind another FMI layer, so
+    the system's rows equal the all-FMI 2.0 run's exactly (0: same arithmetic), and run.json
+    records each component's FMI version."""
+    pendulum3 = mechanism_fmus.get(MECHANISM, "native3")
+    ssp = write_ssp(tmp_path / "Mixed.ssp", {"a": pendulum, "b": pendulum3}, COMPONENTS, CONNECTIONS, ssv=BOUND)
+    rows = run(tmp_path, ssp, name="mixed")
+    assert_allclose(rows, runs["jacobi"], rtol=0, atol=0)
+    record = read_run_record(tmp_path / "out_mixed" / "run.json")
+    assert [c.fmi_version for c in record.system.components] == ["2.0", "3.0"]
