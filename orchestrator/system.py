@@ -9,8 +9,10 @@ error is its own FMI message prefixed with ``component 'name' (its FMU)``.
 
 Set-up, per component in the SSD's order: extract its FMU from the archive (into a temporary
 folder removed on leaving), instantiate it (instance name = component name), set up the
-experiment, set the SSP's parameter bindings, then the case's start values; initialise every
-component; read every connected output (``y(t0)``).
+experiment, set the SSP's parameter bindings, then the case's start values; every component
+enters initialisation mode, where the connections are settled as libcosim and Ecos settle
+them (:meth:`SystemInstance._settle`); every component leaves it; every connected output is
+read (``y(t0)``).
 
 One macro step ``t_k -> t_{k+1} = t_k + h`` (``do_step``; ``y_k``: a connection's source
 output at ``t_k``):
@@ -198,15 +200,36 @@ class SystemInstance:
             self._named(name, lambda: instance.set_inputs(t, derivatives=False))
 
     def enter_initialization_mode(self) -> None:
+        """Every component enters initialisation mode; then the connections are settled there."""
         for name, instance in self.instances.items():
             self._named(name, instance.enter_initialization_mode)
+        self._readers = {name: self._connected_reader(name) for name in self.names}
+        self._settle()
+
+    def _settle(self) -> None:
+        """Settle the connections in initialisation mode, as libcosim and Ecos do: N rounds (N
+        components) of reading every connected output, each round after the first setting every
+        connected input to the previous round's values.  A chain of direct feed-through shorter
+        than N reaches its fixed point, so the components leave initialisation with inputs
+        consistent with their sources (a motor's initial torque with the crank's initial speed)."""
+        values: dict[str, float] = {}
+        for round_ in range(len(self.names)):
+            if round_:
+                for name in self.names:
+                    links = self._feeding[name]
+                    if links:
+                        instance = self.instances[name]
+                        self._named(name, lambda: instance.set_values([(link.input, values[link.key])
+                                                                        for link in links]))
+            values = {}
+            for name in self.names:
+                values.update(self._named(name, self._readers[name]))
 
     def exit_initialization_mode(self) -> None:
         for name, instance in self.instances.items():
             self._named(name, instance.exit_initialization_mode)
-        self._readers = {name: self._connected_reader(name) for name in self.names}
         for name in self.names:
-            self._now.update(self._readers[name]())
+            self._now.update(self._named(name, self._readers[name]))
 
     def _connected_reader(self, name: str) -> Callable[[], dict[str, float]]:
         outputs = sorted({link.output for link in self.links if link.source == name})

@@ -320,3 +320,44 @@ def test_an_fmi3_component_gives_the_same_run(pendulum, mechanism_fmus, runs, tm
     assert_allclose(rows, runs["jacobi"], rtol=0, atol=0)
     record = read_run_record(tmp_path / "out_mixed" / "run.json")
     assert [c.fmi_version for c in record.system.components] == ["2.0", "3.0"]
+
+
+def test_initial_connections_settled_as_libcosim_does(pendulum, mechanism_fmus, tmp_path):
+    """Connections settled in initialisation mode: the press's motor torque (30 N.m at t = 0,
+    not 0) drives a's arm, a's joint reaction O_Fx (direct feed-through of that torque) pushes
+    b's slider, b's arm rate turns a's rod.  libcosim sets the connected inputs in
+    initialisation mode until they settle; fourbar-run's Jacobi run gives the same rows (rows
+    matched by step number: both label a row with its step's end).  Reading the outputs only
+    after initialisation instead puts O_Fx 18 N off from the first step on."""
+    libcosim = pytest.importorskip("libcosimpy.CosimExecution", reason="libcosimpy is not installed")
+    from libcosimpy.CosimEnums import CosimVariableType
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy.CosimObserver import CosimObserver
+
+    press = mechanism_fmus.get("fourbar_press", "native")
+    components = {"press": {"motor_torque": "output"}, "a": {"tau_arm": "input", "tau_A": "input", "O_Fx": "output"},
+                  "b": {"F_P": "input", "omega2": "output"}}
+    connections = [("press.motor_torque", "a.tau_arm"), ("a.O_Fx", "b.F_P"), ("b.omega2", "a.tau_A")]
+    ssp = write_ssp(tmp_path / "Feed.ssp", {"press": press, "a": pendulum, "b": pendulum}, components, connections)
+    columns = ["a.O_Fx", "b.omega2"]
+    ours = run(tmp_path, ssp, name="feed", outputs=columns)
+    n = len(ours) - 1
+
+    log_output_level(CosimLogLevel.WARNING)
+    execution = libcosim.CosimExecution.from_ssp_file(str(ssp), round(STEP * 1e9))
+    observer = CosimObserver.create_time_series(buffer_size=n + 10)
+    execution.add_observer(observer=observer)
+    slots = []
+    for column in columns:
+        component, name = column.split(".")
+        index = execution.slave_index_from_instance_name(component)
+        ref = {v.name.decode(): v.reference for v in execution.slave_variables(index)}[name]
+        observer.start_time_series(index, ref, CosimVariableType.REAL)
+        slots.append((index, ref))
+    assert execution.step(n)
+    for i, (index, ref) in enumerate(slots, start=1):
+        _t, steps, values = observer.time_series_real_samples(index, ref, from_step=1, sample_count=n)
+        assert list(steps) == list(range(1, n + 1))
+        # same FMUs, same calls: equal to round-off at most (libcosim's integer-ns clock)
+        assert_allclose(ours[1:, i], values, rtol=0, atol=1e-12, err_msg=columns[i - 1])
+    assert abs(ours[0, 1]) > 1.0           # the feed-through carried a real torque at t = 0
