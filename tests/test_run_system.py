@@ -361,3 +361,10 @@ def test_initial_connections_settled_as_libcosim_does(pendulum, mechanism_fmus, 
         # same FMUs, same calls: equal to round-off at most (libcosim's integer-ns clock)
         assert_allclose(ours[1:, i], values, rtol=0, atol=1e-12, err_msg=columns[i - 1])
     assert abs(ours[0, 1]) > 1.0           # the feed-through carried a real torque at t = 0
+
+
+def test_a_component_that_is_not_an_fmu(pendulum, tmp_path, capsys):
+    ssp = write_ssp(tmp_path / "Broken.ssp", {"a": pendulum}, COMPONENTS, CONNECTIONS,
+                    extra={"resources/b.fmu": b"not a zip"})
+    err = refused(tmp_path, write_case(tmp_path, ssp), capsys)
+    assert "component 'b' (resources/b.fmu): not a readable FMU" in err
