@@ -33,6 +33,9 @@ __all__ = [
     "ExchangeSettings",
     "Experiment",
     "FmuDescription",
+    "MASTER_ALGORITHMS",
+    "MASTER_INPUTS",
+    "Master",
     "Noise",
     "RampEvent",
     "StepEvent",
@@ -197,6 +200,30 @@ class Noise:
         return {"seed": self.seed, "std": dict(self.std)}
 
 
+#: ``[master] algorithm``: how a system's components are stepped (orchestrator.system).
+MASTER_ALGORITHMS = ("jacobi", "gauss-seidel")
+#: ``[master] inputs``: a connected input held over the step, or extrapolated linearly.
+MASTER_INPUTS = ("hold", "extrapolate")
+
+
+@dataclass(frozen=True)
+class Master:
+    """How a system (``system = "X.ssp"``) is stepped: ``algorithm`` jacobi | gauss-seidel,
+    ``inputs`` hold | extrapolate, ``order`` the Gauss–Seidel order the case gave (empty: from
+    the connections, :func:`orchestrator.system.gauss_seidel_order`).  The macro step is
+    ``[experiment] step``."""
+
+    algorithm: str = "jacobi"
+    inputs: str = "hold"
+    order: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict:
+        data = {"algorithm": self.algorithm, "inputs": self.inputs}
+        if self.order:
+            data["order"] = list(self.order)
+        return data
+
+
 #: Most rows a run may write unless its case allows more (``[exchange] max_rows``,
 #: ``--max-rows``): 10 million rows, 28 hours at a 0.01 s step, about 1.4 GB of exchange.csv
 #: with six outputs.  A mistyped stop or step is refused before anything is written.
@@ -247,6 +274,11 @@ class Case:
     #: The input derivatives set at each step's start (``fmi2SetRealInputDerivatives``): 0 (inputs
     #: held over the step), 1 or 2 (``input_derivatives``; by default what the FMU accepts).
     input_derivative_order: int = 0
+    #: ``system``: the .ssp the case runs instead of one FMU (then ``fmu`` is the same path and
+    #: ``fmu_description`` an orchestrator.system_description.SystemDescription); None: one FMU.
+    system: Path | None = None
+    #: ``[master]``: how the system's components are stepped (systems only).
+    master: Master = Master()
 
     @property
     def fault_time(self) -> float | None:
@@ -283,6 +315,10 @@ class Case:
                 "exchange": self.exchange.as_dict()}
         if self.noise is not None:
             data["noise"] = self.noise.as_dict()
+        if self.system is not None:
+            del data["fmu"], data["fmi_type"]
+            data["system"] = str(self.system)
+            data["master"] = self.master.as_dict()
         if self.inputs:
             data["inputs"] = {name: signal.as_toml() for name, signal in self.inputs.items()
                               if signal.KIND != "derivative"}     # derived again from the position

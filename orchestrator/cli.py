@@ -41,9 +41,15 @@ FMU inputs are driven by the case's [inputs] table, one signal per input, e.g.
   # type = "step", "ramp", "table" (rows = [[t, u], ...]) or "csv" (file, time, column)
 set at each step's start (with their derivatives when the FMU can interpolate inputs) and
 written after the outputs in exchange.csv.
+A case may run a system of FMUs instead: system = "../build/X.ssp" (SSP 1.0) in place of
+fmu, variables named component.variable (motor.current, fourbar.omega2), and
+  [master]
+  algorithm = "jacobi"        # or "gauss-seidel" (order from the connections, or order = [...])
+  inputs = "hold"             # or "extrapolate" (input derivatives where a component accepts them)
+("Systems" in docs/orchestrator.md).
 Case-file keys: docs/orchestrator.md.
-One run writes into a folder at a time (a lock, DIR/.lock); a case file's fmu is native
-code this command loads, so run only case files you would run as programs.
+One run writes into a folder at a time (a lock, DIR/.lock); a case file's fmu (or the FMUs
+in its system) is native code this command loads, so run only case files you would run as programs.
 exit status: 0 finished, 1 run failed (or exchange.csv changed under the run), 2 usage or
 case-file error, another writer holding DIR, or a link at DIR/exchange.csv (nothing
 written), 130 interrupted (Ctrl-C), 143 terminated (SIGTERM), also during a step that does

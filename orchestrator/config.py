@@ -25,8 +25,8 @@ from typing import Any, Mapping
 from fourbar_common import Drawing
 from fourbar_common.contract.layout import EXCHANGE
 
-from .case import (DEFAULT_OUTPUTS, Case, Event, ExchangeSettings, Experiment, FmuDescription, Noise,
-                   RampEvent, StepEvent, Value, describe_fmu)
+from .case import (DEFAULT_OUTPUTS, MASTER_ALGORITHMS, MASTER_INPUTS, Case, Event, ExchangeSettings, Experiment,
+                   FmuDescription, Master, Noise, RampEvent, StepEvent, Value, describe_fmu)
 from .input_signals import InputSignal, derivative_order, driver_rates, parse_inputs
 from .limits import MAX_STEP, MIN_REALTIME_FACTOR, UNIT_LIMITS
 from .validation import ConfigError, ProblemReporter, kind_of, name_from_file, read_toml
@@ -34,7 +34,8 @@ from .validation import ConfigError, ProblemReporter, kind_of, name_from_file, r
 __all__ = ["apply_overrides", "load_case"]
 
 _TOP_KEYS = ("name", "description", "fmu", "fmi_type", "experiment", "parameters", "events", "outputs", "noise",
-             "exchange", "inputs", "input_derivatives")
+             "exchange", "inputs", "input_derivatives", "system", "master")
+_MASTER_KEYS = ("algorithm", "inputs", "order")
 #: The FMI 2.0 interfaces a case may run (``fmi_type``), as FMPy names them.
 FMI_TYPES = ("CoSimulation", "ModelExchange")
 _EXPERIMENT_KEYS = ("start", "stop", "step", "tolerance")
@@ -154,6 +155,7 @@ class _Validator(ProblemReporter):
         self.problems: list[str] = []
         self.description: FmuDescription | None = None   # when the FMU could be read
         self.fmu_name = "the FMU"
+        self.system_path: Path | None = None    # ``system = "X.ssp"``: the archive, when named
 
     # -- helpers ------------------------------------------------------------------
     def field(self, name: str) -> str:
@@ -190,13 +192,15 @@ class _Validator(ProblemReporter):
         self.given_twice(inputs)
         order = self.input_derivatives(inputs, fmi_type)
         exchange = self.exchange(experiment, recorded + tuple(n for n in inputs if n not in recorded))
+        master = self.master()
+        self.connected(parameters, events, inputs)
         if self.problems:
             raise ConfigError(self.label, self.problems)
         return Case(name=name, fmu=fmu, experiment=experiment, parameters=parameters, events=events,
                     outputs=outputs, drawing=drawing, record_drawing=record_drawing, noise=noise, exchange=exchange, description=description,
                     source=self.source, fmu_description=self.description, fmi_type=fmi_type,
                     overridden=frozenset(n for n in parameters if f"parameters.{n}" in self.origins),
-                    inputs=inputs, input_derivative_order=order)
+                    inputs=inputs, input_derivative_order=order, system=self.system_path, master=master)
 
     def inputs(self, experiment: Experiment | None) -> dict[str, InputSignal]:
         """``[inputs]``: a signal for each named input of the FMU (orchestrator.input_signals),
@@ -273,8 +277,15 @@ class _Validator(ProblemReporter):
 
     def fmu(self) -> Path:
         value = self.raw.get("fmu")
+        if "system" in self.raw:
+            if value is not None:
+                self.problem("system", self.raw["system"],
+                             f"the case also names {self.field('fmu')} = {value!r}; expected exactly one of fmu (one FMU) "
+                             f"and system (an .ssp file)")
+            return self.system()
         if value is None:
-            self.missing("fmu", "the path of an FMI 2.0 or 3.0 FMU, relative to the case file")
+            self.missing("fmu", "the path of an FMI 2.0 or 3.0 FMU, relative to the case file (or system = the path "
+                                "of an .ssp file)")
             return Path()
         if not isinstance(value, str) or not value:
             self.problem("fmu", value, f"expected a path string, got {kind_of(value)}")
@@ -301,6 +312,84 @@ class _Validator(ProblemReporter):
         self.fmu_name = path.name
         self.binary(value, path)
         return path
+
+    def system(self) -> Path:
+        """``system``: an SSP 1.0 archive (.ssp) run instead of one FMU (orchestrator.system)."""
+        from .ssp import SspError
+        from .system_description import SystemDescription, describe_system
+
+        value = self.raw.get("system")
+        if not isinstance(value, str) or not value:
+            self.problem("system", value, f"expected the path of an .ssp file, got {kind_of(value)}")
+            return Path()
+        path = (self.base_dir / value).resolve()
+        self.system_path = path
+        if not path.is_file():
+            self.problem("system", value, f"file not found (resolved to {path}); build it with "
+                                          f"`python build_fmu.py --system NAME`; variables not checked")
+            return path
+        known = self.known if isinstance(self.known, SystemDescription) else None
+        try:
+            description = describe_system(path, known)
+        except SspError as exc:
+            self.problem("system", value, f"cannot be run: {exc}; variables not checked")
+            return path
+        from fmpy import platform as here
+
+        for component in description.components:
+            if here not in component.platforms:
+                self.problem("system", value, f"component {component.name!r} ({component.source}) has no binary for "
+                                              f"this platform ({here}); it has: "
+                                              f"{', '.join(component.platforms) or 'no binaries'}")
+        self.description = description
+        self.fmu_name = path.name
+        return path
+
+    def master(self) -> Master:
+        """``[master]``: the algorithm, the input treatment and the Gauss–Seidel order of a system."""
+        table = self.table("master")
+        if table is None:
+            return Master()
+        if self.system_path is None:
+            self.problem("master", table, "a [master] table steps the components of a system; this case runs one "
+                                          "FMU (fmu = ...); expected system = \"X.ssp\" or no [master]")
+            return Master()
+        self.unknown_keys(table, _MASTER_KEYS, "master")
+        algorithm = table.get("algorithm", "jacobi")
+        if algorithm not in MASTER_ALGORITHMS:
+            self.problem("master.algorithm", algorithm, f"expected one of {', '.join(map(repr, MASTER_ALGORITHMS))}")
+            algorithm = "jacobi"
+        inputs = table.get("inputs", "hold")
+        if inputs not in MASTER_INPUTS:
+            self.problem("master.inputs", inputs, f"expected one of {', '.join(map(repr, MASTER_INPUTS))}")
+            inputs = "hold"
+        order: tuple[str, ...] = ()
+        if "order" in table:
+            given = table["order"]
+            names = self.description.ssp.component_names if self.description is not None else None
+            if algorithm != "gauss-seidel":
+                self.problem("master.order", given, "an order is for algorithm = \"gauss-seidel\"; Jacobi steps "
+                                                    "every component from the same values")
+            elif not isinstance(given, list) or not all(isinstance(n, str) for n in given):
+                self.problem("master.order", given, "expected an array of component names")
+            elif names is not None and sorted(given) != sorted(names):
+                self.problem("master.order", given, f"expected each component of {self.fmu_name} once: "
+                                                    f"{', '.join(names)}")
+            else:
+                order = tuple(given)
+        return Master(algorithm=algorithm, inputs=inputs, order=order)
+
+    def connected(self, parameters: dict, events: tuple, inputs: dict) -> None:
+        """In a system, an input fed by a connection is the master's: no case value may set it."""
+        connections = getattr(self.description, "connected_inputs", None)
+        if not connections:
+            return
+        used = [(f"parameters.{n}", n) for n in parameters] + [(f"inputs.{n}", n) for n in inputs]
+        used += [(f"events[{i}].variable", e.variable) for i, e in enumerate(events)]
+        for where, name in used:
+            if name in connections:
+                self.problem(where, name, f"{name} is fed by the connection {connections[name]} of {self.fmu_name}; "
+                                          f"expected an unconnected input or a parameter")
 
     def fmi_type(self) -> str:
         """``fmi_type``: the interface the run uses; by default co-simulation when the FMU offers it."""
@@ -377,6 +466,15 @@ class _Validator(ProblemReporter):
         if self.md is None:
             return None
         var = self.variables.get(name)
+        if var is None and self.system_path is not None:
+            component = name.partition(".")[0]
+            names = self.description.ssp.component_names
+            if "." not in name or component not in names:
+                close = difflib.get_close_matches(component, names, n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+                self.problem(where, shown, f"{self.fmu_name} has no component {component!r} (its components: "
+                                           f"{', '.join(names)}); expected component.variable{hint}")
+                return None
         if var is None:
             close = difflib.get_close_matches(name, self.variables, n=1)
             hint = f"; did you mean {close[0]!r}?" if close else ""

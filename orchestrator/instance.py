@@ -40,6 +40,14 @@ class Fmi2CoSimulation(CoSimulation, Fmi2Instance):
             raise self._failure(f"fmi2SetRealInputDerivatives(order {order}: {shown}) at t = {format_time(t)} s",
                                 exc.status, mark) from None
 
+    def set_real_input_derivatives(self, names: Sequence[str], values: Sequence[float], order: int = 1) -> None:
+        """``fmi2SetRealInputDerivatives`` of the Real inputs ``names`` (order ``order``), for the
+        step that starts next (a system's extrapolated connections, orchestrator.system)."""
+        vrs = [self.variables[n].valueReference for n in names]
+        shown = ", ".join(f"{n} = {v!r}" for n, v in zip(names, values))
+        self._call(f"fmi2SetRealInputDerivatives(order {order}: {shown})", self._fmu.setRealInputDerivatives,
+                   vrs, [order] * len(vrs), list(values))
+
     @staticmethod
     def _fmpy_class() -> type:
         from fmpy.fmi2 import FMU2Slave

@@ -57,6 +57,7 @@ from fourbar_common.contract.layout import DIAGNOSIS, DIAGNOSIS_FOLDER, MONITOR_
 from fourbar_common.contract.run_record import (SCHEMA_VERSION, ParameterStart, RecordedExchange, RecordedExperiment,
                                                RecordedFmu, RecordedInput, RecordedNoise, RecordedWriter, RunRecord,
                                                write_run_record)
+from fourbar_common.contract.system_record import RecordedComponent, RecordedConnection, RecordedSystem
 
 from .case import Case, RampEvent, StepEvent, Value
 from .config import apply_overrides, load_case
@@ -248,6 +249,40 @@ def _parameter_starts(case: Case) -> tuple[ParameterStart, ...]:
     return tuple(starts)
 
 
+def _system_record(case: Case, parameters: tuple[ParameterStart, ...]) -> RecordedSystem:
+    """run.json's ``system``: the archive, the master, each component's FMU and effective parameters."""
+    from .system import step_order
+
+    described = case.fmu_description
+    ssp = described.ssp
+    effective: dict[str, dict] = {}
+    for p in parameters:
+        component, _, variable = p.name.partition(".")
+        effective.setdefault(component, {})[variable] = p.start
+    for bound in ssp.parameters:     # a binding may set an (unconnected) input's start value too
+        if bound.name not in case.parameters:
+            kind = described.variables[bound.name].type
+            effective.setdefault(bound.component, {})[bound.variable] = _bound_value(kind, bound.value)
+    for name, value in case.parameters.items():
+        component, _, variable = name.partition(".")
+        effective.setdefault(component, {})[variable] = value
+    components = tuple(
+        RecordedComponent(name=c.name, source=c.source, sha256=c.sha256,
+                          model_identifier=c.model.coSimulation.modelIdentifier, model_name=c.model.modelName,
+                          fmi_version=c.fmi_version, guid=c.model.guid, parameters=effective.get(c.name, {}))
+        for c in described.components)
+    master = case.master
+    order = step_order(described, master)
+    return RecordedSystem(path=str(case.system), sha256=ssp.sha256, name=ssp.name, algorithm=master.algorithm,
+                          inputs=master.inputs, step=case.experiment.step, order=tuple(order), components=components,
+                          connections=tuple(RecordedConnection(c.source, c.target) for c in ssp.connections))
+
+
+def _bound_value(kind: str, value: Value) -> Value:
+    """An SSP binding's value as the variable's type (a Real bound as an Integer is a float)."""
+    return float(value) if kind == "Real" else value
+
+
 class _Run:
     def __init__(self, case: Case, out_dir: Path, progress: bool, wall0: float):
         self.case = case
@@ -288,13 +323,14 @@ class _Run:
         described = case.fmu_description      # set by the validation run_case just did
         md = described.model
         exp, exchange = case.experiment, case.exchange
+        parameters = _parameter_starts(case)
         return RunRecord(
             status="running", run_id=uuid.uuid4().hex, case=case.name,
             case_file=str(case.source) if case.source is not None else None,
             description=case.description,
             fmu=RecordedFmu(path=str(case.fmu), guid=md.guid, model_name=md.modelName, fmi_type=case.fmi_type),
             experiment=RecordedExperiment(start=exp.start, stop=exp.stop, step=exp.step, tolerance=exp.tolerance),
-            parameters=_parameter_starts(case),
+            parameters=parameters,
             events=tuple(case.events),
             fault_time=case.fault_time,
             outputs=tuple(case.columns),
@@ -308,6 +344,7 @@ class _Run:
             rows_written=0, last_time=None, started_at=_now(), updated_at=None, finished_at=None,
             wall_time_s=0.0, error=None,
             writer=RecordedWriter(pid=os.getpid(), host=socket.gethostname(), heartbeat_s=HEARTBEAT_INTERVAL),
+            system=_system_record(case, parameters) if case.system is not None else None,
         )
 
     def _write_record(self, final: bool = False) -> None:
@@ -370,7 +407,7 @@ class _Run:
         try:
             with InterruptFlag() as flag:
                 try:
-                    with instance_for(self.case.fmu_description, self.case.name, fmi_type=self.case.fmi_type) as fmu:
+                    with self._instance(instance_for) as fmu:
                         self._initialize_in_worker(fmu, flag)   # refused: StartValuesRefused, nothing written
                         flag.check()               # a signal while the FMU loaded: nothing written
                         self._start_outputs()
@@ -406,6 +443,14 @@ class _Run:
         if stopped_by is not None:
             raise RunInterrupted(result, stopped_by)
         return result
+
+    def _instance(self, instance_for):
+        """The FMU instance, or the :class:`~orchestrator.system.SystemInstance` of a system case."""
+        if self.case.system is not None:
+            from .system import SystemInstance
+
+            return SystemInstance(self.case.fmu_description, self.case.master, self.case.name)
+        return instance_for(self.case.fmu_description, self.case.name, fmi_type=self.case.fmi_type)
 
     def _stop_message(self, signum: int) -> str:
         """'interrupted by Ctrl-C at t = 12.3 s', 'terminated by SIGTERM before the run started', ..."""

@@ -37,6 +37,7 @@ from .json_files import (JsonFileError, is_int, is_number, kind_of, parse_json, 
                          write_json_file)
 from .layout import RUN_RECORD
 from .problems import ContractError, Problem
+from .system_record import RecordedSystem
 
 __all__ = [
     "PARAMETER_SOURCES",
@@ -63,8 +64,8 @@ READABLE_SCHEMAS = (1, 2)
 #: ``status``: ``running`` while the writer lives, then one of the other three.
 RUN_STATUSES = ("running", "finished", "failed", "interrupted")
 #: Where a parameter's start value came from (``unknown``: a schema 1 record).
-PARAMETER_SOURCES = ("case", "set", "fmu", "unknown")
-_WRITTEN_SOURCES = ("case", "set", "fmu")
+PARAMETER_SOURCES = ("case", "set", "fmu", "ssp", "unknown")
+_WRITTEN_SOURCES = ("case", "set", "fmu", "ssp")
 _PARAMETER_TYPES = ("Real", "Integer", "Enumeration", "Boolean", "String")
 _VARIABILITIES = ("fixed", "tunable")
 
@@ -255,6 +256,8 @@ class RunRecord:
     inputs: tuple[RecordedInput, ...] = ()
     #: The order of the input derivatives set at each step's start (0: inputs held over the step).
     input_derivatives: int = 0
+    #: The system of FMUs a system run ran (fourbar_common.contract.system_record); None: one FMU.
+    system: RecordedSystem | None = None
     schema: int = SCHEMA_VERSION
 
     # -- what readers ask -------------------------------------------------------------
@@ -305,7 +308,7 @@ class RunRecord:
         schema 1 file is read-only (ValueError): it lacks what schema 2 requires."""
         if self.schema != SCHEMA_VERSION:
             raise ValueError(f"a schema {self.schema} record is read-only; only schema {SCHEMA_VERSION} is written")
-        return {
+        data = {
             "schema": SCHEMA_VERSION, "status": self.status, "run_id": self.run_id, "case": self.case,
             "case_file": self.case_file, "description": self.description,
             "fmu": self.fmu.to_json() if self.fmu is not None else None,
@@ -324,7 +327,9 @@ class RunRecord:
             "drawing": self.drawing.to_json() if self.drawing is not None else None,
             "inputs": {i.name: dict(i.signal) for i in self.inputs},
             "input_derivatives": self.input_derivatives,
+            "system": self.system.to_json() if self.system is not None else None,   # null: one FMU
         }
+        return data
 
     @classmethod
     def from_json(cls, data: Any, source: str = RUN_RECORD) -> "RunRecord":
@@ -477,8 +482,19 @@ class _Parser:
             inputs=self.inputs(data),
             input_derivatives=self.get(data, "input_derivatives", "", lambda v: self.is_int(v) and 0 <= v <= 2,
                                             "an integer 0, 1 or 2", default=0) if "input_derivatives" in data else 0,
+            system=self.system(data),
             schema=schema,
         )
+
+    def system(self, data: dict) -> RecordedSystem | None:
+        """The optional ``system`` (only system runs have it)."""
+        value = data.get("system")
+        if value is None:
+            return None
+        try:
+            return RecordedSystem.from_json(value)
+        except ValueError as exc:
+            raise self.error("system", str(exc)) from None
 
     def drawing(self, data: dict) -> Drawing | None:
         """The optional ``drawing`` (absent in records written before drawings: None)."""
