@@ -27,6 +27,7 @@ examples:
   python build_fmu.py --mechanism slider_crank      # build/SliderCrank.fmu and SliderCrankNative.fmu
   python build_fmu.py --mechanism my_machine.toml   # your own mechanism file (docs/mechanisms.md)
   python build_fmu.py --list               # the shipped mechanisms
+  python build_fmu.py --component dc_motor # build/DCMotorNative.fmu and DCMotorNative3.fmu (docs/components.md)
   python build_fmu.py --only native        # just the native FMUs (FMI 2.0 and 3.0)
   python build_fmu.py --only native --fmi 3 # just build/FourBarNative3.fmu (FMI 3.0)
   CC=clang python build_fmu.py             # choose the C compiler
@@ -130,6 +131,10 @@ def _main(argv=None) -> int:
     parser.add_argument("--mechanism", default="fourbar", metavar="NAME|PATH",
                         help="a mechanism shipped in fmu_src/mechanisms/ or the path of a mechanism file "
                              "(default: %(default)s)")
+    parser.add_argument("--component", metavar="NAME|PATH",
+                        help="build a component instead: a block file shipped in fmu_src/components/ or a path "
+                             "(docs/components.md): build/<Name>Native.fmu and build/<Name>Native3.fmu (--out: the "
+                             "FMI 2.0 one's path, the FMI 3.0 one beside it with 3 appended)")
     parser.add_argument("--list", action="store_true", help="list the shipped mechanisms and exit")
     parser.add_argument("--only", choices=("pythonfmu", "native"),
                         help="build just one of the two FMUs (default: both; native only if a C compiler exists)")
@@ -150,6 +155,8 @@ def _main(argv=None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:
         return int(exc.code or 0)
+    if args.component is not None:
+        return _component(args)
     from fmu_src.mechanism.description import MechanismError, load_mechanism, shipped_mechanisms
 
     if args.list:
@@ -195,6 +202,51 @@ def _main(argv=None) -> int:
             signum = signal_of(exc)
             print(f"build_fmu.py: {stop_reason(signum)}; no partial FMU was left", file=sys.stderr)
             return exit_code(signum)
+
+
+def _component(args) -> int:
+    """build_fmu.py --component: a block file's native FMUs (FMI 2.0 and/or 3.0)."""
+    from fmu_src.block.description import BlockError, load_block
+
+    try:
+        block = load_block(args.component)
+    except BlockError as exc:
+        print(f"build_fmu.py: error: {exc}", file=sys.stderr)
+        return 2
+    out2 = args.out or args.native_out or f"build/{block.name}Native.fmu"
+    named = (args.out or args.native_out) is not None
+    out3 = args.native3_out or (str(Path(out2).with_name(Path(out2).stem + "3.fmu")) if named
+                                else f"build/{block.name}Native3.fmu")
+    versions = (2, 3) if args.fmi == "all" else (int(args.fmi),)
+    targets = [(2, "--out", out2), (3, "--native3-out", out3)]
+    problems = [p for p in (_destination_problem(option, value, args.force, block.name)
+                            for version, option, value in targets if version in versions) if p]
+    for problem in problems:
+        print(f"build_fmu.py: error: {problem}", file=sys.stderr)
+    if problems:
+        return 2
+    from fmu_src.block_build import build_block_fmu_result
+    from fmu_src.native_build import CompilerNotFound
+
+    ok = True
+    for version, _, dest in targets:
+        if version not in versions:
+            continue
+        label = f"component FMU (FMI {version}.0)"
+        try:
+            result = build_block_fmu_result(block.source, Path(dest), fmi_version=version, validate=args.validate)
+        except BlockError as exc:
+            print(f"build_fmu.py: error: {exc}", file=sys.stderr)
+            return 2
+        except (CompilerNotFound, RuntimeError) as exc:
+            print(f"build_fmu.py: error: {label}: {exc}", file=sys.stderr)
+            return 1
+        except OSError as exc:
+            print(f"build_fmu.py: error: {label}: {_write_failure(dest, exc)}", file=sys.stderr)
+            return 1
+        ok &= _report(label, result.path, result.guid, result.problems, args.validate,
+                      f", binaries: {', '.join(result.platforms)}")
+    return 0 if ok else 1
 
 
 def _build(args) -> int:
