@@ -1,5 +1,7 @@
-"""Build a component's native FMU (``<Name>Native.fmu``, FMI 2.0; ``<Name>Native3.fmu``, FMI 3.0;
-each co-simulation and model exchange) from its block file (docs/components.md).
+"""Build a component's native FMUs (FMI 2.0 and 3.0, CS and ME) from its block file.
+
+``<Name>Native.fmu`` (FMI 2.0) and ``<Name>Native3.fmu`` (FMI 3.0), each co-simulation and model
+exchange, from a block file (docs/components.md).
 
 The block is read and derived (``block.derivation``), printed as C (``block.c_code``) and put next
 to the FMI layers and the Runge-Kutta driver the mechanisms' native FMUs use (fmu_src/native/:

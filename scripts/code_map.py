@@ -40,6 +40,7 @@ PACKAGES = (
     Package("fmu_src/mechanism_model", 0, "the pythonfmu FMU's run-time (numpy, scipy); reached only through FMI"),
     Package("fmu_src", 1, "the mechanical part, build time: derivation (sympy), code generation, FMU packaging"),
     Package("fmu_src/mechanism", 1, "a mechanism file read as data, checked, derived"),
+    Package("fmu_src/block", 1, "a component's block file read as data, derived, printed as C"),
     Package("orchestrator", 1, "the data part: case files, the FMI run loop, the exchange file"),
     Package("monitor", 1, "the analysis part: period, forecast, detectors, alarm"),
     Package("view", 1, "the live page and animations; reads a run folder's files only"),

@@ -1,4 +1,6 @@
-/* A component's model behind the shared FMI layers (model.h beside this file).  The equations are
+/* A component's model (model.h beside this file): what every block does alike.
+ *
+ * Behind the shared FMI layers; the equations are
  * generated (equations.c: f, y and their Jacobians); this file holds what every block does alike:
  * parameters checked and used as set (a tunable parameter changed between steps applies at the
  * next step, in Model Exchange at the next evaluation), the co-simulation step (the states

@@ -1,5 +1,6 @@
-/* A component's model (a block file's, fmu_src/block/) behind the same FMI layers as the
- * mechanisms' (fmi2Functions.c, fmi3/fmi3Functions.c, fmi_layer.c): this header declares what
+/* A component's model behind the mechanisms' FMI layers: the interface of ../model.h.
+ *
+ * A block file's model (fmu_src/block/) behind the same FMI layers as the mechanisms' (fmi2Functions.c, fmi3/fmi3Functions.c, fmi_layer.c): this header declares what
  * fmu_src/native/model.h declares, so the layers compile against either; block.c implements it.
  * The model: states x integrated within a co-simulation step by rk.c (restarted at each step),
  * inputs u held or, with input derivatives, a polynomial over the step; outputs y(p, u, x) and
