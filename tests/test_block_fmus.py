@@ -132,14 +132,15 @@ def test_fmpy_validate_finds_no_problem(block_fmus, name, version):
     assert md.coSimulation is not None and md.modelExchange is not None
 
 
+@pytest.mark.parametrize("version", (2, 3))
 @pytest.mark.parametrize("model_exchange", (False, True), ids=("cs", "me"))
 @pytest.mark.parametrize("name", COMPONENTS)
-def test_fmusim_runs_each_component(block_fmus, name, model_exchange, tmp_path):
+def test_fmusim_runs_each_component(block_fmus, name, model_exchange, version, tmp_path):
     """fmusim (CS; ME with its CVode) runs every component from its defaults; the motor's run
     under constant inputs agrees with the closed form (CS_TOL in co-simulation, ME_TOL in model
     exchange)."""
     fmusim = fmusim_or_skip()
-    path, _ = block_fmus[name, 2]
+    path, _ = block_fmus[name, version]
     outputs = {"dc_motor": ("torque", "current", "omega_motor"), "pi_controller": ("voltage",),
                "speed_sensor": ("measured",)}[name]
     starts = {"dc_motor": {"V": 60.0, "omega_load": 6.0}, "pi_controller": {"measured": 6.0},
