@@ -10,8 +10,12 @@
 The mechanism is a description file (docs/mechanisms.md): a name shipped in
 fmu_src/mechanisms/ (default: fourbar, Table 1's linkage, giving FourBar.fmu) or a path.
 
-Usage: python build_fmu.py [--mechanism NAME|PATH] [--only {pythonfmu,native}] [--fmi {2,3,all}]
-                           [--out PATH] [--native-out PATH] [--native3-out PATH] [--force]
+A component (docs/components.md: a motor, a controller, a sensor) is a block file shipped in
+fmu_src/components/ or a path: --component NAME|PATH builds build/<Name>Native.fmu and
+build/<Name>Native3.fmu (native only; --out names the FMI 2.0 one).
+
+Usage: python build_fmu.py [--mechanism NAME|PATH | --component NAME|PATH] [--only {pythonfmu,native}]
+                           [--fmi {2,3,all}] [--out PATH] [--native-out PATH] [--native3-out PATH] [--force]
                            [--no-validate] [--list]
 """
 from __future__ import annotations
