@@ -358,7 +358,8 @@ int model_non_finite_values(ModelInstance *m, const char *function, const unsign
 int model_non_finite_states(ModelInstance *m, const char *function, const double *x, size_t n)
 {
     char a[40];
-    for (size_t i = 0; i < n && i < NX; i++)
+    const size_t n_states = NX;          /* a variable: NX may be 0 (no always-false comparison) */
+    for (size_t i = 0; i < n && i < n_states; i++)
         if (!isfinite(x[i])) {
             fail(m, "%s: the continuous state %s = %s: must be finite (nothing was set)", function,
                  NAMES[STATE_VRS[i]], real_text(a, sizeof a, x[i]));
