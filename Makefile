@@ -16,7 +16,7 @@ FMU_SOURCES := build_fmu.py $(wildcard fmu_src/*.py fmu_src/mechanism/*.py fmu_s
                fmu_src/mechanisms/*.toml fmu_src/native/*.[ch] fmu_src/native/fmi3/*.[ch])
 MECHANISMS  := $(basename $(notdir $(wildcard fmu_src/mechanisms/*.toml)))
 
-.PHONY: demo test check fmu mechanisms browser tbb benchmarks figures clean help
+.PHONY: demo test check fmu mechanisms components browser tbb benchmarks figures clean help
 
 help:
 	@echo "make demo       build the FMU, run Case 2 with orchestrator and monitor, print the verdict"
@@ -28,6 +28,7 @@ help:
 	@echo "make figures    compare the detection/accuracy figures quoted in README and docs with a fresh run"
 	@echo "make fmu        build $(FMU) and build/FourBarNative.fmu (when a C compiler exists)"
 	@echo "make mechanisms build the FMUs of every mechanism in fmu_src/mechanisms/ into build/"
+	@echo "make components build the native FMUs of every component in fmu_src/components/ into build/"
 	@echo "make browser    install Debian's chromium for the browser tests (make test does it)"
 	@echo "make tbb        install Debian's libtbb12, which Ecos (ecospy) needs, for the SSP tests (make test does it)"
 
@@ -54,6 +55,18 @@ $(MECH_STAMP): $(STAMP) $(FMU_SOURCES)
 	@touch $@
 
 mechanisms: $(MECH_STAMP)
+
+# Every shipped component's native FMUs (build/<Name>Native.fmu and <Name>Native3.fmu, from
+# fmu_src/components/*.toml: docs/components.md), rebuilt when a source changes.
+COMPONENTS  := $(basename $(notdir $(wildcard fmu_src/components/*.toml)))
+COMP_STAMP  := build/.components
+COMPONENT_SOURCES := $(FMU_SOURCES) $(wildcard fmu_src/block/*.py fmu_src/components/*.toml fmu_src/native/block/*.[ch])
+
+$(COMP_STAMP): $(STAMP) $(COMPONENT_SOURCES)
+	@for c in $(COMPONENTS); do $(BIN)/python build_fmu.py --component "$$c" || exit 1; done
+	@touch $@
+
+components: $(COMP_STAMP)
 
 demo: $(FMU)
 	$(BIN)/python scripts/demo.py --speedup $(DEMO_SPEED) $(if $(filter 0,$(VIEW)),--no-view,)
@@ -88,7 +101,7 @@ tbb:
 # finds every mechanism's FMUs in build/, built once here rather than once per worker
 # ($(MECH_STAMP) first: it builds $(FMU) too, in parallel with the other mechanisms).
 TEST_WORKERS ?= 2
-test: $(MECH_STAMP) $(FMU) browser tbb
+test: $(MECH_STAMP) $(COMP_STAMP) $(FMU) browser tbb
 	$(BIN)/python -m pytest -q $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist worksteal)
 
 check: $(FMU)

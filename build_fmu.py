@@ -13,8 +13,12 @@ fmu_src/mechanisms/ (default: fourbar, Table 1's linkage, giving FourBar.fmu) or
 A system of FMUs (docs/systems.md: a name in systems/ or a path) builds into one SSP 1.0 file,
 build/<Name>.ssp, holding every component's native FMI 2.0 FMU.
 
-Usage: python build_fmu.py [--mechanism NAME|PATH] [--only {pythonfmu,native}] [--fmi {2,3,all}]
-                           [--out PATH] [--native-out PATH] [--native3-out PATH] [--force]
+A component (docs/components.md: a motor, a controller, a sensor) is a block file shipped in
+fmu_src/components/ or a path: --component NAME|PATH builds build/<Name>Native.fmu and
+build/<Name>Native3.fmu (native only; --out names the FMI 2.0 one).
+
+Usage: python build_fmu.py [--mechanism NAME|PATH | --component NAME|PATH] [--only {pythonfmu,native}]
+                           [--fmi {2,3,all}] [--out PATH] [--native-out PATH] [--native3-out PATH] [--force]
                            [--no-validate] [--list]
        python build_fmu.py --system NAME|PATH [--out PATH] [--force] [--no-validate]
 """
@@ -33,6 +37,7 @@ examples:
   python build_fmu.py --list               # the shipped mechanisms and systems
   python build_fmu.py --system motor_fourbar        # build/MotorFourBar.ssp (SSP 1.0, docs/systems.md)
   python build_fmu.py --system my_bench.toml        # your own system file
+  python build_fmu.py --component dc_motor # build/DCMotorNative.fmu and DCMotorNative3.fmu (docs/components.md)
   python build_fmu.py --only native        # just the native FMUs (FMI 2.0 and 3.0)
   python build_fmu.py --only native --fmi 3 # just build/FourBarNative3.fmu (FMI 3.0)
   CC=clang python build_fmu.py             # choose the C compiler
@@ -139,6 +144,10 @@ def _main(argv=None) -> int:
     parser.add_argument("--system", metavar="NAME|PATH",
                         help="build a system of FMUs instead: a system shipped in systems/ or the path of a "
                              "system file (docs/systems.md), into build/<Name>.ssp (or --out)")
+    parser.add_argument("--component", metavar="NAME|PATH",
+                        help="build a component instead: a block file shipped in fmu_src/components/ or a path "
+                             "(docs/components.md): build/<Name>Native.fmu and build/<Name>Native3.fmu (--out: the "
+                             "FMI 2.0 one's path, the FMI 3.0 one beside it with 3 appended)")
     parser.add_argument("--list", action="store_true", help="list the shipped mechanisms and exit")
     parser.add_argument("--only", choices=("pythonfmu", "native"),
                         help="build just one of the two FMUs (default: both; native only if a C compiler exists)")
@@ -160,6 +169,12 @@ def _main(argv=None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:
         return int(exc.code or 0)
+    chosen = [f"--{name}" for name in ("mechanism", "component", "system") if getattr(args, name) is not None]
+    if len(chosen) > 1:
+        print(f"build_fmu.py: error: {' and '.join(chosen)} cannot be given together: one build at a time", file=sys.stderr)
+        return 2
+    if args.component is not None:
+        return _component(args)
     from fmu_src.mechanism.description import MechanismError, load_mechanism, shipped_mechanisms
 
     if args.list:
@@ -286,6 +301,51 @@ def _system_main(args) -> int:
         print(f"  {c.name}: {c.kind} {c.source} -> {c.resource} (GUID {c.guid})")
     print("  SystemStructure.ssd: " + ("SSP 1.0 schema: no problems" if args.validate else "validation skipped"))
     return 0
+
+
+def _component(args) -> int:
+    """build_fmu.py --component: a block file's native FMUs (FMI 2.0 and/or 3.0)."""
+    from fmu_src.block.description import BlockError, load_block
+
+    try:
+        block = load_block(args.component)
+    except BlockError as exc:
+        print(f"build_fmu.py: error: {exc}", file=sys.stderr)
+        return 2
+    out2 = args.out or args.native_out or f"build/{block.name}Native.fmu"
+    named = (args.out or args.native_out) is not None
+    out3 = args.native3_out or (str(Path(out2).with_name(Path(out2).stem + "3.fmu")) if named
+                                else f"build/{block.name}Native3.fmu")
+    versions = (2, 3) if args.fmi == "all" else (int(args.fmi),)
+    targets = [(2, "--out", out2), (3, "--native3-out", out3)]
+    problems = [p for p in (_destination_problem(option, value, args.force, block.name)
+                            for version, option, value in targets if version in versions) if p]
+    for problem in problems:
+        print(f"build_fmu.py: error: {problem}", file=sys.stderr)
+    if problems:
+        return 2
+    from fmu_src.block_build import build_block_fmu_result
+    from fmu_src.native_build import CompilerNotFound
+
+    ok = True
+    for version, _, dest in targets:
+        if version not in versions:
+            continue
+        label = f"component FMU (FMI {version}.0)"
+        try:
+            result = build_block_fmu_result(block.source, Path(dest), fmi_version=version, validate=args.validate)
+        except BlockError as exc:
+            print(f"build_fmu.py: error: {exc}", file=sys.stderr)
+            return 2
+        except (CompilerNotFound, RuntimeError) as exc:
+            print(f"build_fmu.py: error: {label}: {exc}", file=sys.stderr)
+            return 1
+        except OSError as exc:
+            print(f"build_fmu.py: error: {label}: {_write_failure(dest, exc)}", file=sys.stderr)
+            return 1
+        ok &= _report(label, result.path, result.guid, result.problems, args.validate,
+                      f", binaries: {', '.join(result.platforms)}")
+    return 0 if ok else 1
 
 
 def _build(args) -> int:

@@ -19,9 +19,13 @@ valgrind is absent, 1 when a check or valgrind failed, 2 when an FMU or a C comp
 ``--mechanism NAME`` checks that shipped mechanism's native FMUs instead (built here into a
 temporary folder; the hosts drive its L2, x2 and integrator, which every shipped one has);
 ``--mechanism all`` every shipped one.  ``--fmi 2`` or ``--fmi 3`` checks one layer only.
+``--component NAME`` checks a shipped component's FMI 2.0 native FMU (fmu_src/components/NAME.toml,
+built here; the host drives its first parameter that must not be negative, its first output and
+its integrator; a component without states is skipped: the host needs one); ``--component all``
+every shipped one.
 
 Usage: python benchmarks/native_valgrind.py [--fmi 2|3] [--fmu build/FourBarNative.fmu]
-           [--fmu3 build/FourBarNative3.fmu] [--mechanism slider_crank|all]
+           [--fmu3 build/FourBarNative3.fmu] [--mechanism slider_crank|all] [--component dc_motor|all]
 """
 from __future__ import annotations
 
@@ -40,14 +44,25 @@ sys.path.insert(0, str(REPO))
 from native_host import strict_host, strict_host3  # noqa: E402
 
 
-def _check_fmi2(fmu: Path, tmp: Path, compiler: str, valgrind: str) -> bool | None:
-    """The FMI 2.0 host on ``fmu``: True when it all holds, False when not, None when it cannot run."""
+def _component_variables(name: str) -> tuple[str, str, str]:
+    """The host's (tunable that -1 makes invalid, output, String) of a shipped component."""
+    from fmu_src.block.description import load_block
+
+    block = load_block(name)
+    tunable = next(p.name for p in block.parameters if p.positive or (p.minimum is not None and p.minimum >= 0))
+    return tunable, block.outputs[0].name, "integrator"
+
+
+def _check_fmi2(fmu: Path, tmp: Path, compiler: str, valgrind: str,
+                variables: tuple[str, str, str] | None = None) -> bool | None:
+    """The FMI 2.0 host on ``fmu`` (driving ``variables``, default strict_host.VARIABLES): True when
+    it all holds, False when not, None when it cannot run."""
     if not fmu.is_file():
         print(f"error: {fmu}: no such FMU (build it with: python build_fmu.py)", file=sys.stderr)
         return None
     exe = strict_host.compile_host(tmp, compiler)
     try:
-        target = strict_host.unpack(fmu, tmp / "fmu2")
+        target = strict_host.unpack(fmu, tmp / "fmu2", variables or strict_host.VARIABLES)
     except KeyError as exc:
         print(f"error: {fmu}: the strict host drives variables L2, x2 and integrator; it has no {exc}",
               file=sys.stderr)
@@ -145,6 +160,8 @@ def main(argv=None) -> int:
                         help="the FMI 3.0 native FMU (default: build/FourBarNative3.fmu)")
     parser.add_argument("--mechanism", help="a shipped mechanism (or 'all') whose native FMUs are built and checked "
                                             "instead")
+    parser.add_argument("--component", help="a shipped component (or 'all') whose FMI 2.0 native FMU is built and "
+                                            "checked instead")
     parser.add_argument("--fmi", choices=("2", "3"), help="check the FMI 2.0 or the FMI 3.0 layer only (default both)")
     args = parser.parse_args(argv)
     valgrind = shutil.which("valgrind")
@@ -159,6 +176,8 @@ def main(argv=None) -> int:
     versions = (2, 3) if args.fmi is None else (int(args.fmi),)
     results = []
     with tempfile.TemporaryDirectory(prefix="native_valgrind_") as tmp:
+        if args.component:
+            return _components(args.component, Path(tmp), compiler, valgrind)
         if args.mechanism:
             from fmu_src.mechanism.description import MechanismError, shipped_mechanisms
             # "all": the machines; a published benchmark (seconds of runs) only when named
@@ -190,6 +209,38 @@ def main(argv=None) -> int:
                 folder.mkdir(parents=True)
                 results.append(_check_fmi2(fmu2, folder, compiler, valgrind) if version == 2
                                else _check_fmi3(fmu3, fmu2, folder, compiler, valgrind))
+    if any(r is None for r in results):
+        return 2
+    return 0 if all(results) else 1
+
+
+def _components(which: str, tmp: Path, compiler: str, valgrind: str) -> int:
+    """--component: each named component's FMI 2.0 FMU under the strict host and valgrind."""
+    from fmu_src.block.description import BlockError, load_block, shipped_components
+    from fmu_src.block_build import build_block_fmu
+
+    names = shipped_components() if which == "all" else (which,)
+    if any(name not in shipped_components() for name in names):
+        print(f"error: --component {which!r}: not shipped (the shipped ones: {', '.join(shipped_components())}, "
+              f"or all)", file=sys.stderr)
+        return 2
+    results = []
+    for name in names:
+        print(f"== {name}")
+        if not load_block(name).states:
+            print("skipped: the strict FMI 2.0 host drives model exchange with 1 to 64 continuous states; this "
+                  "component has none")
+            continue
+        folder = tmp / f"component_{name}"
+        folder.mkdir()
+        try:
+            fmu = build_block_fmu(name, folder / "native.fmu", validate=False)
+        except (BlockError, RuntimeError) as exc:
+            print(f"error: the native FMU of {name} cannot be built: {exc}", file=sys.stderr)
+            return 2
+        work = folder / "fmi2"
+        work.mkdir()
+        results.append(_check_fmi2(fmu, work, compiler, valgrind, _component_variables(name)))
     if any(r is None for r in results):
         return 2
     return 0 if all(results) else 1

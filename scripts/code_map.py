@@ -41,6 +41,7 @@ PACKAGES = (
     Package("fmu_src", 1, "the mechanical part, build time: derivation (sympy), code generation, FMU packaging"),
     Package("fmu_src/mechanism", 1, "a mechanism file read as data, checked, derived"),
     Package("fmu_src/system", 1, "a system file read as data, checked against its components' FMUs, built into an SSP 1.0 file"),
+    Package("fmu_src/block", 1, "a component's block file read as data, derived, printed as C"),
     Package("orchestrator", 1, "the data part: case files, the FMI run loop, the exchange file"),
     Package("monitor", 1, "the analysis part: period, forecast, detectors, alarm"),
     Package("view", 1, "the live page and animations; reads a run folder's files only"),

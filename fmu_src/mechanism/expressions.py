@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     import sympy as sp
 
-__all__ = ["ExpressionError", "parse_expression", "check_expression", "FUNCTIONS", "CONSTANTS", "MAX_LENGTH",
+__all__ = ["ExpressionError", "ExpressionFunction", "parse_expression", "check_expression", "FUNCTIONS", "CONSTANTS", "MAX_LENGTH",
            "MAX_DEPTH", "MAX_EXPONENT", "MAX_LITERAL", "MAX_MAGNITUDE", "MAX_EXACT_BITS"]
 
 #: Longest expression text, characters.
@@ -80,7 +80,12 @@ class _Function:
     sympy_name: str
     value: Callable[..., float]
     arity: int
+    #: builds the sympy expression from the arguments' (None: ``sympy.<sympy_name>``)
+    build: Callable[..., "sp.Expr"] | None = None
 
+
+#: How another file format (a component's block file, fmu_src/block/) adds functions of its own.
+ExpressionFunction = _Function
 
 #: The functions an expression may call (all real-valued on their real domain).
 FUNCTIONS: Mapping[str, _Function] = {
@@ -99,30 +104,32 @@ FUNCTIONS: Mapping[str, _Function] = {
 CONSTANTS: Mapping[str, tuple[str, float]] = {"pi": ("pi", math.pi)}
 
 
-def check_expression(text: str, values: Mapping[str, float], names: str = "parameters") -> float:
+def check_expression(text: str, values: Mapping[str, float], names: str = "parameters",
+                     functions: Mapping[str, _Function] = FUNCTIONS) -> float:
     """The value of ``text`` at the parameters' ``values`` (name -> float, SI), after every check
     of the module doc, without sympy.  Raises :class:`ExpressionError` (and nothing else).
     ``names`` says what the names of ``values`` are, for the message of an unknown name."""
-    return _walk(text, values, None, names).value
+    return _walk(text, values, None, names, functions).value
 
 
 def parse_expression(text: str, symbols: Mapping[str, sp.Symbol], values: Mapping[str, float],
-                     names: str = "parameters") -> sp.Expr:
+                     names: str = "parameters", functions: Mapping[str, _Function] = FUNCTIONS) -> sp.Expr:
     """The sympy expression of ``text`` over the parameters ``symbols`` (name -> Symbol), checked
     at the parameters' ``values`` (name -> float, SI).  Raises :class:`ExpressionError` (and
     nothing else) for a text outside the grammar of the module doc or out of its bounds.
-    ``names`` says what the names of ``values`` are, for the message of an unknown name."""
-    _walk(text, values, None, names)          # every check first: sympy builds only what passed
+    ``names`` says what the names of ``values`` are, for the message of an unknown name;
+    ``functions`` the functions it may call (default FUNCTIONS; a block file adds some)."""
+    _walk(text, values, None, names, functions)          # every check first: sympy builds only what passed
     import sympy as sp
 
-    expr = _walk(text, values, symbols, names).expr
+    expr = _walk(text, values, symbols, names, functions).expr
     if expr.has(sp.zoo, sp.oo, sp.nan, sp.I) or expr.has(-sp.oo):
         raise ExpressionError("is not finite and real (division by an exact zero, or a complex value)")
     return expr
 
 
 def _walk(text: str, values: Mapping[str, float], symbols: Mapping[str, sp.Symbol] | None,
-          names: str = "parameters") -> _Node:
+          names: str = "parameters", functions: Mapping[str, _Function] = FUNCTIONS) -> _Node:
     if not isinstance(text, str):
         raise ExpressionError(f"expected text, got {type(text).__name__}")
     if len(text) > MAX_LENGTH:
@@ -145,7 +152,7 @@ def _walk(text: str, values: Mapping[str, float], symbols: Mapping[str, sp.Symbo
     except (RecursionError, MemoryError, ValueError) as exc:
         raise ExpressionError(f"cannot be parsed ({type(exc).__name__})") from None
     try:
-        return _Walker(text.strip(), values, symbols, names).node(tree.body, 1)
+        return _Walker(text.strip(), values, symbols, names, functions).node(tree.body, 1)
     except (RecursionError, MemoryError) as exc:
         raise ExpressionError(f"is too complex to read ({type(exc).__name__})") from None
 
@@ -167,8 +174,9 @@ class _Walker:
     expression from its checked children."""
 
     def __init__(self, text: str, values: Mapping[str, float], symbols: Mapping[str, sp.Symbol] | None,
-                 names: str = "parameters"):
+                 names: str = "parameters", functions: Mapping[str, _Function] = FUNCTIONS):
         self.text, self.values, self.symbols, self.names = text, values, symbols, names
+        self.functions = functions
         if symbols is not None:
             import sympy
             self.sp = sympy
@@ -190,7 +198,7 @@ class _Walker:
         if isinstance(node, ast.Call):
             return self.call(node, depth)
         raise ExpressionError(f"uses {self.describe(node)}, which an expression cannot contain (numbers, "
-                              f"parameters, + - * / **, parentheses and {', '.join(FUNCTIONS)} only)")
+                              f"parameters, + - * / **, parentheses and {', '.join(self.functions)} only)")
 
     def describe(self, node: ast.AST) -> str:
         segment = ast.get_source_segment(self.text, node)
@@ -220,7 +228,7 @@ class _Walker:
         if name in CONSTANTS:
             sympy_name, value = CONSTANTS[name]
             return _Node(None if self.symbols is None else getattr(self.sp, sympy_name), value, True, 64)
-        if name in FUNCTIONS:
+        if name in self.functions:
             raise ExpressionError(f"uses the function {name} without calling it")
         what = "a parameter" if self.names == "parameters" else f"one of its {self.names}"
         raise ExpressionError(f"uses {name}, which is not {what} ({self.names}: "
@@ -254,11 +262,11 @@ class _Walker:
 
     def call(self, node: ast.Call, depth: int) -> _Node:
         name = node.func.id if isinstance(node.func, ast.Name) else None
-        if name not in FUNCTIONS:
+        if name not in self.functions:
             what = name if name is not None else ast.get_source_segment(self.text, node.func)
             raise ExpressionError(f"calls {str(what)[:40]!r}, which is not one of the functions "
-                                  f"{', '.join(FUNCTIONS)}")
-        function = FUNCTIONS[name]
+                                  f"{', '.join(self.functions)}")
+        function = self.functions[name]
         if node.keywords or any(isinstance(a, ast.Starred) for a in node.args):
             raise ExpressionError(f"calls {name} with keyword or * arguments; give {function.arity} plain "
                                   f"argument{'s' if function.arity > 1 else ''}")
@@ -269,7 +277,8 @@ class _Walker:
         value = self.checked(node, lambda: function.value(*(a.value for a in args)))
         expr = None
         if self.symbols is not None:
-            expr = getattr(self.sp, function.sympy_name)(*(a.expr for a in args))
+            build = function.build or getattr(self.sp, function.sympy_name)
+            expr = build(*(a.expr for a in args))
         return _Node(expr, value, all(a.constant for a in args), sum(a.bits for a in args) + 1)
 
     def part(self, node: ast.AST) -> str:

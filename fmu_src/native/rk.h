@@ -17,8 +17,11 @@
 #include "equations.h"
 
 /* State dimension: the independent coordinates, their rates and each work output (at least 1:
-   C99 has no empty arrays; a mechanism with nothing to integrate carries one constant zero). */
+   C99 has no empty arrays; a mechanism with nothing to integrate carries one constant zero).  A
+   model whose equations.h defines RK_N (a component's: fmu_src/native/block/) keeps its own. */
+#ifndef RK_N
 #define RK_N MECH_ALLOC(2 * MECH_K + MECH_N_WORKS)
+#endif
 #define RK_MAX_STAGES 16         /* DOP853 with its three extra dense-output stages */
 #define RK_MAX_DENSE 7           /* DOP853's interpolator power */
 

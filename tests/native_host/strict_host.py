@@ -74,8 +74,9 @@ def compile_host(dest_dir: Path, compiler: str) -> Path:
     return exe
 
 
-def unpack(fmu: Path, dest_dir: Path) -> Target:
-    """Unpack ``fmu`` into ``dest_dir``; its linux64 binary, GUID, the value references of VARIABLES
+def unpack(fmu: Path, dest_dir: Path, variables: tuple[str, str, str] = VARIABLES) -> Target:
+    """Unpack ``fmu`` into ``dest_dir``; its linux64 binary, GUID, the value references of
+    ``variables`` (default VARIABLES; a component's: benchmarks/native_valgrind.py --component)
     and its number of continuous states."""
     from fmpy import read_model_description
 
@@ -86,7 +87,7 @@ def unpack(fmu: Path, dest_dir: Path) -> Target:
     by_name = {v.name: v.valueReference for v in md.modelVariables}
     library = dest_dir / "binaries" / "linux64" / f"{md.coSimulation.modelIdentifier}.so"
     return Target(root=dest_dir, library=library, guid=md.guid,
-                  value_references=tuple(by_name[name] for name in VARIABLES),  # type: ignore[arg-type]
+                  value_references=tuple(by_name[name] for name in variables),  # type: ignore[arg-type]
                   states=len(md.derivatives))
 
 

@@ -1,0 +1,590 @@
+/* A component's model (model.h beside this file): what every block does alike.
+ *
+ * Behind the shared FMI layers; the equations are
+ * generated (equations.c: f, y and their Jacobians); this file holds what every block does alike:
+ * parameters checked and used as set (a tunable parameter changed between steps applies at the
+ * next step, in Model Exchange at the next evaluation), the co-simulation step (the states
+ * integrated by rk.c from the step's start to its end, restarted at each step; the inputs held, or
+ * with derivatives from the host the polynomial u + u' (t - t0) + u'' (t - t0)^2 / 2), Model
+ * Exchange (the host's states and time), the directional derivatives (the exact Jacobians), and
+ * the FMU state's serialized form (checked field by field before use).
+ */
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "model.h"
+
+#define MSG MODEL_MESSAGE
+#define NX BLOCK_N_STATES
+#define NU MECH_N_INPUTS
+#define NY BLOCK_N_OUTPUTS
+
+static const double REAL_STARTS[FMU_N_VARIABLES] = FMU_REAL_STARTS;
+static const int KINDS[FMU_N_VARIABLES] = FMU_VARIABLE_KINDS;
+static const char *const NAMES[FMU_N_VARIABLES] = FMU_VARIABLE_NAMES;
+static const int POSITIVE[FMU_N_VARIABLES] = FMU_POSITIVE;
+static const double MINIMUM[FMU_N_VARIABLES] = FMU_MINIMUM;
+static const double MAXIMUM[FMU_N_VARIABLES] = FMU_MAXIMUM;
+static const char *const UNITS[FMU_N_VARIABLES] = FMU_MESSAGE_UNITS;
+static const int PARAMETER_VRS[BLOCK_ALLOC(BLOCK_N_PARAMETERS)] = BLOCK_PARAMETER_VRS;
+static const int INPUT_VRS[BLOCK_ALLOC(NU)] = BLOCK_INPUT_VRS;
+static const int OUTPUT_VRS[NY] = BLOCK_OUTPUT_VRS;
+static const int STATE_VRS[BLOCK_ALLOC(NX)] = FMU_STATE_VRS;
+static const int STATE_START_VRS[BLOCK_ALLOC(NX)] = FMU_STATE_START_VRS;
+static const int DERIVATIVE_VRS[BLOCK_ALLOC(NX)] = FMU_DERIVATIVE_VRS;
+enum { KIND_TUNABLE = 0, KIND_FIXED = 1, KIND_INPUT = 6 };
+#define ALL_GROUPS (FMU_GROUP_STATE | FMU_GROUP_STATES)
+
+static ModelStatus fail(ModelInstance *m, const char *fmt, ...)
+{
+    char text[2 * MSG];
+    va_list args;
+    va_start(args, fmt);
+    vsnprintf(text, sizeof text, fmt, args);
+    va_end(args);
+    model_log(m, MODEL_ERROR, "logStatusError", "%s '%s': %s", MECH_NAME, m->instance_name, text);
+    return MODEL_ERROR;
+}
+
+/* A double as Python's repr writes it (the shortest %.15g-%.17g that reads back). */
+static const char *real_text(char *buf, size_t n, double v)
+{
+    if (isnan(v)) {
+        snprintf(buf, n, "nan");
+        return buf;
+    }
+    snprintf(buf, n, "%.15g", v);
+    if (isfinite(v) && strtod(buf, NULL) != v) snprintf(buf, n, "%.16g", v);
+    if (isfinite(v) && strtod(buf, NULL) != v) snprintf(buf, n, "%.17g", v);
+    if (isfinite(v) && !strpbrk(buf, ".e")) strncat(buf, ".0", n - strlen(buf) - 1);
+    return buf;
+}
+
+static double snap_time(double t) { return nearbyint(t * 1e9) / 1e9; }
+
+/* -- parameters ---------------------------------------------------------------------- */
+
+/* Every problem with the set parameter values, "; "-separated; 0 when none. */
+static int check_parameters(const ModelState *s, char *out, size_t n)
+{
+    char num[40], low[40], high[40];
+    size_t used = 0;
+    int count = 0;
+    out[0] = '\0';
+#define ADD(...) do { if (used < n) used += snprintf(out + used, n - used, "%s", count++ ? "; " : ""); \
+                      if (used < n) used += snprintf(out + used, n - used, __VA_ARGS__); } while (0)
+    for (int vr = 0; vr < FMU_N_VARIABLES; vr++) {
+        if (KINDS[vr] != KIND_TUNABLE && KINDS[vr] != KIND_FIXED) continue;
+        const double v = s->values[vr];
+        const char *gap = UNITS[vr][0] ? " " : "";
+        if (POSITIVE[vr] && !(isfinite(v) && v > 0.0))
+            ADD("%s = %s%s%s: must be a finite positive number", NAMES[vr], real_text(num, sizeof num, v), gap,
+                UNITS[vr]);
+        else if (!isfinite(v))
+            ADD("%s = %s: must be finite", NAMES[vr], real_text(num, sizeof num, v));
+        else if (v < MINIMUM[vr] || v > MAXIMUM[vr])
+            ADD("%s = %s%s%s: must be within [%s, %s]", NAMES[vr], real_text(num, sizeof num, v), gap, UNITS[vr],
+                isfinite(MINIMUM[vr]) ? real_text(low, sizeof low, MINIMUM[vr]) : "-inf",
+                isfinite(MAXIMUM[vr]) ? real_text(high, sizeof high, MAXIMUM[vr]) : "inf");
+    }
+#undef ADD
+    return count;
+}
+
+static void parameters_of(const ModelState *s, double *p)
+{
+    for (int i = 0; i < BLOCK_N_PARAMETERS; i++) p[i] = s->values[PARAMETER_VRS[i]];
+    if (BLOCK_N_PARAMETERS == 0) p[0] = 0.0;
+}
+
+static void inputs_set_now(const ModelState *s, double *u)
+{
+    for (int k = 0; k < NU; k++) u[k] = s->values[INPUT_VRS[k]];
+    if (NU == 0) u[0] = 0.0;
+}
+
+static void start_states(const ModelState *s, double *x)
+{
+    for (int k = 0; k < NX; k++) x[k] = s->values[STATE_START_VRS[k]];
+    if (NX == 0) x[0] = 0.0;
+}
+
+static int input_index(unsigned long vr)
+{
+    for (int k = 0; k < NU; k++)
+        if ((unsigned long)INPUT_VRS[k] == vr) return k;
+    return -1;
+}
+
+/* -- outputs ------------------------------------------------------------------------- */
+
+/* The outputs, states and derivatives at (p, u, x) into values[]. */
+static void store(ModelState *s, const double *p, const double *u, const double *x)
+{
+    double y[NY], f[RK_N];
+    block_outputs(p, u, x, y);
+    block_derivatives(p, u, x, f);
+    for (int k = 0; k < NY; k++) s->values[OUTPUT_VRS[k]] = y[k];
+    for (int k = 0; k < NX; k++) {
+        s->values[STATE_VRS[k]] = x[k];
+        s->values[DERIVATIVE_VRS[k]] = f[k];
+    }
+    s->outputs_pending = 0;
+}
+
+/* The point the instance is at: before the start the start values; in co-simulation (t, x,
+   u_now); in Model Exchange the host's states and the inputs as set. */
+static void current_point(const ModelInstance *m, double *p, double *u, double *x)
+{
+    const ModelState *s = &m->state;
+    parameters_of(s, p);
+    if (s->mode == MODE_INSTANTIATED || s->mode == MODE_INITIALIZATION) {
+        inputs_set_now(s, u);
+        start_states(s, x);
+    } else if (m->model_exchange) {
+        inputs_set_now(s, u);
+        memcpy(x, s->me_y, sizeof(double) * RK_N);
+    } else {
+        memcpy(u, s->u_now, sizeof(double) * BLOCK_ALLOC(NU));
+        memcpy(x, s->x, sizeof(double) * RK_N);
+    }
+}
+
+void model_preview_outputs(ModelInstance *m, int groups)
+{
+    double p[BLOCK_ALLOC(BLOCK_N_PARAMETERS)], u[BLOCK_ALLOC(NU)], x[RK_N];
+    char why[MSG];
+    (void)groups;                        /* a block computes all its outputs at once: cheap */
+    if ((m->state.mode == MODE_INSTANTIATED || m->state.mode == MODE_INITIALIZATION)
+        && check_parameters(&m->state, why, sizeof why))
+        return;                          /* fmi2ExitInitializationMode says why */
+    current_point(m, p, u, x);
+    store(&m->state, p, u, x);
+}
+
+int model_few_outputs(const ModelInstance *m, int groups, size_t nvr)
+{
+    (void)m;
+    (void)groups;
+    (void)nvr;
+    return 0;
+}
+
+void model_output_one(ModelInstance *m, unsigned long vr)
+{
+    (void)vr;
+    model_preview_outputs(m, ALL_GROUPS);
+}
+
+/* -- life cycle ---------------------------------------------------------------------- */
+
+void model_reset(ModelInstance *m)
+{
+    ModelState *s = &m->state;
+    memset(s, 0, sizeof *s);
+    memcpy(s->values, REAL_STARTS, sizeof s->values);
+    s->integrator = 0;
+    s->start_time = 0.0;
+    s->stop_time = INFINITY;
+    s->mode = MODE_INSTANTIATED;
+}
+
+ModelStatus model_initialize(ModelInstance *m)
+{
+    ModelState *s = &m->state;
+    char problems[4 * MSG];
+    if (check_parameters(s, problems, sizeof problems)) return fail(m, "invalid parameters: %s", problems);
+    s->t = snap_time(s->start_time);
+    start_states(s, s->x);
+    inputs_set_now(s, s->u_now);
+    s->me_t = s->t;
+    memcpy(s->me_y, s->x, sizeof s->me_y);
+    s->solver.method = s->integrator;
+    s->solver.t = s->solver.t_old = s->solver.t_bound = s->t;
+    s->outputs_pending = ALL_GROUPS;
+    return MODEL_OK;
+}
+
+/* -- co-simulation ------------------------------------------------------------------- */
+
+typedef struct {
+    const ModelState *s;
+    double p[BLOCK_ALLOC(BLOCK_N_PARAMETERS)];
+    unsigned long limit;                 /* most evaluations of this step */
+    unsigned long *count;
+} StepContext;
+
+static void inputs_at(const ModelState *s, double t, double *u)
+{
+    const double h = t - s->input_t0;
+    for (int k = 0; k < NU; k++)
+        u[k] = s->input_poly[k][0] + s->input_poly[k][1] * h + s->input_poly[k][2] * h * h / 2.0;
+    if (NU == 0) u[0] = 0.0;
+}
+
+static int rhs(void *context, double t, const double *y, double *f)
+{
+    StepContext *c = (StepContext *)context;
+    double u[BLOCK_ALLOC(NU)];
+    if (++*c->count > c->limit) return RK_FUNCTION_ERROR;
+    inputs_at(c->s, t, u);
+    block_derivatives(c->p, u, y, f);
+    for (int k = 0; k < NX; k++)
+        if (!isfinite(f[k])) return RK_FUNCTION_REJECT;
+    return RK_FUNCTION_OK;
+}
+
+ModelStatus model_do_step(ModelInstance *m, double current_time, double step)
+{
+    ModelState *s = &m->state;
+    char a[40], b[40], problems[4 * MSG];
+    if (fabs(snap_time(current_time) - s->t) > 1e-9 * fmax(1.0, fabs(s->t)))
+        return fail(m, "do_step at t = %s s, but the model is at t = %s s", real_text(a, sizeof a, current_time),
+                    real_text(b, sizeof b, s->t));
+    if (check_parameters(s, problems, sizeof problems))
+        return fail(m, "at t = %.9g s: %s", current_time, problems);
+    const double t_end = snap_time(current_time + step);
+    s->input_t0 = s->t;
+    for (int k = 0; k < NU; k++) {
+        s->input_poly[k][0] = s->values[INPUT_VRS[k]];
+        s->input_poly[k][1] = s->input_der[k][0];
+        s->input_poly[k][2] = s->input_der[k][1];
+    }
+    if (NX > 0) {
+        StepContext c;
+        unsigned long count = 0;
+        c.s = s;
+        parameters_of(s, c.p);
+        c.count = &count;
+        c.limit = s->values[VR_max_evaluations] >= 4e9 ? 4000000000UL : (unsigned long)s->values[VR_max_evaluations];
+        RKResult r = rk_start(&s->solver, s->integrator, rhs, &c, s->t, s->x, t_end, s->values[VR_rtol],
+                              s->values[VR_atol], 0.0);
+        while (r == RK_OK && s->solver.status == RK_RUNNING) r = rk_step(&s->solver, rhs, &c);
+        s->rhs_evaluations += count;
+        s->starts++;
+        if (count > s->most_step_evaluations) s->most_step_evaluations = count;
+        if (r != RK_OK || s->solver.status != RK_FINISHED) {
+            if (count > c.limit)
+                return fail(m, "the communication step from t = %.9g s to %.9g s needed more than max_evaluations = "
+                            "%.17g right-hand-side evaluations (raise max_evaluations, a fixed parameter, or "
+                            "shorten the step)", s->t, t_end, s->values[VR_max_evaluations]);
+            return fail(m, "the integration from t = %.9g s to %.9g s failed at t = %.9g s (the derivatives are not "
+                        "finite, or the step size fell below round-off)", s->t, t_end, s->solver.t);
+        }
+        memcpy(s->x, s->solver.y, sizeof s->x);
+    }
+    s->t = t_end;
+    inputs_at(s, t_end, s->u_now);        /* the inputs at the step's end: held, or interpolated */
+    s->outputs_pending = ALL_GROUPS;
+    return MODEL_OK;
+}
+
+void model_inputs_set(ModelInstance *m, const unsigned int *vr, size_t nvr)
+{
+    ModelState *s = &m->state;
+    for (size_t i = 0; i < nvr; i++) {       /* a direct feedthrough sees the new inputs at once */
+        const int k = input_index(vr[i]);
+        if (k >= 0) s->u_now[k] = s->values[vr[i]];
+    }
+    s->outputs_pending = ALL_GROUPS;
+}
+
+ModelStatus model_set_input_derivatives(ModelInstance *m, const char *function, const unsigned int *vr, size_t nvr,
+                                        const int *order, const double *value)
+{
+    char buf[40], num[40];
+    for (size_t i = 0; i < nvr; i++) {
+        if (input_index(vr[i]) < 0)
+            return fail(m, "%s: %s is not an input (nothing was set)", function,
+                        vr[i] < FMU_N_VARIABLES ? NAMES[vr[i]] : (snprintf(buf, sizeof buf, "value reference %u",
+                                                                          (unsigned)vr[i]), buf));
+        if (order[i] != 1 && order[i] != 2)
+            return fail(m, "%s: order %d for %s: the FMU interpolates inputs with derivatives of order 1 and 2 "
+                        "(nothing was set)", function, order[i], NAMES[vr[i]]);
+        if (!isfinite(value[i]))
+            return fail(m, "%s: the derivative of order %d of %s = %s: must be finite (nothing was set)", function,
+                        order[i], NAMES[vr[i]], real_text(num, sizeof num, value[i]));
+    }
+    for (size_t i = 0; i < nvr; i++) m->state.input_der[input_index(vr[i])][order[i] - 1] = value[i];
+    return MODEL_OK;
+}
+
+int model_past_stop_time(ModelInstance *m, const char *function, double current_time, double step)
+{
+    const ModelState *s = &m->state;
+    if (!(snap_time(current_time + step) > snap_time(s->stop_time))) return 0;
+    fail(m, "%s: a step from t = %.9g s to %.9g s goes past the stop time %.9g s the host defined at initialization",
+         function, current_time, current_time + step, s->stop_time);
+    return 1;
+}
+
+int model_bad_step(ModelInstance *m, const char *function, double current_time, double step)
+{
+    char a[40], b[40];
+    if (!isfinite(current_time)) {
+        fail(m, "%s: the current communication point must be finite (got %s s)", function,
+             real_text(a, sizeof a, current_time));
+        return 1;
+    }
+    if (!isfinite(step) || !(step > 0.0) || !isfinite(current_time + step)) {
+        fail(m, "%s: the communication step size must be a finite positive number of seconds (got %s s at "
+             "t = %s s)", function, real_text(a, sizeof a, step), real_text(b, sizeof b, current_time));
+        return 1;
+    }
+    if (!(snap_time(current_time + step) > snap_time(current_time))) {
+        fail(m, "%s: a step of %s s from t = %s s cannot advance the time: the FMU's communication times are "
+             "whole nanoseconds (give a step of at least 1e-9 s)", function, real_text(a, sizeof a, step),
+             real_text(b, sizeof b, current_time));
+        return 1;
+    }
+    return 0;
+}
+
+int model_non_finite_values(ModelInstance *m, const char *function, const unsigned int *vr, const double *value,
+                            size_t n)
+{
+    char a[40];
+    for (size_t i = 0; i < n; i++)
+        if (!isfinite(value[i])) {
+            fail(m, "%s: %s = %s: must be finite (nothing was set)", function,
+                 vr[i] < FMU_N_VARIABLES ? NAMES[vr[i]] : "?", real_text(a, sizeof a, value[i]));
+            return 1;
+        }
+    return 0;
+}
+
+int model_non_finite_states(ModelInstance *m, const char *function, const double *x, size_t n)
+{
+    char a[40];
+    const size_t n_states = NX;          /* a variable: NX may be 0 (no always-false comparison) */
+    for (size_t i = 0; i < n && i < n_states; i++)
+        if (!isfinite(x[i])) {
+            fail(m, "%s: the continuous state %s = %s: must be finite (nothing was set)", function,
+                 NAMES[STATE_VRS[i]], real_text(a, sizeof a, x[i]));
+            return 1;
+        }
+    return 0;
+}
+
+/* -- Model Exchange ------------------------------------------------------------------ */
+
+void model_me_get_states(ModelInstance *m, double *x)
+{
+    if (NX > 0) memcpy(x, m->state.me_y, NX * sizeof *x);
+}
+
+void model_me_set_time(ModelInstance *m, double t)
+{
+    m->state.me_t = t;
+    m->state.outputs_pending = ALL_GROUPS;
+}
+
+void model_me_set_states(ModelInstance *m, const double *x)
+{
+    if (NX > 0) memcpy(m->state.me_y, x, NX * sizeof *x);
+    m->state.outputs_pending = ALL_GROUPS;
+}
+
+ModelStatus model_me_derivatives(ModelInstance *m, double *dx)
+{
+    double p[BLOCK_ALLOC(BLOCK_N_PARAMETERS)], u[BLOCK_ALLOC(NU)], x[RK_N], f[RK_N];
+    char text[40];
+    current_point(m, p, u, x);
+    block_derivatives(p, u, x, f);
+    m->state.rhs_evaluations++;
+    for (int k = 0; k < NX; k++)
+        if (!isfinite(f[k]))
+            return fail(m, "at t = %.9g s: the derivative der(%s) = %s is not finite at the states the host set",
+                        m->state.me_t, NAMES[STATE_VRS[k]], real_text(text, sizeof text, f[k]));
+    if (NX > 0) memcpy(dx, f, NX * sizeof *dx);
+    return MODEL_OK;
+}
+
+ModelStatus model_me_completed_step(ModelInstance *m)
+{
+    (void)m;
+    return MODEL_OK;
+}
+
+/* An event: tunable parameters set in event mode are checked (they apply at once). */
+ModelStatus model_me_event_update(ModelInstance *m)
+{
+    char problems[4 * MSG];
+    if (check_parameters(&m->state, problems, sizeof problems))
+        return fail(m, "at t = %.9g s: %s", m->state.me_t, problems);
+    m->state.outputs_pending = ALL_GROUPS;
+    return MODEL_OK;
+}
+
+void model_me_directional_start(Directional *d)
+{
+    memset(d, 0, sizeof *d);
+}
+
+static const char *variable_name(unsigned long vr, char *buf, size_t n)
+{
+    if (vr < FMU_N_VARIABLES) return NAMES[vr];
+    snprintf(buf, n, "value reference %lu", vr);
+    return buf;
+}
+
+ModelStatus model_me_seed(ModelInstance *m, const char *function, Directional *d, unsigned long vr, double seed)
+{
+    char buf[40];
+    const int initializing = m->state.mode == MODE_INITIALIZATION;
+    if (input_index(vr) >= 0) {
+        d->du[input_index(vr)] += seed;
+        return MODEL_OK;
+    }
+    for (int k = 0; k < NX; k++)
+        if ((unsigned long)STATE_VRS[k] == vr || (initializing && (unsigned long)STATE_START_VRS[k] == vr)) {
+            d->dy[k] += seed;
+            return MODEL_OK;
+        }
+    return fail(m, "%s: %s is not a continuous state or an input: the knowns of a directional derivative are the "
+                "states and the inputs%s", function, variable_name(vr, buf, sizeof buf),
+                initializing ? " (in initialization mode also the states' start parameters)" : "");
+}
+
+ModelStatus model_me_directional(ModelInstance *m, Directional *d)
+{
+    double p[BLOCK_ALLOC(BLOCK_N_PARAMETERS)], u[BLOCK_ALLOC(NU)], x[RK_N];
+    double f_x[BLOCK_ALLOC(NX * NX)], f_u[BLOCK_ALLOC(NX * NU)], y_x[BLOCK_ALLOC(NY * NX)], y_u[BLOCK_ALLOC(NY * NU)];
+    char why[MSG];
+    if (m->state.mode == MODE_INITIALIZATION && check_parameters(&m->state, why, sizeof why))
+        return fail(m, "the start values give no state to differentiate at: %s", why);
+    current_point(m, p, u, x);
+    block_jacobians(p, u, x, f_x, f_u, y_x, y_u);
+    for (int i = 0; i < NX; i++) {
+        double v = 0.0;
+        for (int j = 0; j < NX; j++) v += f_x[i * NX + j] * d->dy[j];
+        for (int j = 0; j < NU; j++) v += f_u[i * NU + j] * d->du[j];
+        d->df[i] = v;
+    }
+    for (int i = 0; i < NY; i++) {
+        double v = 0.0;
+        for (int j = 0; j < NX; j++) v += y_x[i * NX + j] * d->dy[j];
+        for (int j = 0; j < NU; j++) v += y_u[i * NU + j] * d->du[j];
+        d->dout[i] = v;
+    }
+    return MODEL_OK;
+}
+
+ModelStatus model_me_sensitivity(ModelInstance *m, const char *function, const Directional *d, unsigned long vr,
+                                 double *value)
+{
+    char buf[40];
+    for (int k = 0; k < NX; k++)
+        if ((unsigned long)DERIVATIVE_VRS[k] == vr) {
+            *value = d->df[k];
+            return MODEL_OK;
+        }
+    if (m->state.mode == MODE_INITIALIZATION)
+        for (int k = 0; k < NX; k++)
+            if ((unsigned long)STATE_VRS[k] == vr) {
+                *value = d->dy[k];
+                return MODEL_OK;
+            }
+    for (int k = 0; k < NY; k++)
+        if ((unsigned long)OUTPUT_VRS[k] == vr) {
+            *value = d->dout[k];
+            return MODEL_OK;
+        }
+    return fail(m, "%s: %s is neither a state's derivative nor an output: the unknowns of a directional "
+                "derivative are those of <ModelStructure>", function, variable_name(vr, buf, sizeof buf));
+}
+
+/* -- FMU state ----------------------------------------------------------------------- */
+
+typedef struct {
+    char magic[8];
+    unsigned int state_size;
+    char guid[48];
+    int model_exchange;
+} StateHeader;
+
+size_t model_serialized_size(void)
+{
+    return sizeof(StateHeader) + sizeof(ModelState);
+}
+
+void model_serialize(const SavedState *saved, const char magic[8], unsigned char *bytes)
+{
+    StateHeader header;
+    memset(&header, 0, sizeof header);
+    memcpy(header.magic, magic, sizeof header.magic);
+    header.state_size = (unsigned int)sizeof(ModelState);
+    strncpy(header.guid, FMU_GUID, sizeof header.guid - 1);
+    header.model_exchange = saved->model_exchange;
+    memcpy(bytes, &header, sizeof header);
+    memcpy(bytes + sizeof header, &saved->state, sizeof(ModelState));
+}
+
+static int first_non_finite(const double *x, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        if (!isfinite(x[i])) return (int)i;
+    return -1;
+}
+
+#define BAD(...) do { snprintf(why, n, __VA_ARGS__); return 1; } while (0)
+#define FINITE(array, count, name) do { const int at_ = first_non_finite((array), (count)); \
+        if (at_ >= 0) BAD("%s[%d] = %g: must be finite", (name), at_, (array)[at_]); } while (0)
+
+int model_check_state(const ModelState *s, int model_exchange, char *why, size_t n)
+{
+    const int cs_modes = MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP_COMPLETE | MODE_TERMINATED;
+    const int me_modes = MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS | MODE_TERMINATED;
+    const int mode = (int)s->mode;
+    int single = 0;
+    for (int bit = 1; bit <= MODE_CONTINUOUS; bit <<= 1) single += mode == bit;
+    if (!single || !(mode & (model_exchange ? me_modes : cs_modes)))
+        BAD("mode = %d: not a state a %s instance saves", mode, model_exchange ? "model-exchange" : "co-simulation");
+    for (int vr = 0; vr < FMU_N_VARIABLES; vr++)
+        if ((KINDS[vr] == KIND_TUNABLE || KINDS[vr] == KIND_FIXED || KINDS[vr] == KIND_INPUT)
+            && !isfinite(s->values[vr]))
+            BAD("values[%d] (a parameter or input) = %g: must be finite", vr, s->values[vr]);
+    if (s->integrator < 0 || s->integrator >= FMU_N_INTEGRATORS)
+        BAD("integrator = %d: must be in [0, %d)", s->integrator, FMU_N_INTEGRATORS);
+    if (s->outputs_pending & ~ALL_GROUPS) BAD("outputs_pending = %d: not a set of output groups", s->outputs_pending);
+    FINITE(&s->start_time, 1, "start_time");
+    if (isnan(s->stop_time) || s->stop_time < s->start_time)
+        BAD("stop_time = %g: must not be before start_time = %g", s->stop_time, s->start_time);
+    FINITE(&s->t, 1, "t");
+    FINITE(s->x, RK_N, "x");
+    FINITE(s->u_now, BLOCK_ALLOC(NU), "u_now");
+    FINITE(&s->input_poly[0][0], 3 * BLOCK_ALLOC(NU), "input_poly");
+    FINITE(&s->input_der[0][0], 2 * BLOCK_ALLOC(NU), "input_der");
+    FINITE(&s->input_t0, 1, "input_t0");
+    FINITE(&s->me_t, 1, "me_t");
+    FINITE(s->me_y, RK_N, "me_y");
+    const RKSolver *r = &s->solver;
+    if (r->method < 0 || r->method >= FMU_N_INTEGRATORS)
+        BAD("solver.method = %d: must be in [0, %d)", r->method, FMU_N_INTEGRATORS);
+    if ((int)r->status < RK_RUNNING || (int)r->status > RK_FAILED)
+        BAD("solver.status = %d: must be 0, 1 or 2", (int)r->status);
+    return 0;
+}
+#undef BAD
+#undef FINITE
+
+int model_deserialize(const unsigned char *bytes, size_t size, const char magic[8], SavedState *saved, char *why,
+                      size_t n)
+{
+    StateHeader header;
+    SavedState read;
+    if (n > 0) why[0] = '\0';
+    if (size != model_serialized_size()) return MODEL_WRONG_SIZE;
+    memcpy(&header, bytes, sizeof header);
+    if (memcmp(header.magic, magic, sizeof header.magic) != 0 || header.state_size != sizeof(ModelState)
+        || strncmp(header.guid, FMU_GUID, sizeof header.guid) != 0
+        || (header.model_exchange != 0 && header.model_exchange != 1))
+        return MODEL_NOT_OURS;
+    memcpy(&read.state, bytes + sizeof header, sizeof(ModelState));
+    read.model_exchange = header.model_exchange;
+    if (model_check_state(&read.state, read.model_exchange, why, n)) return MODEL_INVALID;
+    *saved = read;
+    return 0;
+}

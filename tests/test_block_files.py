@@ -1,0 +1,87 @@
+"""Block files read as untrusted data (fmu_src/block/description.py): every mistake is refused by
+``build_fmu.py --component`` with exit status 2, one message naming the file, the field and the
+value, no traceback, and nothing written."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from fmu_src.block.description import BlockError, load_block, shipped_components
+
+REPO = Path(__file__).resolve().parent.parent
+MOTOR = REPO / "fmu_src" / "components" / "dc_motor.toml"
+PI = REPO / "fmu_src" / "components" / "pi_controller.toml"
+
+#: (case, file, old text, new text, what the message must name: field, value, why); "uses" runs
+#: along a cycle: error uses voltage_limited, which uses voltage_demand, which uses error
+MISTAKES = {
+    "unknown symbol": (MOTOR, 'derivative = "(V - R*i - k*omega_m)/L"', 'derivative = "(V - R*i - kk*omega_m)/L"',
+                       ("[states.i] derivative", "(V - R*i - kk*omega_m)/L", "kk")),
+    "state without derivative": (MOTOR, 'derivative = "omega_m/N - omega_load"\n', "\n",
+                                 ("[states.phi] derivative", "missing")),
+    "output of an unknown name": (MOTOR, 'expression = "omega_m"', 'expression = "omega_rotor"',
+                                  ("[outputs.omega_motor] expression", "omega_rotor")),
+    "cycle among intermediates": (PI, 'expression = "setpoint - measured"', 'expression = "voltage_limited - measured"',
+                                  ("[intermediates.", "cycle", "error -> voltage_limited -> voltage_demand -> error")),
+    "duplicate name": (MOTOR, "[outputs.current]", "[outputs.L]", ("[outputs.L]", "'L'", "duplicate name")),
+    "unknown unit": (MOTOR, 'unit = "ohm"', 'unit = "ohms"', ("[parameters.R] unit", "'ohms'", "unknown unit")),
+    "unsafe identifier": (MOTOR, "[states.phi]", '[states."phi-1"]', ("[states.phi-1]", "'phi-1'", "identifier")),
+    "C keyword": (MOTOR, "[parameters.b]", "[parameters.double]", ("[parameters.double]", "'double'", "keyword")),
+}
+
+
+def _edited(tmp_path: Path, case: str) -> tuple[Path, tuple[str, ...]]:
+    source, old, new, named = MISTAKES[case]
+    text = source.read_text()
+    assert text.count(old) >= 1, (case, old)       # the edit applies to the shipped file as it is
+    text = text.replace(old, new, 1)
+    path = tmp_path / source.name
+    path.write_text(text)
+    return path, named
+
+
+def test_the_shipped_components_load():
+    assert shipped_components() == ("dc_motor", "pi_controller", "speed_sensor")
+    names = {load_block(n).name for n in shipped_components()}
+    assert names == {"DCMotor", "PIController", "SpeedSensor"}
+
+
+@pytest.mark.parametrize("case", sorted(MISTAKES))
+def test_a_mistake_is_refused_naming_file_field_and_value(case, tmp_path):
+    path, named = _edited(tmp_path, case)
+    with pytest.raises(BlockError) as info:
+        load_block(path)
+    message = str(info.value)
+    assert message.startswith(str(path)), message
+    for part in named:
+        assert part in message, (case, part, message)
+
+
+@pytest.mark.parametrize("case", ["unknown symbol", "cycle among intermediates", "unknown unit", "unsafe identifier"])
+def test_build_fmu_refuses_it_with_exit_2_and_writes_nothing(case, tmp_path):
+    path, named = _edited(tmp_path, case)
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "build_fmu.py", "--component", str(path), "--out", str(out / "c.fmu")],
+                          cwd=REPO, capture_output=True, text=True, timeout=600)   # a hang guard only
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr and proc.stdout == ""
+    assert proc.stderr.startswith(f"build_fmu.py: error: {path}"), proc.stderr
+    for part in named:
+        assert part in proc.stderr, (part, proc.stderr)
+    assert not out.exists()
+
+
+def test_an_expression_is_never_run(tmp_path):
+    """The whitelist parser refuses a call that is not a function of the grammar (no eval)."""
+    path = tmp_path / "evil.toml"
+    path.write_text(MOTOR.read_text().replace('expression = "i"', 'expression = "__import__(\'os\').getcwd()"', 1))
+    with pytest.raises(BlockError, match=r"\[outputs.current\] expression"):
+        load_block(path)
+
+
+def test_an_unknown_component_name_lists_the_shipped_ones():
+    with pytest.raises(BlockError, match="dc_motor, pi_controller, speed_sensor"):
+        load_block("no_such_block")
