@@ -142,7 +142,7 @@ def test_each_master_labels_its_rows_its_way(runs):
     labels = {m: runs(m, "none").labels for m in MASTERS if available(m) is None}
     if "FMPy" in labels:      # the step's start, accumulated by time += step (not n * step)
         np.testing.assert_allclose(labels["FMPy"], times - STEP, rtol=0, atol=1e-12)
-        assert labels["FMPy"][-1] != times[-2], "FMPy's clock no longer accumulates: update docs/ssp_masters.md"
+        assert labels["FMPy"][-1] != times[-2], "FMPy's clock no longer accumulates: update docs/systems.md"
     if "libcosim" in labels:  # the step's end, n * 10^7 ns / 1e9 exactly
         np.testing.assert_array_equal(labels["libcosim"], np.arange(1, n + 1) * 10_000_000 / 1e9)
     if "Ecos" in labels:      # the step's end, within round-off of its clock
