@@ -14,6 +14,9 @@ variable); the bound admits round-off in the masters' time arithmetic only, whic
 FMUs absorb by snapping communication times to whole nanoseconds (docs/contracts.md).  The
 values are of order 1..25 (V, A, N.m, rad/s), so 1e-12 is ~10^3 ulp: a pass means "the same
 numbers".
+
+Cost: the bench's build (~20 s of CPU) and one 60 s fourbar-run run (~9 s), shared by the
+tests through session fixtures; the three other masters' 2 s runs ~2 s each.  Marked slow.
 """
 from __future__ import annotations
 
@@ -85,6 +88,7 @@ def test_the_shipped_bench_file_is_the_shared_contract():
     assert dict(bench.component("sensor").parameters)["bias"] == 0.0
 
 
+@pytest.mark.slow        # the bench's build (four block components), shared
 def test_the_bench_builds_into_a_valid_ssp_with_its_bindings(bench):
     with zipfile.ZipFile(bench) as z:
         assert schema_problems(z.read("SystemStructure.ssd")) == ()
@@ -92,6 +96,7 @@ def test_the_bench_builds_into_a_valid_ssp_with_its_bindings(bench):
     assert bound_parameters(bench) == {f"{c.name}.{n}": v for c in spec.components for n, v in c.parameters}
 
 
+@pytest.mark.slow        # the bench's build (four block components), shared
 def test_libcosim_applies_the_bindings_to_the_bench(bench):
     """libcosim applies the .ssd's inline parameter sets: each bound value reads back, exactly."""
     pytest.importorskip("libcosimpy", reason="libcosimpy is not installed (pip install libcosimpy)")
@@ -138,6 +143,7 @@ def _outputs_after_initialisation(fmu: Path, parameters: dict[str, float], input
         slave.freeInstance()
 
 
+@pytest.mark.slow        # the bench's build and fourbar-run's 60 s run, shared
 def test_every_connected_output_is_zero_at_t0(bench, long_run, tmp_path):
     """Read from each component FMU after initialisation (its bindings applied, its connected
     inputs 0.0), and in fourbar-run's row at t = 0 (the connections settled)."""
@@ -163,6 +169,7 @@ def test_every_connected_output_is_zero_at_t0(bench, long_run, tmp_path):
         assert columns[source][0] == 0.0, (source, columns[source][0])
 
 
+@pytest.mark.slow        # the bench's build and fourbar-run's 60 s run, shared
 def test_the_drive_turns_the_crank_from_rest_at_one_rev_per_second(long_run):
     """From rest the drive must give ~12 N.m before the crank turns against gravity; then it
     holds 1 rev/s on average.  Tolerances: the mean speed within 1 % (the sensor's 0.01 rad/s
@@ -198,6 +205,7 @@ def test_the_drive_turns_the_crank_from_rest_at_one_rev_per_second(long_run):
 FEEDTHROUGH = {"controller.voltage", "motor.torque", "sensor.measured"}
 
 
+@pytest.mark.slow        # the bench's build and fourbar-run's 60 s run, shared
 @pytest.mark.parametrize("master", MASTERS)
 def test_fourbar_run_jacobi_matches_the_other_master(master, long_run, bench):
     """Every connected output and motor.current to 1e-12.  Ecos: the outputs without direct
