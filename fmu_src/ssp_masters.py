@@ -4,7 +4,7 @@
 t = 0 for N = stop_time / step fixed macro steps and returns one ``MasterRun``: a row after
 each step (t_1 .. t_N; no row for t = 0, which FMPy cannot give) with a column per
 "component.variable" asked for.  What each master does differently is stated here, once, and
-in docs/ssp_masters.md:
+in docs/systems.md (*Running the bench in fourbar-run, FMPy, libcosim and Ecos*):
 
 ============== ==================== ==================== ====================
                FMPy simulate_ssp    libcosim (libcosimpy) Ecos (ecospy)

@@ -44,9 +44,9 @@ def _edited(tmp_path: Path, case: str) -> tuple[Path, tuple[str, ...]]:
 
 
 def test_the_shipped_components_load():
-    assert shipped_components() == ("dc_motor", "pi_controller", "speed_sensor")
+    assert shipped_components() == ("dc_motor", "pi_controller", "speed_profile", "speed_sensor")
     names = {load_block(n).name for n in shipped_components()}
-    assert names == {"DCMotor", "PIController", "SpeedSensor"}
+    assert names == {"DCMotor", "PIController", "SpeedProfile", "SpeedSensor"}
 
 
 @pytest.mark.parametrize("case", sorted(MISTAKES))
@@ -83,5 +83,5 @@ def test_an_expression_is_never_run(tmp_path):
 
 
 def test_an_unknown_component_name_lists_the_shipped_ones():
-    with pytest.raises(BlockError, match="dc_motor, pi_controller, speed_sensor"):
+    with pytest.raises(BlockError, match="dc_motor, pi_controller, speed_profile, speed_sensor"):
         load_block("no_such_block")

@@ -18,7 +18,7 @@ from fmu_src import fmi_hosts
 from fmu_src.block_build import build_block_fmu_result
 from tests.support import fmusim_or_skip
 
-COMPONENTS = ("dc_motor", "pi_controller", "speed_sensor")
+COMPONENTS = ("dc_motor", "pi_controller", "speed_profile", "speed_sensor")
 MOTOR = dict(R=1.0, L=0.01, k=0.5, N=20.0, b=1e-4, J=1e-3, k_s=1250.0, c_s=12.0)   # the file's defaults
 #: Co-simulation at rtol = atol = 1e-12 (DOP853, restarted at each communication step) against the
 #: exact solution: within 1e-9 relative to the state's scale (max(1, |x|)); measured worst 1.8e-11
@@ -142,9 +142,9 @@ def test_fmusim_runs_each_component(block_fmus, name, model_exchange, version, t
     fmusim = fmusim_or_skip()
     path, _ = block_fmus[name, version]
     outputs = {"dc_motor": ("torque", "current", "omega_motor"), "pi_controller": ("voltage",),
-               "speed_sensor": ("measured",)}[name]
+               "speed_profile": ("setpoint",), "speed_sensor": ("measured",)}[name]
     starts = {"dc_motor": {"V": 60.0, "omega_load": 6.0}, "pi_controller": {"measured": 6.0},
-              "speed_sensor": {"omega": 3.14159}}[name]
+              "speed_profile": {}, "speed_sensor": {"omega": 3.14159}}[name]
     run = _fmusim(fmusim, path, outputs, starts, tmp_path, 1e-10 if model_exchange else None)
     assert run.exit_code == 0 and run.values is not None, run.message
     assert np.all(np.isfinite(run.values)) and len(run.time) == 21
@@ -155,6 +155,10 @@ def test_fmusim_runs_each_component(block_fmus, name, model_exchange, version, t
         assert rel_error(run.values, want) <= (ME_TOL if model_exchange else CS_TOL)
     if name == "speed_sensor":
         assert np.all(run.values[:, 0] == 3.14)      # 0.01 rad/s resolution
+    if name == "speed_profile":                      # the soft start: speed (1 - exp(-t / tau)), from 0
+        want = 2 * np.pi * (1 - np.exp(-np.asarray(run.time) / 0.5))
+        assert run.values[0, 0] == 0.0
+        assert rel_error(run.values, want[:, None]) <= (ME_TOL if model_exchange else CS_TOL)
 
 
 def _fmusim(fmusim, fmu, outputs, starts, workdir, me_tolerance):

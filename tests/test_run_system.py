@@ -17,12 +17,19 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from ssp_files import ssd_text, ssv_text, write_ssp
+from ssp_testing import TestComponent, ssd_text, ssv_text, write_ssp
 
 from fourbar_common.contract.run_record import read_run_record
 
 MECHANISM = str(Path(__file__).parent / "mechanisms" / "input_pendulum.toml")
-COMPONENTS = {"a": {"omega2": "output", "tau_arm": "input"}, "b": {"omega2": "output", "tau_arm": "input"}}
+
+
+def pair(a: Path | None, b: Path | None) -> list[TestComponent]:
+    """The test system's components ``a`` and ``b`` with these FMUs."""
+    return [TestComponent("a", a, inputs=("tau_arm",), outputs=("omega2",)),
+            TestComponent("b", b, inputs=("tau_arm",), outputs=("omega2",))]
+
+
 CONNECTIONS = [("a.omega2", "b.tau_arm"), ("b.omega2", "a.tau_arm")]
 BOUND = {"b.mr": 0.7}
 OUTPUTS = ["a.omega2", "b.omega2", "a.theta2", "b.theta3"]
@@ -38,7 +45,7 @@ def pendulum(mechanism_fmus) -> Path:
 @pytest.fixture(scope="session")
 def system(pendulum, tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("system")
-    return write_ssp(folder / "Pair.ssp", {"a": pendulum, "b": pendulum}, COMPONENTS, CONNECTIONS, ssv=BOUND)
+    return write_ssp(folder / "Pair.ssp", "TestSystem", pair(pendulum, pendulum), CONNECTIONS, system_ssv=BOUND)
 
 
 def write_case(folder: Path, ssp: Path, *, name: str = "pair", step: float = STEP, master: str = "",
@@ -220,7 +227,7 @@ def test_bad_master_algorithm(system, tmp_path, capsys):
 
 
 def test_zip_with_parent_paths(pendulum, tmp_path, capsys):
-    ssp = write_ssp(tmp_path / "Evil.ssp", {"a": pendulum, "b": pendulum}, COMPONENTS, CONNECTIONS,
+    ssp = write_ssp(tmp_path / "Evil.ssp", "TestSystem", pair(pendulum, pendulum), CONNECTIONS,
                     extra={"../../evil.txt": b"x"})
     err = refused(tmp_path, write_case(tmp_path, ssp), capsys)
     assert "'../../evil.txt'" in err and "path traversal" in err
@@ -229,8 +236,8 @@ def test_zip_with_parent_paths(pendulum, tmp_path, capsys):
 
 def test_ssd_with_a_dtd(pendulum, tmp_path, capsys):
     dtd = '<!DOCTYPE x [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;&a;&a;">]>'
-    ssd = ssd_text(COMPONENTS, CONNECTIONS, preamble=dtd)
-    ssp = write_ssp(tmp_path / "Dtd.ssp", {"a": pendulum, "b": pendulum}, COMPONENTS, CONNECTIONS, ssd=ssd)
+    ssd = ssd_text("TestSystem", pair(None, None), CONNECTIONS, preamble=dtd)
+    ssp = write_ssp(tmp_path / "Dtd.ssp", "TestSystem", pair(pendulum, pendulum), CONNECTIONS, ssd=ssd)
     err = refused(tmp_path, write_case(tmp_path, ssp), capsys)
     assert "SystemStructure.ssd" in err and "document type declaration" in err
 
@@ -300,8 +307,8 @@ def test_sigterm_keeps_the_rows_of_a_system_run(system, tmp_path):
 def test_a_binding_on_an_input_is_recorded(pendulum, tmp_path):
     """An inline binding may give an unconnected input its start value (a.F_P here, with the
     .ssv's b.mr): both are applied and recorded among the component's effective values."""
-    ssp = write_ssp(tmp_path / "Bound.ssp", {"a": pendulum, "b": pendulum}, COMPONENTS, CONNECTIONS,
-                    parameters={"a.F_P": 0.25, "b.ma": 1.5})
+    ssp = write_ssp(tmp_path / "Bound.ssp", "TestSystem", pair(pendulum, pendulum), CONNECTIONS,
+                    system_parameters={"a.F_P": 0.25, "b.ma": 1.5})
     rows = run(tmp_path, ssp, name="bound", outputs=["a.F_P", "a.omega2"])
     assert np.all(rows[:, 1] == 0.25)
     record = read_run_record(tmp_path / "out_bound" / "run.json")
@@ -315,7 +322,7 @@ def test_an_fmi3_component_gives_the_same_run(pendulum, mechanism_fmus, runs, tm
     the system's rows equal the all-FMI 2.0 run's exactly (0: same arithmetic), and run.json
     records each component's FMI version."""
     pendulum3 = mechanism_fmus.get(MECHANISM, "native3")
-    ssp = write_ssp(tmp_path / "Mixed.ssp", {"a": pendulum, "b": pendulum3}, COMPONENTS, CONNECTIONS, ssv=BOUND)
+    ssp = write_ssp(tmp_path / "Mixed.ssp", "TestSystem", pair(pendulum, pendulum3), CONNECTIONS, system_ssv=BOUND)
     rows = run(tmp_path, ssp, name="mixed")
     assert_allclose(rows, runs["jacobi"], rtol=0, atol=0)
     record = read_run_record(tmp_path / "out_mixed" / "run.json")
@@ -335,10 +342,11 @@ def test_initial_connections_settled_as_libcosim_does(pendulum, mechanism_fmus, 
     from libcosimpy.CosimObserver import CosimObserver
 
     press = mechanism_fmus.get("fourbar_press", "native")
-    components = {"press": {"motor_torque": "output"}, "a": {"tau_arm": "input", "tau_A": "input", "O_Fx": "output"},
-                  "b": {"F_P": "input", "omega2": "output"}}
+    components = [TestComponent("press", press, outputs=("motor_torque",)),
+                  TestComponent("a", pendulum, inputs=("tau_arm", "tau_A"), outputs=("O_Fx",)),
+                  TestComponent("b", pendulum, inputs=("F_P",), outputs=("omega2",))]
     connections = [("press.motor_torque", "a.tau_arm"), ("a.O_Fx", "b.F_P"), ("b.omega2", "a.tau_A")]
-    ssp = write_ssp(tmp_path / "Feed.ssp", {"press": press, "a": pendulum, "b": pendulum}, components, connections)
+    ssp = write_ssp(tmp_path / "Feed.ssp", "Feed", components, connections)
     columns = ["a.O_Fx", "b.omega2"]
     ours = run(tmp_path, ssp, name="feed", outputs=columns)
     n = len(ours) - 1
@@ -364,7 +372,7 @@ def test_initial_connections_settled_as_libcosim_does(pendulum, mechanism_fmus, 
 
 
 def test_a_component_that_is_not_an_fmu(pendulum, tmp_path, capsys):
-    ssp = write_ssp(tmp_path / "Broken.ssp", {"a": pendulum}, COMPONENTS, CONNECTIONS,
+    ssp = write_ssp(tmp_path / "Broken.ssp", "TestSystem", pair(pendulum, None), CONNECTIONS,
                     extra={"resources/b.fmu": b"not a zip"})
     err = refused(tmp_path, write_case(tmp_path, ssp), capsys)
     assert "component 'b' (resources/b.fmu): not a readable FMU" in err

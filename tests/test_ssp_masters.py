@@ -142,7 +142,7 @@ def test_each_master_labels_its_rows_its_way(runs):
     labels = {m: runs(m, "none").labels for m in MASTERS if available(m) is None}
     if "FMPy" in labels:      # the step's start, accumulated by time += step (not n * step)
         np.testing.assert_allclose(labels["FMPy"], times - STEP, rtol=0, atol=1e-12)
-        assert labels["FMPy"][-1] != times[-2], "FMPy's clock no longer accumulates: update docs/ssp_masters.md"
+        assert labels["FMPy"][-1] != times[-2], "FMPy's clock no longer accumulates: update docs/systems.md"
     if "libcosim" in labels:  # the step's end, n * 10^7 ns / 1e9 exactly
         np.testing.assert_array_equal(labels["libcosim"], np.arange(1, n + 1) * 10_000_000 / 1e9)
     if "Ecos" in labels:      # the step's end, within round-off of its clock
@@ -308,9 +308,7 @@ def test_libcosim_and_ecos_settle_the_initial_exchange_through_feedthrough(feedt
 # -- fourbar-run's Jacobi master (issue 40, point 3) -------------------------------------------
 
 def _fourbar_run(ssp: Path, variables: list[str], folder: Path):
-    """fourbar-run's Jacobi run of ``ssp``: (k, the exchange columns), or a skip while fourbar-run
-    does not know `system =`: its case reader then answers "system: unknown key" (exit 2);
-    any other failure fails."""
+    """fourbar-run's Jacobi run of ``ssp``: (k, the exchange columns)."""
     case = folder / "ssp_jacobi.toml"
     columns = ", ".join(f'"{v}"' for v in variables)
     case.write_text(f'name = "ssp_jacobi"\nsystem = "{ssp.as_posix()}"\n\n'
@@ -319,9 +317,6 @@ def _fourbar_run(ssp: Path, variables: list[str], folder: Path):
     out = folder / "out"
     proc = subprocess.run([FOURBAR_RUN, str(case), "--out", str(out), "--quiet"], capture_output=True, text=True,
                           timeout=300, cwd=REPO)
-    if proc.returncode == 2 and "system: unknown key" in proc.stderr:
-        pytest.skip("fourbar-run does not run `system =` cases yet (engineer C, issue 40): it says "
-                    "'system: unknown key'")
     assert proc.returncode == 0, proc.stderr[-3000:]
     from fourbar_common.contract.exchange import read_exchange
 
@@ -331,9 +326,7 @@ def _fourbar_run(ssp: Path, variables: list[str], folder: Path):
 
 @pytest.mark.parametrize("system", ["loop", "feedthrough"])
 def test_fourbar_run_jacobi_matches_the_other_masters(system, systems, feedthrough, runs, tmp_path):
-    """Skipped until fourbar-run runs a case naming `system = "X.ssp"` (engineer C's part).
-
-    Rows are matched by time: fourbar-run labels a row with its communication point
+    """Rows are matched by time: fourbar-run labels a row with its communication point
     (start + k * step, k = 0..N), so its rows k = 1..N are the others' rows after step k.
     "loop": the bound test system, against all three masters.  "feedthrough": against libcosim
     and Ecos, which settle the initial exchange through feed-through (FMPy gives 0.0)."""

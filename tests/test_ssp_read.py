@@ -7,26 +7,28 @@ from pathlib import Path
 
 import pytest
 
-from ssp_files import ssd_text, ssv_text
+from ssp_testing import TestComponent, ssd_text, ssv_text
 
 from orchestrator.ssp import SspConnection, SspError, read_ssp
 
-COMPONENTS = {"motor": {"V": "input", "torque": "output"}, "load": {"tau": "input", "omega": "output"}}
+COMPONENTS = [TestComponent("motor", inputs=("V",), outputs=("torque",)),
+              TestComponent("load", inputs=("tau",), outputs=("omega",))]
 CONNECTIONS = [("motor.torque", "load.tau"), ("load.omega", "motor.V")]
 
 
 def archive(path: Path, ssd: str, members: dict[str, bytes] | None = None) -> Path:
     with zipfile.ZipFile(path, "w") as z:
         z.writestr("SystemStructure.ssd", ssd)
-        for name in COMPONENTS:
-            z.writestr(f"resources/{name}.fmu", b"placeholder")
+        for c in COMPONENTS:
+            z.writestr(f"resources/{c.name}.fmu", b"placeholder")
         for name, data in (members or {}).items():
             z.writestr(name, data)
     return path
 
 
 def test_components_connections_and_both_kinds_of_binding(tmp_path):
-    ssd = ssd_text(COMPONENTS, CONNECTIONS, parameters={"motor.R": 1.5, "load.m": 2.0}, ssv="resources/p.ssv")
+    ssd = ssd_text("TestSystem", COMPONENTS, CONNECTIONS, system_parameters={"motor.R": 1.5, "load.m": 2.0},
+                   system_ssv_source="resources/p.ssv")
     system = read_ssp(archive(tmp_path / "S.ssp", ssd, {"resources/p.ssv": ssv_text({"motor.R": 2.5}).encode()}))
     assert system.name == "TestSystem" and system.component_names == ("motor", "load")
     assert system.component("motor").source == "resources/motor.fmu"
@@ -43,7 +45,7 @@ def test_components_connections_and_both_kinds_of_binding(tmp_path):
 @pytest.mark.parametrize("member, why", [("../evil", "path traversal"), ("/abs", "absolute path"),
                                          ("a\\b", "backslash")])
 def test_unsafe_member_names_refuse_the_archive(tmp_path, member, why):
-    path = archive(tmp_path / "S.ssp", ssd_text(COMPONENTS, CONNECTIONS), {member: b"x"})
+    path = archive(tmp_path / "S.ssp", ssd_text("TestSystem", COMPONENTS, CONNECTIONS), {member: b"x"})
     with pytest.raises(SspError, match=why) as info:
         read_ssp(path)
     assert str(path) in str(info.value) and repr(member) in str(info.value)
@@ -52,14 +54,14 @@ def test_unsafe_member_names_refuse_the_archive(tmp_path, member, why):
 def test_billion_laughs_refused_before_expansion(tmp_path):
     laughs = ('<!DOCTYPE l [<!ENTITY a "ha"><!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;&a;&a;">'
               '<!ENTITY c "&b;&b;&b;&b;&b;&b;&b;&b;&b;&b;">]>')
-    ssd = ssd_text(COMPONENTS, CONNECTIONS, name="&c;", preamble=laughs)
+    ssd = ssd_text("TestSystem", COMPONENTS, CONNECTIONS, preamble=laughs).replace('name="TestSystem"', 'name="&c;"')
     with pytest.raises(SspError, match="document type declaration"):
         read_ssp(archive(tmp_path / "S.ssp", ssd))
 
 
 def test_dtd_in_a_bound_ssv_refused(tmp_path):
     ssv = ssv_text({"motor.R": 1.0}).replace("?>", '?><!DOCTYPE p SYSTEM "http://example.com/p.dtd">', 1)
-    ssd = ssd_text(COMPONENTS, CONNECTIONS, ssv="resources/p.ssv")
+    ssd = ssd_text("TestSystem", COMPONENTS, CONNECTIONS, system_ssv_source="resources/p.ssv")
     with pytest.raises(SspError, match=r"resources/p\.ssv: has a document type declaration"):
         read_ssp(archive(tmp_path / "S.ssp", ssd, {"resources/p.ssv": ssv.encode()}))
 
@@ -80,7 +82,7 @@ def test_dtd_in_a_bound_ssv_refused(tmp_path):
     (lambda s: s.replace("</ssd:Connections>", "", 1), "not well-formed XML"),
 ])
 def test_problems_name_element_and_attribute(tmp_path, edit, message):
-    ssd = edit(ssd_text(COMPONENTS, CONNECTIONS, parameters={"motor.R": 1.0}))
+    ssd = edit(ssd_text("TestSystem", COMPONENTS, CONNECTIONS, system_parameters={"motor.R": 1.0}))
     with pytest.raises(SspError) as info:
         read_ssp(archive(tmp_path / "S.ssp", ssd))
     assert message in str(info.value)

@@ -9,7 +9,6 @@ system through the command line and checks it gives the same bytes.
 """
 from __future__ import annotations
 
-import importlib.util
 import json
 import subprocess
 import sys
@@ -378,30 +377,5 @@ def test_the_bench_fourbar_is_left_out_of_the_per_mechanism_loops():
 
 # -- the shipped bench -------------------------------------------------------------------------
 
-def test_the_shipped_bench_file_is_the_shared_contract():
-    bench = load_system("motor_fourbar")
-    assert bench.path == SYSTEM_DIR / "motor_fourbar.toml" and bench.name == "MotorFourBar"
-    assert [(c.name, c.kind, c.source) for c in bench.components] == [
-        ("motor", "block", "dc_motor"), ("controller", "block", "pi_controller"),
-        ("sensor", "block", "speed_sensor"), ("fourbar", "mechanism", "fourbar_motor")]
-    assert [(c.source, c.target) for c in bench.connections] == [
-        ("controller.voltage", "motor.V"), ("motor.torque", "fourbar.crank_torque"),
-        ("fourbar.omega2", "motor.omega_load"), ("fourbar.omega2", "sensor.omega"),
-        ("sensor.measured", "controller.measured")]
-    assert dict(bench.component("controller").parameters)["setpoint"] == pytest.approx(2 * np.pi, rel=1e-15)
-
-
-@pytest.mark.skipif(importlib.util.find_spec("fmu_src.block_build") is None,
-                    reason="fmu_src.block_build (the block components' builder, issue 40 part 1) is not merged yet")
-def test_the_shipped_bench_builds_into_a_valid_ssp_that_libcosim_runs(mechanism_fmus, tmp_path):
-    result = build_system("motor_fourbar", tmp_path / "MotorFourBar.ssp",
-                          prebuilt={"fourbar_motor": mechanism_fmus.get("fourbar_motor", "native")})
-    assert result.problems == () and schema_problems(_ssd(result.path)) == ()
-    bench = load_system("motor_fourbar")
-    bound = _bindings(result.path)
-    for spec in bench.components:
-        assert bound.get(spec.name, {}) == dict(spec.parameters)
-    values = _libcosim_run(result.path)
-    for spec in bench.components:
-        for name, value in spec.parameters:
-            assert values[spec.name][name] == value, f"{spec.name}.{name}"
+# The shipped bench (systems/motor_fourbar.toml) is tests/test_system_bench.py's: built once
+# there and run in every master.
