@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import io
 import json
+import signal
 import zipfile
 from pathlib import Path
 
@@ -134,3 +135,61 @@ def test_a_drawing_of_an_unknown_component_is_named(system_run, tmp_path):
     (tmp_path / "run.json").write_text(json.dumps(data))
     with pytest.raises(RunRecordError, match=r"system\.drawing.*'nobody'.*expected null or the name of a component"):
         read_run_record(tmp_path / "run.json")
+
+
+@pytest.mark.slow
+def test_the_served_page_shows_the_system_in_a_browser(system_run):
+    """The real fourbar-view, read by headless Chromium (tests/test_view_browser.py's pattern):
+    the mechanism from the component's joint columns, a plot per component, no console error."""
+    import subprocess
+    import sys
+
+    from view.headless import chromium_path, launch
+
+    if chromium_path() is None:
+        pytest.skip("no Chromium: `make browser` installs Debian's chromium (make test does it)")
+    from playwright.sync_api import sync_playwright
+
+    record = read_run_record(system_run / "run.json")
+    rows = pd.read_csv(system_run / "exchange.csv")
+    view = subprocess.Popen([str(Path(sys.executable).parent / "fourbar-view"), str(system_run), "--quiet",
+                             "--at", str(AT)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        url = view.stdout.readline().strip()
+        assert url.startswith("http://127.0.0.1:"), url
+        with sync_playwright() as p:
+            browser = launch(p)
+            try:
+                page = browser.new_page(viewport={"width": 1400, "height": 1400})
+                errors: list[str] = []
+                page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+                page.on("pageerror", lambda e: errors.append(str(e)))
+                page.goto(url)
+                page.wait_for_selector("#state", timeout=30_000)
+                data = ("(name) => { const s = Bokeh.documents[0].get_model_by_name(name);"
+                        " return s ? Object.fromEntries(Object.entries(s.data).map(([k, v]) => [k, Array.from(v)]))"
+                        " : null; }")
+                page.wait_for_function("() => { const s = Bokeh.documents[0].get_model_by_name('joints');"
+                                       " return s && s.data.x.length > 0; }", timeout=30_000)
+                joints = page.evaluate(data, "joints")
+                row = rows[rows["time"] == joints["time"][0]].iloc[0]
+                for name, x, y in zip(joints["name"], joints["x"], joints["y"]):
+                    assert (x, y) == (row[f"{name}_x"], row[f"{name}_y"]), name   # the CSV's 17 digits
+                assert sorted(joints["name"]) == sorted(j.name for j in record.drawing.joints)
+                from view.components import component_signals
+
+                for group in component_signals(record, rows.columns):
+                    held = page.evaluate(data, f"component_{group.component}")
+                    assert held is not None and set(group.signals) <= set(held) and len(held["time"]) > 0, group
+                assert errors == [], errors
+                page.screenshot(path=str(system_run.parent / "view_system.png"))
+            finally:
+                browser.close()
+    finally:
+        view.send_signal(signal.SIGTERM)
+        try:
+            _, err = view.communicate(timeout=30)
+        except subprocess.TimeoutExpired:          # a hang guard: the test fails below
+            view.kill()
+            _, err = view.communicate()
+    assert view.returncode == 143 and "Traceback" not in err, err
