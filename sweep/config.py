@@ -391,6 +391,10 @@ class _Validator(ProblemReporter):
         try:
             case = load_case(path, fmu=None if fmu is None else self.path.parent / fmu)
         except ConfigError as exc:
+            if fmu is not None and _runs_a_system(path):
+                self.problem("fmu", fmu, f"the base case {path.name} runs a system (system = an .ssp file); fmu "
+                                         f"replaces a one-FMU case's FMU: remove it")
+                return None
             for p in exc.problems:
                 where = "fmu" if p.startswith("fmu") and fmu is not None else f"case = {show_value(value)}: {path.name}"
                 self.problems.append(f"{where}: {p}")
@@ -709,6 +713,16 @@ class _Validator(ProblemReporter):
         if n is None or seed is None:
             return None
         return SampleSpec(n=n, seed=seed)
+
+
+def _runs_a_system(case: Path) -> bool:
+    """Whether the case file at ``case`` loads as a system case (``system = "X.ssp"``)."""
+    from orchestrator import ConfigError, load_case
+
+    try:
+        return load_case(case).system is not None
+    except ConfigError:
+        return False
 
 
 def load_sweep(path: str | Path) -> Sweep:

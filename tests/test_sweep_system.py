@@ -125,3 +125,10 @@ def test_a_system_sweep_runs_on_dask_and_names_the_component_parameter(base_case
     record = read_run_record(tmp_path / "out" / "runs" / fault["scenario_id"] / "run.json")
     assert record.system is not None and record.system.sha256 == sha
     assert [(e.variable, e.time) for e in record.events] == [(f"{MECHANISM}.T4", FAULT_TIME)]
+
+
+def test_an_fmu_key_on_a_system_case_is_refused_naming_it(base_case, bench_ssp, tmp_path):
+    path = _sweep_file(tmp_path, base_case, f"{MECHANISM}.T4", signal=_driving_torque(bench_ssp))
+    path.write_text(f"fmu = {json.dumps(str(bench_ssp))}\n" + path.read_text(encoding="utf-8"), encoding="utf-8")
+    with pytest.raises(SweepError, match=r'fmu = ".*": the base case motor_fourbar_healthy\.toml runs a system'):
+        load_sweep(path)
