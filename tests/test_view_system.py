@@ -129,6 +129,16 @@ def test_the_page_draws_the_mechanism_and_plots_each_component(system_run):
     assert f"system {record.system.name} (" in page.facts.object
 
 
+def test_an_animation_of_the_system_run_draws_the_mechanism(system_run, tmp_path):
+    from view.animate import animate
+
+    result = animate(system_run, tmp_path / "bench.gif", fps=4, start=0.5, stop=1.0, width_px=320)
+    record = read_run_record(system_run / "run.json")
+    assert result.not_drawn is None and result.frames == 3
+    # the signal beside it is a recorded output, not a joint coordinate
+    assert result.signal in record.outputs and result.signal not in record.drawing.columns
+
+
 def test_a_drawing_of_an_unknown_component_is_named(system_run, tmp_path):
     data = json.loads((system_run / "run.json").read_text())
     data["system"]["drawing"] = "nobody"
