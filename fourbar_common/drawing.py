@@ -83,6 +83,17 @@ class Drawing:
         """The bodies whose geometry or inertia ``parameter`` enters."""
         return tuple(b for b in self.bodies if parameter in b.parameters)
 
+    def in_component(self, component: str) -> "Drawing":
+        """This drawing as a system run records it: the drawing of component ``component``,
+        its joints and parameters named ``component.name`` like the system's columns
+        (``fourbar.A_x``) and faults (``fourbar.L2``)."""
+        def own(name: str) -> str:
+            return f"{component}.{name}"
+        return Drawing(mechanism=self.mechanism,
+                       bodies=tuple(DrawnBody(name=b.name, label=b.label, kind=b.kind, joints=tuple(map(own, b.joints)),
+                                              parameters=tuple(map(own, b.parameters))) for b in self.bodies),
+                       joints=tuple(DrawnJoint(name=own(j.name), type=j.type, ground=j.ground) for j in self.joints))
+
     def to_annotation(self) -> ET.Element:
         """The ``<VendorAnnotations>`` element that declares this drawing in a model description
         (what :meth:`from_model_description` reads)."""

@@ -275,7 +275,8 @@ def _system_record(case: Case, parameters: tuple[ParameterStart, ...]) -> Record
     order = step_order(described, master)
     return RecordedSystem(path=str(case.system), sha256=ssp.sha256, name=ssp.name, algorithm=master.algorithm,
                           inputs=master.inputs, step=case.experiment.step, order=tuple(order), components=components,
-                          connections=tuple(RecordedConnection(c.source, c.target) for c in ssp.connections))
+                          connections=tuple(RecordedConnection(c.source, c.target) for c in ssp.connections),
+                          drawing=described.drawn_component if case.drawing is not None else None)
 
 
 def _bound_value(kind: str, value: Value) -> Value:

@@ -25,6 +25,7 @@ from types import SimpleNamespace
 from typing import Any
 
 from fourbar_common.contract.run_record import ParameterStart
+from fourbar_common.drawing import Drawing, DrawingError
 
 from .case import _fmi2_type_names, _start_value
 from .ssp import SspConnection, SspError, SspSystem, component_bytes, read_ssp
@@ -78,8 +79,12 @@ class SystemDescription:
     stamp: tuple[int, int]
     ssp: SspSystem
     components: tuple[ComponentDescription, ...]
-    drawing: None = None
-    drawing_problem: None = None
+    #: The drawing of the first component whose FMU declares one, named as the system's
+    #: columns (``fourbar.A_x``: :meth:`Drawing.in_component`), the component's name, and why
+    #: that component's drawing could not be read when it is malformed (``drawing`` None then).
+    drawing: Drawing | None = None
+    drawing_problem: str | None = None
+    drawn_component: str | None = None
     own_types: dict[str, str] = field(default_factory=dict)
 
     @property
@@ -154,6 +159,7 @@ def describe_system(path: Path, known: SystemDescription | None = None) -> Syste
     st = os.stat(path)
     ssp = read_ssp(path)
     components = []
+    drawn = None
     for component in ssp.components:
         data = component_bytes(ssp, component.name)
         where = f"{path}: component {component.name!r} ({component.source})"
@@ -170,10 +176,30 @@ def describe_system(path: Path, known: SystemDescription | None = None) -> Syste
                                          platforms=platforms)
         _check_connectors(described, component, where)
         components.append(described)
-    system = SystemDescription(path=path, stamp=(st.st_mtime_ns, st.st_size), ssp=ssp, components=tuple(components))
+        if drawn is None:
+            drawn = _component_drawing(component.name, data, where)
+    drawing, problem, component_name = drawn or (None, None, None)
+    system = SystemDescription(path=path, stamp=(st.st_mtime_ns, st.st_size), ssp=ssp, components=tuple(components),
+                               drawing=drawing, drawing_problem=problem, drawn_component=component_name)
     _check_bindings(system)
     _check_connections(system)
     return system
+
+
+def _component_drawing(name: str, data: bytes, where: str) -> tuple[Drawing | None, str | None, str] | None:
+    """The drawing the component's FMU (``data``) declares, in the system's names, with the
+    problem that made it unreadable; None when it declares none."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as z:
+            xml = z.read("modelDescription.xml")
+        drawing = Drawing.from_model_description(xml, f"{where}: modelDescription.xml")
+    except DrawingError as exc:
+        return None, str(exc), name
+    except (OSError, KeyError, zipfile.BadZipFile):   # FMPy read it a moment ago
+        return None
+    return (drawing.in_component(name), None, name) if drawing is not None else None
 
 
 _KINDS = {"input": ("input",), "output": ("output",), "parameter": ("parameter",),

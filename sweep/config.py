@@ -391,6 +391,10 @@ class _Validator(ProblemReporter):
         try:
             case = load_case(path, fmu=None if fmu is None else self.path.parent / fmu)
         except ConfigError as exc:
+            if fmu is not None and _runs_a_system(path):
+                self.problem("fmu", fmu, f"the base case {path.name} runs a system (system = an .ssp file); fmu "
+                                         f"replaces a one-FMU case's FMU: remove it")
+                return None
             for p in exc.problems:
                 where = "fmu" if p.startswith("fmu") and fmu is not None else f"case = {show_value(value)}: {path.name}"
                 self.problems.append(f"{where}: {p}")
@@ -625,9 +629,13 @@ class _Validator(ProblemReporter):
             return None
         tunable = {}
         if case is not None:
+            # a system's input fed by a connection is the master's: no fault sets it
+            connected = getattr(case.fmu_description, "connected_inputs", {})
             tunable = {v.name: v for v in case.fmu_description.model.modelVariables
-                       if v.type == "Real" and (v.causality == "input"
-                                                or (v.causality == "parameter" and v.variability == "tunable"))}
+                       if v.type == "Real" and v.name not in connected
+                       and (v.causality == "input" or (v.causality == "parameter" and v.variability == "tunable"))}
+        # a system's parameter starts at its SSP binding when it has one (else its FMU's start)
+        starts = {p.name: p.start for p in case.fmu_description.parameter_starts()} if case is not None else {}
         out: list[FaultVariable] = []
         for i, name in enumerate(names):
             key = f"fault.variable[{i}]" if isinstance(value, list) else "fault.variable"
@@ -643,10 +651,12 @@ class _Validator(ProblemReporter):
             if var is None:
                 close = difflib.get_close_matches(name, tunable, n=1)
                 hint = f"did you mean {close[0]!r}? " if close else ""
-                self.problem(key, name, f"not a tunable Real parameter of {case.fmu.name}; "
+                what = f"fed by the connection from {connected[name].source}" if name in connected else \
+                    f"not a tunable Real parameter of {case.fmu.name}"
+                self.problem(key, name, f"{what}; "
                                         f"{hint}expected one of {', '.join(tunable)}")
                 continue
-            start = case.parameters.get(name, var.start)
+            start = case.parameters.get(name, starts.get(name, var.start))
             try:
                 out.append(FaultVariable(name, float(start), var.unit or ""))
             except (TypeError, ValueError):
@@ -703,6 +713,16 @@ class _Validator(ProblemReporter):
         if n is None or seed is None:
             return None
         return SampleSpec(n=n, seed=seed)
+
+
+def _runs_a_system(case: Path) -> bool:
+    """Whether the case file at ``case`` loads as a system case (``system = "X.ssp"``)."""
+    from orchestrator import ConfigError, load_case
+
+    try:
+        return load_case(case).system is not None
+    except ConfigError:
+        return False
 
 
 def load_sweep(path: str | Path) -> Sweep:

@@ -226,3 +226,21 @@ class _ModuleSeconds:
 def pytest_configure(config):
     if not hasattr(config, "workerinput"):        # not on an xdist worker: its controller gets every report
         config.pluginmanager.register(_ModuleSeconds(config), "fourbar-module-seconds")
+
+
+@pytest.fixture(scope="session")
+def bench_ssp(mechanism_fmus, tmp_path_factory) -> Path:
+    """The shipped bench (systems/motor_fourbar.toml) as an .ssp: build/MotorFourBar.ssp when it
+    is newer than every source, else built once (its four-bar from ``mechanism_fmus``)."""
+    built = REPO / "build" / "MotorFourBar.ssp"
+    newest = max(p.stat().st_mtime for p in (REPO / "systems").glob("*.toml"))
+    if _fresh(built) and built.stat().st_mtime >= newest:
+        return built
+    from fmu_src.native_build import find_compiler
+    if find_compiler() is None:
+        pytest.skip("no C compiler: the bench's component FMUs cannot be built here")
+    from fmu_src.system import build_system
+    result = build_system("motor_fourbar", tmp_path_factory.mktemp("bench") / "MotorFourBar.ssp",
+                          prebuilt={"fourbar_motor": mechanism_fmus.get("fourbar_motor", "native")})
+    assert result.problems == (), result.problems
+    return result.path

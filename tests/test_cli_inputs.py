@@ -285,6 +285,8 @@ def test_an_option_of_the_other_detector_is_refused_everywhere(native_run, tmp_p
         with pytest.raises(SweepError, match=f"{key}.*is an option of detector"):
             load_sweep(sweep)
     for shipped in sorted((REPO / "sweeps").glob("*.toml")):      # every shipped sweep file still loads
+        if shipped.name.startswith("motor_fourbar"):   # on the bench's .ssp: tests/test_sweep_system.py, which builds it
+            continue
         load_sweep(shipped)
     # the one table: each detector's own options are disjoint, and every help text that says
     # "cusum:" or "mae:" belongs to an option tagged with that detector

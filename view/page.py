@@ -15,10 +15,13 @@ streams to the browser only the rows between the last time shown and the clock
   resolution over the last ``window_s`` seconds (rollover keeps them bounded);
 - a *whole run* plot of the signal's min/max per bin (``overview_bins`` over the run's span),
   re-sent once per bin;
-- the mechanism at the clock, drawn from the joint columns (:mod:`view.geometry`).
+- the mechanism at the clock, drawn from the joint columns (:mod:`view.geometry`);
+- a system run's component signals (``motor.current``, ``controller.voltage`` ...), a recent
+  plot per component (:mod:`view.components`), streamed like the signal.
 
 The page names its data sources (``signal_recent``, ``forecast_recent``, ``statistic``,
-``signal_overview``, ``bodies``, ``joints``) so a test can count the rows a browser holds.
+``signal_overview``, ``bodies``, ``joints``, and ``component_NAME`` per component of a
+system run) so a test can count the rows a browser holds.
 """
 from __future__ import annotations
 
@@ -134,6 +137,7 @@ class RunPage:
         self._rollover: dict[int, int] = {}       # per timeline series: its recent plot's rollover
         self._sent: dict[str, tuple[int, float]] = {}   # per recent source: (id of its series, time of its last row)
         self._overview_key: tuple | None = None
+        self._components: tuple = ()               # the component groups plotted (view.components)
 
         self.src = {
             "signal_recent": ColumnDataSource({"time": [], "value": []}, name="signal_recent"),
@@ -218,9 +222,10 @@ class RunPage:
         self.follow = pn.widgets.Checkbox(name="follow the newest row", value=self.live, width=170)
         self.follow.param.watch(self._on_follow, "value")
         controls = pn.Row(self.play, self.speed, self.follow, self.slider, sizing_mode="stretch_width")
+        self.component_plots = pn.Column(sizing_mode="stretch_width", name="components")
         left = pn.Column(self.mechanism, self.facts)
-        right = pn.Column(self.banner, controls, self.signal_plot, self.stat_plot, self.overview, self.verdict,
-                          self.notice, sizing_mode="stretch_width")
+        right = pn.Column(self.banner, controls, self.signal_plot, self.stat_plot, self.overview,
+                          self.component_plots, self.verdict, self.notice, sizing_mode="stretch_width")
         self.layout = pn.Row(left, right, sizing_mode="stretch_width")
 
     def servable(self):
@@ -272,6 +277,8 @@ class RunPage:
             geometry = Geometry(tl.record.drawing)
             if not geometry.lacking(tl.rows.columns):
                 self.geometry = geometry
+        if not self._components and tl.rows is not None:
+            self._add_component_plots(tl.components)
         self._advance_clock(last)
         self._show(self.clock)
         self.slider.end = max(last, self.slider.start + 1e-9)
@@ -307,6 +314,34 @@ class RunPage:
             self.follow.value = True
         self._rollover.clear()
         self._sent.clear()
+        for group in self._components:
+            del self.src[f"component_{group.component}"]
+        self._components = ()
+        self.component_plots.objects = []
+
+    def _add_component_plots(self, groups) -> None:
+        """A recent plot per component of a system run, a line per signal (its source
+        ``component_NAME`` holds ``time`` and the signals)."""
+        from bokeh.models import ColumnDataSource, DataRange1d
+        from bokeh.palettes import Category10_10
+        from bokeh.plotting import figure
+
+        recent = dict(follow="end", follow_interval=self.settings.window_s, range_padding=0.0)
+        units = self.timeline.record.units or {}
+        plots = []
+        for group in groups:
+            name = f"component_{group.component}"
+            self.src[name] = ColumnDataSource({"time": [], **{c: [] for c in group.signals}}, name=name)
+            fig = figure(title=f"{group.component} (recent)", height=160, sizing_mode="stretch_width",
+                         x_axis_label="time (s)", tools="pan,xwheel_zoom,reset", x_range=DataRange1d(**recent))
+            for i, signal in enumerate(group.signals):
+                unit = units.get(signal)
+                fig.line("time", signal, source=self.src[name], color=Category10_10[i % 10],
+                         legend_label=f"{signal} ({unit})" if unit else signal)
+            fig.legend.location = "top_left"
+            plots.append(fig)
+        self._components = tuple(groups)
+        self.component_plots.objects = plots
 
     # -- what the browser gets ---------------------------------------------------------
     def _window_rows(self, series) -> int:
@@ -346,6 +381,10 @@ class RunPage:
                            self._window_rows(tl.rows))
         ev, replace = self._unsent("statistic", tl.evaluations, t, ("statistic", "threshold"))
         self._send("statistic", ev, replace, self._window_rows(tl.evaluations))
+        for group in self._components:
+            name = f"component_{group.component}"
+            part, replace = self._unsent(name, tl.rows, t, group.signals)
+            self._send(name, part, replace, self._window_rows(tl.rows))
         self._overview(signal, t)
         self._marks(t)
         self._mechanism(t)
@@ -471,6 +510,9 @@ class RunPage:
             return
         events = "".join(f"<li>{html.escape(_event_text(e))}</li>" for e in r.events) or "<li>none</li>"
         fmu = r.fmu.model_name if r.fmu is not None else "?"
+        if r.system is not None:
+            drawn = f", the mechanism is {r.system.drawing}'s" if r.system.drawing else ""
+            fmu = f"system {r.system.name} ({', '.join(c.name for c in r.system.components)}{drawn})"
         self.facts.object = (f'<div id="facts"><b>case</b> {html.escape(r.case or "?")}<br>'
                              f'{html.escape(r.description or "")}<br><b>FMU</b> {html.escape(fmu)}<br>'
                              f'<b>status</b> <span id="status">{html.escape(r.status)}</span>, '

@@ -16,6 +16,7 @@ import pandas as pd
 
 from fourbar_common.contract.run_record import RunRecord
 
+from .components import ComponentSignals, component_signals
 from .sources import Diagnosis, MonitorEvent, Update
 
 __all__ = ["Series", "Timeline", "StateAt"]
@@ -164,6 +165,11 @@ class Timeline:
         if self.rows is not None and len(self.rows.columns) > 1:
             return (self.rows.columns[1],)
         return ()
+
+    @property
+    def components(self) -> tuple[ComponentSignals, ...]:
+        """A system run's recorded signals per component (:func:`view.components.component_signals`)."""
+        return component_signals(self.record, self.rows.columns if self.rows is not None else ())
 
     def state_at(self, t: float) -> StateAt:
         state = StateAt("WAITING" if not self.events else "TRAINING")

@@ -9,12 +9,17 @@ its readers see nothing new.  A system run writes (schema :data:`SYSTEM_SCHEMA`)
                                "model_identifier": "DCMotorNative", "model_name": "DCMotor",
                                "fmi_version": "2.0", "guid": "{...}",
                                "parameters": {"R": 1.2, ...}}, ...],
-               "connections": [{"from": "controller.voltage", "to": "motor.V"}, ...]}
+               "connections": [{"from": "controller.voltage", "to": "motor.V"}, ...],
+               "drawing": "fourbar"}
 
 ``order`` is the order the components stepped in (Jacobi: the SSD's, all from the same
 values); ``parameters`` every parameter's effective start value in the run (the SSP's binding,
 then the case's override; the top-level ``parameters`` of run.json give each one's source, named
-``component.variable``).  Standard library only.
+``component.variable``).  ``drawing`` names the component whose mechanism run.json's top-level
+``drawing`` draws (null, or absent in records written before it: none drawn); that drawing's
+joints and parameters are named ``component.name``, like the exchange file's columns
+(``fourbar.A_x``) and the faults (``fourbar.L2``), so a view draws a system run as it draws a
+one-FMU run.  Standard library only.
 """
 from __future__ import annotations
 
@@ -73,6 +78,7 @@ class RecordedSystem:
     order: tuple[str, ...]
     components: tuple[RecordedComponent, ...]
     connections: tuple[RecordedConnection, ...]
+    drawing: str | None = None
     schema: int = SYSTEM_SCHEMA
 
     def component(self, name: str) -> RecordedComponent | None:
@@ -82,7 +88,7 @@ class RecordedSystem:
         return {"schema": self.schema, "path": self.path, "sha256": self.sha256, "name": self.name,
                 "algorithm": self.algorithm, "inputs": self.inputs, "step": self.step, "order": list(self.order),
                 "components": [c.to_json() for c in self.components],
-                "connections": [c.to_json() for c in self.connections]}
+                "connections": [c.to_json() for c in self.connections], "drawing": self.drawing}
 
     @classmethod
     def from_json(cls, data: Any) -> "RecordedSystem":
@@ -126,5 +132,9 @@ def _parse(data: Any) -> RecordedSystem:
         at = f"{where}connections[{i}]."
         connections.append(RecordedConnection(source=_need(item, "from", at, _text, "component.output"),
                                               target=_need(item, "to", at, _text, "component.input")))
+    drawing = data.get("drawing")
+    if drawing is not None and not (isinstance(drawing, str) and any(c.name == drawing for c in components)):
+        raise ValueError(f"field '{where}drawing' = {drawing!r}: expected null or the name of a component "
+                         f"({', '.join(c.name for c in components)})")
     return RecordedSystem(**values, step=float(step), order=tuple(order), components=tuple(components),
-                          connections=tuple(connections), schema=schema)
+                          connections=tuple(connections), drawing=drawing, schema=schema)
