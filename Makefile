@@ -16,7 +16,7 @@ FMU_SOURCES := build_fmu.py $(wildcard fmu_src/*.py fmu_src/mechanism/*.py fmu_s
                fmu_src/mechanisms/*.toml fmu_src/native/*.[ch] fmu_src/native/fmi3/*.[ch])
 MECHANISMS  := $(basename $(notdir $(wildcard fmu_src/mechanisms/*.toml)))
 
-.PHONY: demo test check fmu mechanisms components browser tbb benchmarks figures clean help
+.PHONY: demo test check fmu mechanisms components systems browser tbb benchmarks figures clean help
 
 help:
 	@echo "make demo       build the FMU, run Case 2 with orchestrator and monitor, print the verdict"
@@ -29,6 +29,7 @@ help:
 	@echo "make fmu        build $(FMU) and build/FourBarNative.fmu (when a C compiler exists)"
 	@echo "make mechanisms build the FMUs of every mechanism in fmu_src/mechanisms/ into build/"
 	@echo "make components build the native FMUs of every component in fmu_src/components/ into build/"
+	@echo "make systems    build the SSP file of every system in systems/ into build/ (docs/systems.md)"
 	@echo "make browser    install Debian's chromium for the browser tests (make test does it)"
 	@echo "make tbb        install Debian's libtbb12, which Ecos (ecospy) needs, for the SSP tests (make test does it)"
 
@@ -68,6 +69,17 @@ $(COMP_STAMP): $(STAMP) $(COMPONENT_SOURCES)
 
 components: $(COMP_STAMP)
 
+# Every shipped system's SSP file (build/<Name>.ssp, from systems/*.toml: docs/systems.md), built
+# once its components and mechanisms are (the tests use build/MotorFourBar.ssp when it is current).
+SYSTEMS    := $(basename $(notdir $(wildcard systems/*.toml)))
+SYS_STAMP  := build/.systems
+
+$(SYS_STAMP): $(MECH_STAMP) $(COMP_STAMP) $(wildcard systems/*.toml fmu_src/system/*.py)
+	@for s in $(SYSTEMS); do $(BIN)/python build_fmu.py --system "$$s" || exit 1; done
+	@touch $@
+
+systems: $(SYS_STAMP)
+
 demo: $(FMU)
 	$(BIN)/python scripts/demo.py --speedup $(DEMO_SPEED) $(if $(filter 0,$(VIEW)),--no-view,)
 
@@ -101,7 +113,7 @@ tbb:
 # finds every mechanism's FMUs in build/, built once here rather than once per worker
 # ($(MECH_STAMP) first: it builds $(FMU) too, in parallel with the other mechanisms).
 TEST_WORKERS ?= 2
-test: $(MECH_STAMP) $(COMP_STAMP) $(FMU) browser tbb
+test: $(MECH_STAMP) $(COMP_STAMP) $(SYS_STAMP) $(FMU) browser tbb
 	$(BIN)/python -m pytest -q $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist worksteal)
 
 check: $(FMU)

@@ -29,7 +29,7 @@ import pytest
 from support import FOURBAR_RUN, REPO
 
 from fmu_src.ssp_masters import MASTERS, available, bound_parameters, run_master
-from fmu_src.system import build_system, load_system, schema_problems
+from fmu_src.system import load_system, schema_problems
 
 STEP = 1e-3                     # s: the bench's macro step (the shaft's mode is at 224 rad/s)
 LONG = 60.0                     # s: fourbar-run's run, for the motion's health
@@ -44,14 +44,10 @@ COLUMNS = [*VARIABLES, "fourbar.theta2"]
 
 
 @pytest.fixture(scope="session")
-def bench(mechanism_fmus, tmp_path_factory) -> Path:
-    """build/MotorFourBar.ssp's twin (what `build_fmu.py --system motor_fourbar` writes), built
-    into a temporary folder with the session's four-bar FMU."""
-    out = tmp_path_factory.mktemp("bench") / "MotorFourBar.ssp"
-    result = build_system("motor_fourbar", out,
-                          prebuilt={"fourbar_motor": mechanism_fmus.get("fourbar_motor", "native")})
-    assert result.problems == (), result.problems
-    return result.path
+def bench(bench_ssp) -> Path:
+    """build/MotorFourBar.ssp (what `build_fmu.py --system motor_fourbar` writes), or its twin
+    built once for the session (tests/conftest.py's ``bench_ssp``)."""
+    return bench_ssp
 
 
 @pytest.fixture(scope="session")
