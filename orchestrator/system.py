@@ -123,7 +123,6 @@ class SystemInstance:
 
     # -- life cycle -------------------------------------------------------------------
     def __enter__(self) -> "SystemInstance":
-        from .instance import instance_for
         from .ssp import component_bytes
 
         self._stack = contextlib.ExitStack()
@@ -134,12 +133,18 @@ class SystemInstance:
                 fmu.write_bytes(component_bytes(self.description.ssp, component.name))
                 described = FmuDescription(path=fmu, stamp=_stamp(fmu), model=component.model,
                                            own_types=component.own_types)
-                instance = instance_for(described, component.name, "CoSimulation")
+                instance = self._instance_for(described, component.name)
                 self.instances[component.name] = self._named(component.name, lambda: self._stack.enter_context(instance))
         except BaseException:
             self.__exit__(None, None, None)
             raise
         return self
+
+    def _instance_for(self, described: FmuDescription, name: str) -> Any:
+        """The (not yet entered) instance of one component: its co-simulation interface."""
+        from .instance import instance_for
+
+        return instance_for(described, name, "CoSimulation")
 
     def __exit__(self, exc_type, exc, tb) -> None:
         stack, self._stack = self._stack, None
