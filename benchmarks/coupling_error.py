@@ -78,34 +78,15 @@ def _parameters(description) -> dict[str, float]:
 
 
 def reference_order(description) -> tuple[str, ...]:
-    """``[master] order`` for the monolithic master when the .ssp needs one: none when the
-    outputs' declared dependencies order the system; else the components whose FMU declares no
-    output dependencies at all (the mechanism, before its FMU declares them: its outputs are its
-    coordinates and their rates, states) first, then the others along the connections."""
-    from orchestrator.monolithic import AlgebraicLoop, evaluation_plan
+    """``[master] order`` for the monolithic master when the .ssp needs one (the mechanism's FMU
+    declares no output dependencies): :func:`orchestrator.monolithic.suggested_order`; else ()."""
+    from orchestrator.monolithic import AlgebraicLoop, evaluation_plan, suggested_order
 
     try:
         evaluation_plan(description)
         return ()
     except AlgebraicLoop:
-        pass
-    names = list(description.ssp.component_names)
-    undeclared = [c.name for c in description.components
-                  if c.model.outputs and all(u.dependencies is None for u in c.model.outputs)]
-    feeds = set()
-    for c in description.ssp.connections:
-        if c.end_component in undeclared:
-            continue
-        target = description.component(c.end_component).model
-        if any(u.dependencies is None or any(d.name == c.end_connector for d in u.dependencies)
-               for u in target.outputs):
-            feeds.add((c.start_component, c.end_component))
-    order, remaining = [], [n for n in names]
-    while remaining:
-        ready = next((n for n in remaining if not any((s, n) in feeds for s in remaining if s != n)), remaining[0])
-        order.append(ready)
-        remaining.remove(ready)
-    return tuple(order)
+        return suggested_order(description)
 
 
 def run(folder: Path, ssp: Path, name: str, *, step: float, stop: float, algorithm: str, inputs: str = "hold",
@@ -197,10 +178,13 @@ def plot(runs: list[MasterRun], path: Path) -> None:
             colour, marker, line = styles[algorithm, inputs]
             ax.loglog(*zip(*mine), color=colour, marker=marker, linestyle=line, label=_label(algorithm, inputs))
             lows.append(min(e for _, e in mine))
-        h = np.array([min(r.step for r in runs), max(r.step for r in runs)]) * 1e3
-        anchor = min(lows) if lows else 1e-3
+        steps = sorted({r.step * 1e3 for r in runs})
+        h = np.array([steps[0], steps[-1]])
+        anchor = (min(lows) if lows else 1e-3) / 4          # below the data, so the guides hide none of it
         for p, style in ((1, ":"), (2, "-.")):
-            ax.loglog(h, anchor * (h / h[0]) ** p, color="grey", linestyle=style, linewidth=1, label=f"order {p}")
+            ax.loglog(h, anchor * (h / h[0]) ** p, color="grey", linestyle=style, linewidth=1, label=f"slope {p}")
+        ax.set_xticks(steps, [f"{s:g}" for s in steps])
+        ax.minorticks_off()
         ax.set_xlabel("macro step (ms)")
         ax.set_ylabel(f"largest error of {column} ({UNITS[column]})")
         ax.set_title(column)

@@ -39,7 +39,7 @@ from .system import SystemInstance
 from .system_description import SystemDescription
 
 __all__ = ["ALGORITHM", "ATOL_RATIO", "DEFAULT_RTOL", "AlgebraicLoop", "MonolithicSystem", "evaluation_plan",
-           "monolithic_problems"]
+           "monolithic_problems", "suggested_order"]
 
 #: The ``[master] algorithm`` of this master.
 ALGORITHM = "monolithic"
@@ -128,6 +128,30 @@ def _loop_message(remaining: list[str], needs: dict[str, list[tuple[str, str]]])
             f"depend on its input")
 
 
+def suggested_order(system: SystemDescription) -> tuple[str, ...]:
+    """An order to offer for ``[master] order`` when an FMU that declares no output dependencies
+    at all (e.g. a mechanism FMU, whose outputs are its coordinates and their rates: states)
+    closes a loop: those components first, then the others along the connections that feed
+    through by their declarations; () when every FMU declares its dependencies."""
+    undeclared = {c.name for c in system.components
+                  if c.model.outputs and all(u.dependencies is None for u in c.model.outputs)}
+    if not undeclared:
+        return ()
+    feeds = set()
+    for c in system.ssp.connections:
+        if c.end_component not in undeclared:
+            outputs = {x.start_connector for x in system.ssp.connections if x.start_component == c.end_component}
+            if any(c.end_connector in _direct_inputs(system, c.end_component, o) for o in outputs):
+                feeds.add((c.start_component, c.end_component))
+    order, remaining = [], list(system.ssp.component_names)
+    while remaining:
+        ready = [n for n in remaining if n in undeclared] or \
+                [n for n in remaining if not any((s, n) in feeds for s in remaining if s != n)] or remaining
+        order.append(ready[0])
+        remaining.remove(ready[0])
+    return tuple(order)
+
+
 def monolithic_problems(system: SystemDescription, order: Sequence[str] = ()) -> list[str]:
     """Why ``system`` cannot be integrated as one model (empty: it can)."""
     problems = []
@@ -142,7 +166,9 @@ def monolithic_problems(system: SystemDescription, order: Sequence[str] = ()) ->
     try:
         evaluation_plan(system, order)
     except AlgebraicLoop as exc:
-        problems.append(str(exc))
+        offer = suggested_order(system)
+        problems.append(str(exc) + (f" (e.g. order = [{', '.join(map(repr, offer))}]: first the components whose FMU "
+                                    f"declares no dependencies)".replace("'", '"') if offer else ""))
     return problems
 
 
@@ -190,6 +216,7 @@ class MonolithicSystem(SystemInstance):
         self._rtol = DEFAULT_RTOL
         self._slices: list[tuple[str, Any, int, int]] = []   # (name, FMPy object, first, count)
         self._t = 0.0
+        self._order_checked = False     # the case's order, checked at the first step (_check_order)
         self.evaluations = 0            # evaluations of f (benchmarks report them)
 
     def _instance_for(self, described, name: str):
@@ -244,6 +271,24 @@ class MonolithicSystem(SystemInstance):
         self._solver = DOP853(self._f, self._t, x0, self._stop, rtol=self._rtol, atol=self._rtol * ATOL_RATIO)
         self._evaluate(self._t, x0)      # the solver's start probed other points: back to (t, x0)
 
+    def _check_order(self, x0) -> None:
+        """The case's ``[master] order`` is vouched for, not derived: check that it reads no
+        input before it is set.  After an evaluation at perturbed states, two evaluations at
+        ``x0`` must give the same connected outputs (an output read before an input it depends
+        on is set shows the perturbed point's value in the first); else an :class:`FmuError`
+        naming the outputs (a wrong order would make the integrator's steps collapse)."""
+        import numpy as np
+
+        self._evaluate(self._t, x0 * (1 + 1e-3) + 1e-3)
+        self._evaluate(self._t, x0)
+        first = dict(self._now)
+        self._evaluate(self._t, x0)
+        stale = [k for k, v in self._now.items() if not np.isclose(first[k], v, rtol=1e-9, atol=1e-12)]
+        if stale:
+            raise FmuError(f"[master] order = {list(self.master.order)} reads {', '.join(stale)} before an input "
+                           f"it depends on is set (evaluated twice at t = {self._t!r} s they differ); give an order "
+                           f"where each component comes after the components that feed it through", 3)
+
     def _f(self, t: float, x):
         self._evaluate(t, x)
         return self._dx.copy()
@@ -296,6 +341,9 @@ class MonolithicSystem(SystemInstance):
         """Integrate from ``t`` to ``t + h``; every component is left at ``t + h``."""
         target = t + h
         solver = self._solver
+        if self.master.order and not self._order_checked:
+            self._check_order(solver.y)
+            self._order_checked = True
         while solver.t < target and solver.status == "running":
             message = solver.step()
             if solver.status == "failed":

@@ -29,7 +29,7 @@ from scipy.linalg import expm
 
 from ssp_files import write_ssp
 
-__all__ = ["BOUND", "COLUMNS", "COMPONENTS", "CONNECTIONS", "MOTOR", "PI", "build_components", "exact", "loop_matrix",
+__all__ = ["BOUND", "COLUMNS", "COMPONENTS", "bench_order", "CONNECTIONS", "MOTOR", "PI", "build_components", "exact", "loop_matrix",
            "loop_ssp", "outputs", "run_system", "write_loop_ssp"]
 
 MOTOR = dict(R=1.0, L=0.01, k=0.5, N=20.0, b=1e-4, J=1e-3, k_s=1250.0, c_s=12.0)
@@ -111,3 +111,19 @@ def run_system(folder: Path, ssp: Path, name: str, *, step: float, stop: float, 
     result = run_case(case, folder / f"out_{name}")
     assert result.status == "finished", result.error
     return np.loadtxt(result.exchange_path, delimiter=",", skiprows=1, ndmin=2)
+
+
+def bench_order(ssp: Path) -> str:
+    """The ``[master] order = [...]`` line the monolithic master needs for ``ssp`` ("" when its
+    FMUs' declared dependencies order it): :func:`orchestrator.monolithic.suggested_order`."""
+    import json
+
+    from orchestrator.monolithic import AlgebraicLoop, evaluation_plan, suggested_order
+    from orchestrator.system_description import describe_system
+
+    system = describe_system(ssp)
+    try:
+        evaluation_plan(system)
+        return ""
+    except AlgebraicLoop:
+        return f"order = {json.dumps(list(suggested_order(system)))}\n"

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from loop_system import loop_ssp, run_system
+from loop_system import bench_order, loop_ssp, run_system
 
 BENCH = Path(__file__).resolve().parents[1] / "build" / "MotorFourBar.ssp"
 STEPS = (0.0004, 0.0008, 0.0016)
@@ -62,18 +62,7 @@ def test_the_orders_on_the_current_loop(tmp_path_factory, tmp_path):
 
 @pytest.mark.skipif(not BENCH.exists(), reason="the bench is not built (python build_fmu.py --system motor_fourbar)")
 def test_the_orders_on_the_bench(tmp_path):
-    from orchestrator.monolithic import AlgebraicLoop, evaluation_plan
-    from orchestrator.system_description import describe_system
-
-    try:
-        evaluation_plan(describe_system(BENCH))
-        order = ""
-    except AlgebraicLoop:        # the mechanism FMU declares no output dependencies (yet): its outputs are states
-        names = describe_system(BENCH).ssp.component_names
-        first = [n for n in names if n == "fourbar"]
-        rest = [n for n in ("motor", "sensor", "controller") if n in names]
-        others = [n for n in names if n not in first + rest]
-        order = f"order = {[*others, *first, *rest]!r}\n".replace("'", '"')
+    order = bench_order(BENCH)
     orders, errors = observed_orders(tmp_path, BENCH, "fourbar.omega2", stop=0.128,
                                      extra='[parameters]\n"sensor.resolution" = 1e-12\n', reference_extra=order)
     check(orders, errors)

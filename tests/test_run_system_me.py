@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from loop_system import COLUMNS, exact, loop_ssp, outputs, run_system
+from loop_system import COLUMNS, bench_order, exact, loop_ssp, outputs, run_system
 from ssp_files import write_ssp
 
 from fourbar_common.contract.run_record import read_run_record
@@ -38,8 +38,8 @@ def scaled_error(rows: np.ndarray, expected: dict[str, np.ndarray]) -> float:
 
 def test_the_reference_follows_the_closed_form(loop, tmp_path):
     """DOP853 at the default relative tolerance 1e-10 (absolute 1e-12) over 0.2 s: within 1e-7 of
-    each column's scale (measured 5e-10 on the current, 2e-8 A... on the rotor's speed, whose
-    scale is its ~100 rad/s swing; the bound leaves room for the step selection)."""
+    each column's scale (measured 5e-10 A on the current and 2.4e-8 rad/s on the rotor's speed;
+    the bound leaves room for the platform's libm and the step selection)."""
     rows = run_system(tmp_path, loop, "mono", step=0.002, stop=STOP, algorithm="monolithic")
     assert rows.shape == (101, 4)
     expected = outputs(exact(rows[:, 0]))
@@ -117,6 +117,7 @@ def test_a_true_algebraic_loop_is_refused_naming_it(loop, tmp_path):
     assert "master.algorithm" in message and "algebraic loop" in message
     assert ("controller.voltage -> sensor.omega -> sensor.measured -> controller.measured -> controller.voltage"
             in message), message
+    assert "e.g. order" not in message           # both FMUs declare their dependencies: no order to offer
     from orchestrator.config import load_case
 
     load_case(_case(tmp_path, ssp, 'algorithm = "jacobi"'))   # a co-simulation master takes it (a step's delay)
@@ -135,8 +136,7 @@ def test_the_bench_agrees_with_jacobi_at_a_small_step(tmp_path):
     and 1.6e-3 A on the current (1.1e-2 and 1.6e-2 at 1 ms: first order); the bounds, 0.01 rad/s
     and 0.02 A, allow a factor 10 for a changed bench and are 20 times below the signals' range."""
     columns = ("fourbar.omega2", "motor.current")
-    extra = ('order = ["fourbar", "motor", "sensor", "controller"]\n'
-             '[parameters]\n"sensor.resolution" = 1e-12\n')
+    extra = bench_order(BENCH) + '[parameters]\n"sensor.resolution" = 1e-12\n'
     reference = run_system(tmp_path, BENCH, "bench_ref", step=0.001, stop=STOP, algorithm="monolithic",
                            columns=columns, extra=extra)
     jacobi = run_system(tmp_path, BENCH, "bench_j", step=0.0001, stop=STOP, columns=columns,
@@ -145,3 +145,16 @@ def test_the_bench_agrees_with_jacobi_at_a_small_step(tmp_path):
     assert np.max(np.abs(jacobi[:, 1] - reference[:, 1])) < 0.01
     assert np.max(np.abs(jacobi[:, 2] - reference[:, 2])) < 0.02
     assert np.max(np.abs(reference[:, 1])) > 0.5                      # the crank turned
+
+
+def test_a_wrong_order_from_the_case_fails_the_run_naming_it(loop, tmp_path):
+    """The case vouches for [master] order; one that reads the controller before the sensor it
+    depends on is caught at the first step (two evaluations at one point differ) instead of
+    letting DOP853's steps collapse on a right-hand side that is not a function of the states
+    (without the check this run crawled for over 10 minutes)."""
+    from orchestrator import run_case
+
+    case = _case(tmp_path, loop, 'algorithm = "monolithic"\norder = ["controller", "sensor", "motor"]')
+    result = run_case(case, tmp_path / "out")
+    assert result.status == "failed"
+    assert "reads controller.voltage" in result.error and "before an input it depends on is set" in result.error
