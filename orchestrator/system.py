@@ -80,9 +80,15 @@ def gauss_seidel_order(system: SystemDescription) -> tuple[str, ...]:
 def step_order(system: SystemDescription, master: Master) -> tuple[str, ...]:
     """The order the components step in: ``master.order`` when the case gave one, else
     :func:`gauss_seidel_order` for Gauss–Seidel, the SSD's order for Jacobi (where it changes
-    nothing: every component steps from the same values)."""
+    nothing: every component steps from the same values); for the monolithic master the order
+    its evaluation reads them in (:func:`orchestrator.monolithic.evaluation_plan`)."""
     if master.order:
         return tuple(master.order)
+    if master.algorithm == "monolithic":          # the order its evaluation reads the outputs in
+        from .monolithic import evaluation_plan
+
+        read = list(dict.fromkeys(name for name, _ in evaluation_plan(system)))
+        return (*read, *(n for n in system.ssp.component_names if n not in read))
     if master.algorithm == "gauss-seidel":
         return gauss_seidel_order(system)
     return system.ssp.component_names

@@ -81,6 +81,7 @@ def test_run_json_records_the_monolithic_master(loop, tmp_path):
     record = read_run_record(tmp_path / "out_rec" / "run.json")
     assert record.status == "finished"
     assert record.system is not None and record.system.algorithm == "monolithic"
+    assert record.system.order == ("motor", "sensor", "controller")     # the current feeds the sensor, ...
 
 
 def _case(tmp_path: Path, ssp: Path, master: str) -> Path:
