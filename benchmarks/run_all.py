@@ -35,6 +35,8 @@ SECTIONS = [
     ("sweep_scaling", "Sweep throughput on Dask, 1 and 2 workers (issue 6)", ["benchmarks/sweep_scaling.py"]),
     ("view_load", "Live view following an hour-long run at 100 Hz (issue 25)", ["benchmarks/view_load.py"]),
     ("startup", "Start-up time of the commands (issue 38)", ["benchmarks/startup.py"]),
+    ("coupling_error", "Coupling error of the co-simulation masters on the bench (issue 40)",
+     ["benchmarks/coupling_error.py"]),
 ]
 
 

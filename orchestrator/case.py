@@ -200,18 +200,20 @@ class Noise:
         return {"seed": self.seed, "std": dict(self.std)}
 
 
-#: ``[master] algorithm``: how a system's components are stepped (orchestrator.system).
-MASTER_ALGORITHMS = ("jacobi", "gauss-seidel")
+#: ``[master] algorithm``: how a system's components are stepped (orchestrator.system), or
+#: integrated as one model without coupling error (orchestrator.monolithic).
+MASTER_ALGORITHMS = ("jacobi", "gauss-seidel", "monolithic")
 #: ``[master] inputs``: a connected input held over the step, or extrapolated linearly.
 MASTER_INPUTS = ("hold", "extrapolate")
 
 
 @dataclass(frozen=True)
 class Master:
-    """How a system (``system = "X.ssp"``) is stepped: ``algorithm`` jacobi | gauss-seidel,
-    ``inputs`` hold | extrapolate, ``order`` the Gauss–Seidel order the case gave (empty: from
-    the connections, :func:`orchestrator.system.gauss_seidel_order`).  The macro step is
-    ``[experiment] step``."""
+    """How a system (``system = "X.ssp"``) is stepped: ``algorithm`` jacobi | gauss-seidel |
+    monolithic, ``inputs`` hold | extrapolate, ``order`` the Gauss–Seidel order (monolithic: the
+    evaluation order) the case gave (empty: from the connections,
+    :func:`orchestrator.system.gauss_seidel_order`, :func:`orchestrator.monolithic.evaluation_plan`).
+    The macro step is ``[experiment] step``."""
 
     algorithm: str = "jacobi"
     inputs: str = "hold"

@@ -45,6 +45,8 @@ A case may run a system of FMUs instead: system = "../build/X.ssp" (SSP 1.0) in 
 fmu, variables named component.variable (motor.current, fourbar.omega2), and
   [master]
   algorithm = "jacobi"        # or "gauss-seidel" (order from the connections, or order = [...])
+                              # or "monolithic": every component through Model Exchange as one
+                              # ODE (DOP853), the reference without coupling error
   inputs = "hold"             # or "extrapolate" (input derivatives where a component accepts them)
 ("Systems" in docs/orchestrator.md).
 Case-file keys: docs/orchestrator.md.

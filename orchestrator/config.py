@@ -367,9 +367,10 @@ class _Validator(ProblemReporter):
         if "order" in table:
             given = table["order"]
             names = self.description.ssp.component_names if self.description is not None else None
-            if algorithm != "gauss-seidel":
-                self.problem("master.order", given, "an order is for algorithm = \"gauss-seidel\"; Jacobi steps "
-                                                    "every component from the same values")
+            if algorithm not in ("gauss-seidel", "monolithic"):
+                self.problem("master.order", given, "an order is for algorithm = \"gauss-seidel\" or "
+                                                    "\"monolithic\"; Jacobi steps every component from the same "
+                                                    "values")
             elif not isinstance(given, list) or not all(isinstance(n, str) for n in given):
                 self.problem("master.order", given, "expected an array of component names")
             elif names is not None and sorted(given) != sorted(names):
@@ -377,6 +378,15 @@ class _Validator(ProblemReporter):
                                                     f"{', '.join(names)}")
             else:
                 order = tuple(given)
+        if algorithm == "monolithic":
+            if inputs != "hold":
+                self.problem("master.inputs", inputs, "the monolithic master exchanges no values between steps: "
+                                                      "inputs is for jacobi and gauss-seidel")
+            if self.description is not None:
+                from .monolithic import monolithic_problems
+
+                for problem in monolithic_problems(self.description, order):
+                    self.problem("master.algorithm", algorithm, problem)
         return Master(algorithm=algorithm, inputs=inputs, order=order)
 
     def connected(self, parameters: dict, events: tuple, inputs: dict) -> None:

@@ -448,6 +448,10 @@ class _Run:
     def _instance(self, instance_for):
         """The FMU instance, or the :class:`~orchestrator.system.SystemInstance` of a system case."""
         if self.case.system is not None:
+            if self.case.master.algorithm == "monolithic":
+                from .monolithic import MonolithicSystem
+
+                return MonolithicSystem(self.case.fmu_description, self.case.master, self.case.name)
             from .system import SystemInstance
 
             return SystemInstance(self.case.fmu_description, self.case.master, self.case.name)

@@ -80,9 +80,15 @@ def gauss_seidel_order(system: SystemDescription) -> tuple[str, ...]:
 def step_order(system: SystemDescription, master: Master) -> tuple[str, ...]:
     """The order the components step in: ``master.order`` when the case gave one, else
     :func:`gauss_seidel_order` for Gauss–Seidel, the SSD's order for Jacobi (where it changes
-    nothing: every component steps from the same values)."""
+    nothing: every component steps from the same values); for the monolithic master the order
+    its evaluation reads them in (:func:`orchestrator.monolithic.evaluation_plan`)."""
     if master.order:
         return tuple(master.order)
+    if master.algorithm == "monolithic":          # the order its evaluation reads the outputs in
+        from .monolithic import evaluation_plan
+
+        read = list(dict.fromkeys(name for name, _ in evaluation_plan(system)))
+        return (*read, *(n for n in system.ssp.component_names if n not in read))
     if master.algorithm == "gauss-seidel":
         return gauss_seidel_order(system)
     return system.ssp.component_names
@@ -123,7 +129,6 @@ class SystemInstance:
 
     # -- life cycle -------------------------------------------------------------------
     def __enter__(self) -> "SystemInstance":
-        from .instance import instance_for
         from .ssp import component_bytes
 
         self._stack = contextlib.ExitStack()
@@ -134,12 +139,18 @@ class SystemInstance:
                 fmu.write_bytes(component_bytes(self.description.ssp, component.name))
                 described = FmuDescription(path=fmu, stamp=_stamp(fmu), model=component.model,
                                            own_types=component.own_types)
-                instance = instance_for(described, component.name, "CoSimulation")
+                instance = self._instance_for(described, component.name)
                 self.instances[component.name] = self._named(component.name, lambda: self._stack.enter_context(instance))
         except BaseException:
             self.__exit__(None, None, None)
             raise
         return self
+
+    def _instance_for(self, described: FmuDescription, name: str) -> Any:
+        """The (not yet entered) instance of one component: its co-simulation interface."""
+        from .instance import instance_for
+
+        return instance_for(described, name, "CoSimulation")
 
     def __exit__(self, exc_type, exc, tb) -> None:
         stack, self._stack = self._stack, None
