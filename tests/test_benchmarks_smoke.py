@@ -330,3 +330,14 @@ def test_native_fmu_forces_table(native_fmu, fourbar_fmu, tmp_path):
         # native evaluations and the in-process model's: the same integrator, within a few attempts
         native, steps, python = (int(c.replace(",", "")) for c in row[4:7])
         assert steps > 0 and abs(native - python) <= 5 * 12, row
+
+
+def test_coupling_error_benchmark(bench_ssp):
+    """A 12.8 ms span at three macro steps: the benchmark runs the four masters and the monolithic
+    reference on the bench and prints both tables with an observed order for every master."""
+    out = _bench("coupling_error.py", "--ssp", str(bench_ssp), "--stop", "0.0128", "--steps", "0.4", "0.8", "1.6")
+    orders = re.findall(r"^\| observed order.*$", out, re.M)
+    assert len(orders) == 2, out                          # fourbar.omega2's table and motor.current's
+    for row in orders:
+        values = [float(v) for v in re.findall(r"\*\*(-?[0-9.]+)\*\*", row)]
+        assert len(values) == 4 and all(v == v for v in values), row     # four masters, each a number
