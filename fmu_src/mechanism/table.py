@@ -5,6 +5,9 @@ start values of the independent coordinates (``<coordinate>_start``, fixed), the
 ``rtol``, ``atol`` and ``integrator``, then the outputs in the file's order, then
 ``max_evaluations`` (added after the outputs so that no earlier value reference moved), then the
 ``[[inputs]]``' variables (``causality="input"``) in file order.
+
+Also what each output and each Model Exchange state's derivative depends on (the model
+descriptions' ``<ModelStructure>``): :func:`output_dependencies`, :func:`derivative_dependencies`.
 """
 from __future__ import annotations
 
