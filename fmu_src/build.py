@@ -39,7 +39,7 @@ from fourbar_common.drawing import Drawing
 
 from .mechanism.drawing import drawing_of, insert_vendor_annotations
 from .mechanism.quoting import comment_text
-from .mechanism.table import variable_table
+from .mechanism.table import output_dependencies, variable_table
 from .mechanism_model.variables import UNITS
 
 __all__ = ["BuildResult", "build_fmu", "content_guid", "default_destination", "unit_definitions",
@@ -69,9 +69,14 @@ def unit_definitions() -> ET.Element:
     return units
 
 
-def _complete_model_description(xml: bytes, table, drawing: Drawing) -> bytes:
-    """Add units, ranges, <InitialUnknowns> and the drawing annotation (``mechanism.drawing``)
-    to pythonfmu's model description.
+def _complete_model_description(xml: bytes, table, drawing: Drawing,
+                                dependencies: dict[str, tuple[str, ...]] | None = None) -> bytes:
+    """Add units, ranges, the outputs' dependencies, <InitialUnknowns> and the drawing
+    annotation (``mechanism.drawing``) to pythonfmu's model description.
+
+    ``dependencies``: per output, the inputs it depends on directly (a co-simulation FMU has no
+    continuous states to list: ``mechanism.table.output_dependencies``' inputs); an output left
+    out keeps pythonfmu's entry, with no list (depending on every input).
 
     Also checks that pythonfmu numbered the variables as the mechanism's table does
     (``mechanism.table``): the native FMU relies on the same value references.
@@ -104,6 +109,11 @@ def _complete_model_description(xml: bytes, table, drawing: Drawing) -> bytes:
             outputs.append(index)
 
     structure = root.find("ModelStructure")
+    index_of = {v.name: vr + 1 for vr, v in enumerate(table)}
+    for unknown in structure.findall("Outputs/Unknown"):
+        name = table[int(unknown.get("index")) - 1].name
+        if dependencies is not None and name in dependencies:
+            unknown.set("dependencies", " ".join(str(index_of[n]) for n in dependencies[name]))
     for old in structure.findall("InitialUnknowns"):
         structure.remove(old)
     if outputs:
@@ -221,8 +231,9 @@ def build_fmu(dest: str | Path | None = None, validate: bool = True,
         with zipfile.ZipFile(raw) as zin:
             items = zin.infolist()
             files = {item.filename: zin.read(item.filename) for item in items}
+        inputs = {d.unknown: d.inputs for d in output_dependencies(checked.equations)}
         files["modelDescription.xml"] = _complete_model_description(files["modelDescription.xml"], table,
-                                                                     drawing_of(checked.mechanism))
+                                                                     drawing_of(checked.mechanism), inputs)
         guid = content_guid(files)
         files["modelDescription.xml"] = _with_guid(files["modelDescription.xml"], guid)
         tmp_dest = dest.with_name(f".{dest.name}.tmp")

@@ -39,7 +39,8 @@ from .mechanism.check import prepare_mechanism
 from .mechanism.derivation import MechanismEquations
 from .mechanism.description import Mechanism
 from .mechanism.drawing import drawing_of
-from .mechanism.table import model_exchange_states, native_variable_table
+from .mechanism.table import (derivative_dependencies, model_exchange_states, native_variable_table,
+                              output_dependencies)
 
 __all__ = ["NativeBuildResult", "CompilerNotFound", "build_native_fmu", "find_compiler", "model_identifier",
            "native_sources", "model_description", "fmi3_model_description", "build_description", "MODEL_IDENTIFIER",
@@ -182,12 +183,13 @@ def _guid(eqs: MechanismEquations, replace: Mapping[str, bytes] | None = None, f
 
 @dataclass(frozen=True)
 class _Structure:
-    """What both model descriptions declare, by value reference: the outputs, each state's
-    derivative with the one state it depends on (a coordinate's derivative is its rate, exactly:
-    None for a rate's and a driver's power, which depend on every state) and the initial unknowns."""
+    """What both model descriptions declare, by value reference: each output and each state's
+    derivative with the states and inputs it depends on (``mechanism.table.output_dependencies``,
+    ``derivative_dependencies``; ``constant``: a coordinate's derivative, exactly its rate) and
+    the initial unknowns."""
 
-    outputs: tuple[int, ...]
-    derivatives: tuple[tuple[int, int | None], ...]
+    outputs: tuple[tuple[int, tuple[int, ...]], ...]
+    derivatives: tuple[tuple[int, tuple[int, ...], bool], ...]
     initial: tuple[int, ...]
     state_of: dict[int, int]             # der(x)'s value reference -> x's
 
@@ -196,10 +198,12 @@ def _structure(eqs: MechanismEquations) -> _Structure:
     table = native_variable_table(eqs)
     vr = {var.name: k for k, var in enumerate(table)}
     states = [name for name, _, _ in model_exchange_states(eqs)]
-    n_coordinates = len(eqs.mechanism.independent)
-    derivatives = tuple((vr[f"der({name})"], vr[states[n_coordinates + k]] if k < n_coordinates else None)
-                        for k, name in enumerate(states))
-    outputs = tuple(k for k, var in enumerate(table) if var.causality == "output")
+
+    def knowns(dependencies) -> tuple[int, ...]:
+        return tuple(sorted(vr[name] for name in dependencies.states + dependencies.inputs))
+
+    outputs = tuple((vr[d.unknown], knowns(d)) for d in output_dependencies(eqs))
+    derivatives = tuple((vr[d.unknown], knowns(d), d.constant) for d in derivative_dependencies(eqs))
     initial = tuple(k for k, var in enumerate(table)
                     if var.causality == "output" or var.name in states or var.name.startswith("der("))
     state_of = {vr[f"der({name})"]: vr[name] for name in states}
@@ -295,13 +299,13 @@ def _fmi2_model_description(eqs: MechanismEquations, guid: str, source_files) ->
         ET.SubElement(sv, var.type, attrs)
     element = ET.SubElement(root, "ModelStructure")
     group = ET.SubElement(element, "Outputs")
-    for vr in structure.outputs:
-        ET.SubElement(group, "Unknown", {"index": str(vr + 1)})
+    for vr, depends in structure.outputs:
+        ET.SubElement(group, "Unknown", {"index": str(vr + 1), "dependencies": " ".join(str(d + 1) for d in depends)})
     group = ET.SubElement(element, "Derivatives")
-    for der, depends in structure.derivatives:
-        attrs = {"index": str(der + 1)}
-        if depends is not None:
-            attrs.update(dependencies=str(depends + 1), dependenciesKind="fixed")
+    for der, depends, constant in structure.derivatives:
+        attrs = {"index": str(der + 1), "dependencies": " ".join(str(d + 1) for d in depends)}
+        if constant:
+            attrs["dependenciesKind"] = "constant"
         ET.SubElement(group, "Unknown", attrs)
     group = ET.SubElement(element, "InitialUnknowns")
     for vr in structure.initial:
@@ -357,12 +361,12 @@ def fmi3_model_description(eqs: MechanismEquations, token: str) -> bytes:
         attrs.update(_variable_attributes(var))
         ET.SubElement(variables, "Float64", attrs)
     element = ET.SubElement(root, "ModelStructure")
-    for vr in structure.outputs:
-        ET.SubElement(element, "Output", {"valueReference": str(vr)})
-    for der, depends in structure.derivatives:
-        attrs = {"valueReference": str(der)}
-        if depends is not None:
-            attrs.update(dependencies=str(depends), dependenciesKind="constant")
+    for vr, depends in structure.outputs:
+        ET.SubElement(element, "Output", {"valueReference": str(vr), "dependencies": " ".join(map(str, depends))})
+    for der, depends, constant in structure.derivatives:
+        attrs = {"valueReference": str(der), "dependencies": " ".join(map(str, depends))}
+        if constant:
+            attrs["dependenciesKind"] = "constant"
         ET.SubElement(element, "ContinuousStateDerivative", attrs)
     for vr in structure.initial:
         ET.SubElement(element, "InitialUnknown", {"valueReference": str(vr)})

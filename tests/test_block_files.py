@@ -85,3 +85,37 @@ def test_an_expression_is_never_run(tmp_path):
 def test_an_unknown_component_name_lists_the_shipped_ones():
     with pytest.raises(BlockError, match="dc_motor, pi_controller, speed_profile, speed_sensor"):
         load_block("no_such_block")
+
+
+def test_every_mistake_of_a_file_is_listed_at_once(tmp_path):
+    """Three independent mistakes (a unit, a symbol, a parameter's value): one BlockError, one
+    line each naming the field and the value, so one edit fixes them all."""
+    text = MOTOR.read_text()
+    for old, new in (('unit = "ohm"', 'unit = "ohms"'),
+                     ('derivative = "(V - R*i - k*omega_m)/L"', 'derivative = "(V - R*i - kk*omega_m)/L"'),
+                     ("value = 0.01", 'value = "0.01"')):
+        assert text.count(old) >= 1, old
+        text = text.replace(old, new, 1)
+    path = tmp_path / "three.toml"
+    path.write_text(text)
+    with pytest.raises(BlockError) as info:
+        load_block(path)
+    lines = str(info.value).splitlines()
+    assert lines[0] == f"{path}: 3 problems:", lines
+    assert any("[parameters.R] unit = 'ohms'" in line and "unknown unit" in line for line in lines[1:]), lines
+    assert any("[states.i] derivative" in line and "kk" in line for line in lines[1:]), lines
+    assert any("[parameters.L] value = '0.01'" in line and "expected a number" in line for line in lines[1:]), lines
+
+
+def test_the_sensor_file_accepts_resolution_zero_and_refuses_a_negative_one(tmp_path):
+    """resolution = 0 means no quantisation (docs/components.md); below 0 is outside min = 0."""
+    sensor = REPO / "fmu_src" / "components" / "speed_sensor.toml"
+    text = sensor.read_text()
+    assert text.count("value = 0.01") == 1
+    zero, negative = tmp_path / "zero.toml", tmp_path / "negative.toml"
+    zero.write_text(text.replace("value = 0.01", "value = 0.0"))
+    negative.write_text(text.replace("value = 0.01", "value = -0.01"))
+    block = load_block(zero)
+    assert {p.name: p.value for p in block.parameters}["resolution"] == 0.0
+    with pytest.raises(BlockError, match=r"\[parameters.resolution\] value = -0.01: outside \[0.0, None\]"):
+        load_block(negative)

@@ -298,6 +298,37 @@ def test_the_sensor_quantises_with_gain_and_bias_exactly(block_fmus, version):
     inst.close()
 
 
+@pytest.mark.parametrize("version", (2, 3))
+def test_the_sensor_at_resolution_zero_does_not_quantise(block_fmus, version):
+    """resolution = 0 (docs/components.md): measured = gain omega + bias exactly (no division by
+    zero, no NaN), set at the start or between steps; back on a grid when resolution is set again."""
+    path, _ = block_fmus["speed_sensor", version]
+    gain, bias = 1.5, 0.2
+    inst = Instance(path, start=dict(gain=gain, bias=bias, resolution=0.0))
+    for omega in (-7.3, 0.013, 3.14159, 12.345678):
+        inst.set(omega=omega)
+        assert inst.get("measured")[0] == gain * omega + bias
+        inst.step(0.001)
+        assert inst.get("measured")[0] == gain * omega + bias
+    inst.set(resolution=0.05)
+    inst.step(0.001)
+    v = (gain * 12.345678 + bias) / 0.05
+    assert inst.get("measured")[0] == 0.05 * math.copysign(math.floor(abs(v) + 0.5), v)
+    inst.close()
+
+
+def test_the_sensor_refuses_a_negative_resolution(block_fmus):
+    """min = 0: a negative step set between steps is refused by the next step (as every
+    parameter outside its range: fmu_src/native/block/block.c, check_parameters)."""
+    from fmpy.fmi1 import FMICallException
+    path, _ = block_fmus["speed_sensor", 2]
+    inst = Instance(path)
+    inst.set(resolution=-0.01)
+    with pytest.raises(FMICallException):
+        inst.step(0.001)
+    inst.fmu.freeInstance()                 # after a failed step FMI allows no fmi2Terminate
+
+
 # -- FMI behaviour ----------------------------------------------------------------------------------
 
 def test_a_parameter_changed_mid_run_applies_from_the_next_step(block_fmus):

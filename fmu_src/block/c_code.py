@@ -54,10 +54,15 @@ def _per_second(unit: str) -> str | None:
 
 
 class _BlockPrinter(_Printer):
-    """The mechanisms' C printer, and round() (Round: half away from zero, as C's)."""
+    """The mechanisms' C printer, round() (Round: half away from zero, as C's) and quantise()
+    (Quantise: no quantisation at a zero step)."""
 
     def _print_Round(self, expr):
         return f"round({self._print(expr.args[0])})"
+
+    def _print_Quantise(self, expr):
+        x, step = (self._print(a) for a in expr.args)
+        return f"(({step}) == 0.0 ? ({x}) : ({step})*round(({x})/({step})))"
 
 
 def _function(name: str, doc: str, eqs: BlockEquations, outputs: list[tuple[str, list[sp.Expr]]]) -> str:

@@ -5,14 +5,19 @@ start values of the independent coordinates (``<coordinate>_start``, fixed), the
 ``rtol``, ``atol`` and ``integrator``, then the outputs in the file's order, then
 ``max_evaluations`` (added after the outputs so that no earlier value reference moved), then the
 ``[[inputs]]``' variables (``causality="input"``) in file order.
+
+Also what each output and each Model Exchange state's derivative depends on (the model
+descriptions' ``<ModelStructure>``): :func:`output_dependencies`, :func:`derivative_dependencies`.
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 from ..mechanism_model.variables import POSITIVE, Variable
 from .derivation import MechanismEquations
 
-__all__ = ["variable_table", "native_variable_table", "model_exchange_states", "DEFAULT_TOLERANCE",
-           "DEFAULT_MAX_EVALUATIONS"]
+__all__ = ["variable_table", "native_variable_table", "model_exchange_states", "Dependencies",
+           "output_dependencies", "derivative_dependencies", "DEFAULT_TOLERANCE", "DEFAULT_MAX_EVALUATIONS"]
 
 #: rtol = atol of the Runge-Kutta error control when the case does not set them.  Table 1 gives
 #: 1e-9 and 1e-6 (its case files set them).  At those values the integrator's energy error moves
@@ -96,4 +101,90 @@ def native_variable_table(eqs: MechanismEquations) -> tuple[Variable, ...]:
     for name, unit, description in model_exchange_states(eqs):
         rows.append(Variable(f"der({name})", "Real", "local", "continuous", None, _RATE_UNITS[unit],
                              f"Time derivative of {name}"))
+    return tuple(rows)
+
+
+@dataclass(frozen=True)
+class Dependencies:
+    """What one unknown of ``<ModelStructure>`` depends on: Model Exchange's continuous states
+    (names from :func:`model_exchange_states`) and the FMI inputs (variable names), in their
+    table orders.  ``constant`` (derivatives only): the unknown is its one state dependency,
+    exactly (a coordinate's derivative is its rate)."""
+
+    unknown: str
+    states: tuple[str, ...]
+    inputs: tuple[str, ...]
+    constant: bool = False
+
+
+class _Knowns:
+    """Which states and inputs an expression of (q, qd, lambda, t, p, d) depends on, through
+    the symbols it holds: the independent coordinates fix q (the dependent ones solved from
+    Phi(q, t, u) = 0: the inputs in Phi), the rates with them fix qd (Phi_q qd = nu: the inputs
+    in nu too), and the multipliers come from eq. (11) with the accelerations: every input."""
+
+    def __init__(self, eqs: MechanismEquations):
+        states = model_exchange_states(eqs)
+        n = len(eqs.mechanism.independent)
+        self.coordinates = tuple(name for name, _, _ in states[:n])
+        self.rates = tuple(name for name, _, _ in states[n:2 * n])
+        self.inputs = tuple(str(u) for u in eqs.inputs)
+        self._q, self._qd, self._lam = set(eqs.q), set(eqs.qd), set(eqs.multipliers)
+        self._symbols = {str(u): u for u in eqs.inputs}
+        self._position = {u for u in eqs.inputs if u in eqs.constraints.free_symbols}
+        self._velocity = self._position | {u for u in eqs.inputs if u in eqs.nu.free_symbols}
+
+    def of(self, name: str, expr) -> Dependencies:
+        free = expr.free_symbols
+        inputs = free & set(self._symbols.values())
+        states: tuple[str, ...] = ()
+        if free & self._q:
+            inputs |= self._position
+            states = self.coordinates
+        if free & self._qd:
+            inputs |= self._velocity
+            states = self.coordinates + self.rates
+        if free & self._lam:
+            return self.accelerations(name)
+        return Dependencies(name, states, tuple(u for u in self.inputs if self._symbols[u] in inputs))
+
+    def residual(self, name: str) -> Dependencies:
+        """The constraint residual, max(|Phi|, |Phi_q qd - nu|): the coordinates, the rates and
+        the inputs in Phi and nu (a driver input's)."""
+        return Dependencies(name, self.coordinates + self.rates,
+                            tuple(u for u in self.inputs if self._symbols[u] in self._velocity))
+
+    def accelerations(self, name: str) -> Dependencies:
+        """An unknown that needs the accelerations (eq. 11): the coordinates, the rates, every input."""
+        return Dependencies(name, self.coordinates + self.rates, self.inputs)
+
+
+def output_dependencies(eqs: MechanismEquations) -> tuple[Dependencies, ...]:
+    """Per output, in output order, the states and inputs it depends on, from its kind in the
+    derivation (``OutputSpec``): an expression of the state depends on the states it holds
+    (and on an input it holds, or that moves the dependent coordinates or rates: a driver
+    input), one with the multipliers (a reaction, a driver's torque) on every input too, a work
+    output on its own state alone (it is the integral), the constraint residual on the
+    coordinates, the rates and the driver inputs."""
+    knowns = _Knowns(eqs)
+    rows = []
+    for out in eqs.outputs:
+        if out.integrand is not None:
+            rows.append(Dependencies(out.name, (out.name,), ()))
+        elif out.expression is not None:
+            rows.append(knowns.of(out.name, out.expression))
+        else:                                          # RUNTIME_OUTPUTS: constraint_residual
+            rows.append(knowns.residual(out.name))
+    return tuple(rows)
+
+
+def derivative_dependencies(eqs: MechanismEquations) -> tuple[Dependencies, ...]:
+    """Per Model Exchange state, in :func:`model_exchange_states`' order, what its derivative
+    ``der(<state>)`` depends on: a coordinate's is its rate (exactly), a rate's is an
+    acceleration (eq. 11: the coordinates, the rates, every input), a work state's is the power
+    it integrates (``OutputSpec.integrand``, as :func:`output_dependencies` reads an expression)."""
+    knowns = _Knowns(eqs)
+    rows = [Dependencies(f"der({c})", (r,), (), constant=True) for c, r in zip(knowns.coordinates, knowns.rates)]
+    rows += [knowns.accelerations(f"der({r})") for r in knowns.rates]
+    rows += [knowns.of(f"der({w.name})", w.integrand) for w in eqs.works]
     return tuple(rows)
