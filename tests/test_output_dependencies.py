@@ -9,7 +9,7 @@ master can tell which outputs feed an input straight through.
   tests/mechanisms/input_driven_crank.toml: a driver input, which moves the positions).
 - ``fmpy validate`` finds nothing in the three FMUs (pythonfmu, native FMI 2.0 and 3.0).
 - ``orchestrator.system.gauss_seidel_order`` breaks a loop at the mechanism: on a small test
-  .ssp of two pendulums (tests/ssp_files.py) and on the shipped bench (systems/motor_fourbar.toml).
+  .ssp of two pendulums (tests/ssp_testing.py) and on the shipped bench (systems/motor_fourbar.toml).
 
 FMUs come from the session's ``mechanism_fmus`` (built once, shared with tests/test_fmu_inputs.py).
 """
@@ -29,7 +29,7 @@ from fmu_src.mechanism.check import prepare_mechanism
 from fmu_src.mechanism.table import derivative_dependencies, output_dependencies
 from orchestrator.system import gauss_seidel_order
 from orchestrator.system_description import describe_system
-from ssp_files import write_ssp
+from ssp_testing import TestComponent, write_ssp
 from support import REPO
 
 PENDULUM = str(REPO / "tests" / "mechanisms" / "input_pendulum.toml")
@@ -202,8 +202,9 @@ def test_gauss_seidel_breaks_a_loop_at_the_output_that_does_not_feed_through(mec
     Gauss-Seidel starts with the one whose connected output does not feed through: b, though
     a comes first in the file (with no dependency lists, every output fed through: a first)."""
     fmu = mechanism_fmus.get(PENDULUM, "native")
-    ssp = write_ssp(tmp_path / "loop.ssp", {"a": fmu, "b": fmu},
-                    {"a": {"O_Fx": "output", "tau_arm": "input"}, "b": {"omega2": "output", "F_P": "input"}},
+    ssp = write_ssp(tmp_path / "loop.ssp", "Loop",
+                    [TestComponent("a", fmu, inputs=("tau_arm",), outputs=("O_Fx",)),
+                     TestComponent("b", fmu, inputs=("F_P",), outputs=("omega2",))],
                     [("a.O_Fx", "b.F_P"), ("b.omega2", "a.tau_arm")])
     system = describe_system(ssp)
     assert not system.component("b").direct_inputs("omega2")
@@ -212,12 +213,11 @@ def test_gauss_seidel_breaks_a_loop_at_the_output_that_does_not_feed_through(mec
 
 
 @pytest.mark.slow
-def test_gauss_seidel_steps_the_bench_from_the_mechanism(mechanism_fmus, tmp_path):
+def test_gauss_seidel_steps_the_bench_from_the_mechanism(bench_ssp):
     """The shipped bench: every component feeds its inputs through but the four-bar (its speed
     is a state's), so Gauss-Seidel steps the four-bar first, then along the connections."""
-    from fmu_src.system import build_system
-
-    result = build_system("motor_fourbar", tmp_path / "MotorFourBar.ssp",
-                          prebuilt={"fourbar_motor": mechanism_fmus.get("fourbar_motor", "native")})
-    assert result.problems == ()
-    assert gauss_seidel_order(describe_system(result.path)) == ("fourbar", "sensor", "controller", "motor")
+    order = gauss_seidel_order(describe_system(bench_ssp))
+    assert order[0] == "fourbar", order
+    # then along the connections: the sensor reads the crank's speed before the controller reads
+    # the sensor, and the controller's voltage drives the motor
+    assert order.index("sensor") < order.index("controller") < order.index("motor"), order
