@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 from scipy.linalg import expm
 
-from ssp_files import write_ssp
+from ssp_testing import TestComponent, write_ssp
 
 __all__ = ["BOUND", "COLUMNS", "COMPONENTS", "bench_order", "CONNECTIONS", "MOTOR", "PI", "build_components", "exact", "loop_matrix",
            "loop_ssp", "outputs", "run_system", "write_loop_ssp"]
@@ -53,7 +53,11 @@ def build_components(folder: Path) -> dict[str, Path]:
 
 
 def write_loop_ssp(path: Path, fmus: dict[str, Path]) -> Path:
-    return write_ssp(path, fmus, COMPONENTS, CONNECTIONS, parameters=BOUND)
+    components = [TestComponent(name, fmus[name],
+                                inputs=tuple(v for v, kind in connectors.items() if kind == "input"),
+                                outputs=tuple(v for v, kind in connectors.items() if kind == "output"))
+                  for name, connectors in COMPONENTS.items()]
+    return write_ssp(path, "CurrentLoop", components, CONNECTIONS, bindings="none", system_parameters=BOUND)
 
 
 _MADE: dict[str, Path] = {}

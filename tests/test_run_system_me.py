@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from loop_system import COLUMNS, bench_order, exact, loop_ssp, outputs, run_system
-from ssp_files import write_ssp
+from ssp_testing import TestComponent, write_ssp
 
 from fourbar_common.contract.run_record import read_run_record
 
@@ -110,9 +110,9 @@ def test_a_true_algebraic_loop_is_refused_naming_it(loop, tmp_path):
         for name in ("controller", "sensor"):
             fmus[name] = tmp_path / f"{name}.fmu"
             fmus[name].write_bytes(z.read(f"resources/{name}.fmu"))
-    ssp = write_ssp(tmp_path / "Loop2.ssp", fmus,
-                    {"controller": {"measured": "input", "voltage": "output"},
-                     "sensor": {"omega": "input", "measured": "output"}},
+    ssp = write_ssp(tmp_path / "Loop2.ssp", "Loop2",
+                    [TestComponent("controller", fmus["controller"], inputs=("measured",), outputs=("voltage",)),
+                     TestComponent("sensor", fmus["sensor"], inputs=("omega",), outputs=("measured",))],
                     [("controller.voltage", "sensor.omega"), ("sensor.measured", "controller.measured")])
     message = _refusal(tmp_path, ssp, 'algorithm = "monolithic"')
     assert "master.algorithm" in message and "algebraic loop" in message
