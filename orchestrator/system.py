@@ -33,6 +33,11 @@ output at ``t_k``):
 
 The first step uses ``y(t0)``, the outputs after initialisation (FMPy's ``simulate_ssp`` gives
 every input 0.0 at its first step instead: docs/orchestrator.md, "Systems").
+
+The replay of ``fourbar-diagnose`` (diagnose.simulator) drives the same instance through
+``get_state``/``set_state``/``free_state`` (every component's FMU state plus the master's
+memory of the connected outputs: a branch restarts exactly where the healthy replay was),
+``reset`` and ``step_through``.
 """
 from __future__ import annotations
 
@@ -301,6 +306,57 @@ class SystemInstance:
         self._named(name, lambda: instance.set_values([(link.input, v) for link, v in zip(links, values)]))
         if interpolate:
             self._named(name, lambda: instance.set_real_input_derivatives([link.input for link in links], slopes))
+
+    # -- the replay (fourbar-diagnose) ----------------------------------------------------
+    def get_state(self) -> "_SystemState":
+        """Every component's FMU state and the master's connected outputs (free it with :meth:`free_state`)."""
+        states: dict[str, Any] = {}
+        try:
+            for name, instance in self.instances.items():
+                states[name] = self._named(name, instance.get_state)
+        except BaseException:
+            for name, state in states.items():
+                self.instances[name].free_state(state)
+            raise
+        return _SystemState(states, dict(self._now), dict(self._before), self._h_before)
+
+    def set_state(self, state: "_SystemState") -> None:
+        for name, instance in self.instances.items():
+            self._named(name, lambda: instance.set_state(state.components[name]))
+        self._now, self._before, self._h_before = dict(state.now), dict(state.before), state.h_before
+
+    def free_state(self, state: "_SystemState") -> None:
+        for name, instance in self.instances.items():
+            self._named(name, lambda: instance.free_state(state.components[name]))
+
+    def reset(self) -> None:
+        for name, instance in self.instances.items():
+            self._named(name, instance.reset)
+        self._now, self._before, self._h_before = {}, {}, None
+
+    def step_through(self, times: Sequence[float], outputs: Sequence[str], out,
+                     changes: tuple[str, Sequence[float]] | None = None) -> None:
+        """Macro steps from ``times[0]`` through every later time, the ``component.variable``
+        ``outputs`` after step ``i`` in row ``i`` of ``out``; ``changes = (name, values)`` sets
+        ``name`` to ``values[i]`` before step ``i`` (as the run sets a fault), as
+        :meth:`orchestrator.instance.Fmi2CoSimulation.step_through` does for one FMU."""
+        read = self.reader(outputs) if len(outputs) else None
+        name, values = changes if changes else ("", ())
+        for i in range(len(times) - 1):
+            if i < len(values):
+                self.set_values([(name, float(values[i]))])
+            self.do_step(times[i], times[i + 1] - times[i])
+            if read is not None:
+                out[i] = read()
+
+
+class _SystemState:
+    """A saved system (:meth:`SystemInstance.get_state`)."""
+
+    __slots__ = ("components", "now", "before", "h_before")
+
+    def __init__(self, components: dict, now: dict, before: dict, h_before: float | None):
+        self.components, self.now, self.before, self.h_before = components, now, before, h_before
 
 
 def _typed(kind: str, value: Any) -> Any:

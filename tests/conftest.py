@@ -226,3 +226,18 @@ class _ModuleSeconds:
 def pytest_configure(config):
     if not hasattr(config, "workerinput"):        # not on an xdist worker: its controller gets every report
         config.pluginmanager.register(_ModuleSeconds(config), "fourbar-module-seconds")
+
+
+@pytest.fixture(scope="session")
+def motor_fourbar_ssp(mechanism_fmus, tmp_path_factory) -> Path:
+    """The shipped bench (systems/motor_fourbar.toml): build/MotorFourBar.ssp when it is newer
+    than every source and the system file, else built once into the session's folder."""
+    built = REPO / "build" / "MotorFourBar.ssp"
+    system_file = REPO / "systems" / "motor_fourbar.toml"
+    if _fresh(built) and built.stat().st_mtime >= system_file.stat().st_mtime:
+        return built
+    from fmu_src.system import build_system
+
+    out = tmp_path_factory.mktemp("bench") / "MotorFourBar.ssp"
+    return build_system("motor_fourbar", out, validate=False,
+                        prebuilt={"fourbar_motor": mechanism_fmus.get("fourbar_motor", "native")}).path
