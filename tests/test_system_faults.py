@@ -30,7 +30,7 @@ MONITOR = ["--signal", "motor.current,sensor.measured", "--train", "10", "25", "
 #: The diagnosis' options (docs/systems.md): one candidate per component's likely fault and the
 #: controller's gain; 0.3 s either side of the alarm (it comes under 0.1 s after the fault) and a
 #: scan of the change time over the lookback only, which keep the system branches few and short
-#: (a system replays at its 1 ms macro step in Python: about 0.2 ms per step).
+#: (a system replays at its 1 ms macro step).
 DIAGNOSE = dict(candidates=("fourbar.T4", "motor.R", "sensor.bias", "controller.Kp"), lookback=0.3, horizon=0.3,
                 max_horizon=0.3, noise_span=2.0, ramp=False, search_back=0.3, scan_step=0.02, refine=2)
 #: s: the documented bound on the detection delay (measured: under 0.1 s in every case).
