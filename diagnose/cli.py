@@ -31,6 +31,9 @@ what it does:
   columns best from --lookback s before the monitor's first alarm to --horizon s after it.
   The best is also fitted as a linear ramp. Hypotheses are ranked by chi-square, scaled by
   each column's noise, estimated from the --noise-span s before that.
+  A system run (an .ssp) is replayed with the run's master and macro step; its parameters
+  are named component.parameter (motor.R, fourbar.T4, sensor.bias, controller.Kp), every
+  tunable Real one of every component a candidate unless --candidates narrows them.
 
 verdicts:
   explained      one parameter explains the change within the noise (exit 0)
@@ -46,6 +49,7 @@ examples:
   fourbar-diagnose out/case2_fault_L2
   fourbar-diagnose out/case3_ramp_noise --horizon 5
   fourbar-diagnose RUN_DIR --columns x2,y2,x3,y3,x4,y4    # the four-bar's link centres, not only the monitored ones
+  fourbar-diagnose out/motor_fourbar_winding --candidates fourbar.T4,motor.R,sensor,controller.Kp
 
 --out is checked before the diagnosis: a file, a folder that cannot be created or written
 is refused at once (exit 2). The verdict is printed before the files are written; if they
@@ -76,6 +80,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--use-run-fmu", action="store_true",
                    help="simulate with the run's own FMU even when a faster native FMU is beside it")
     p.add_argument("--columns", metavar="COL[,COL...]", help="columns to fit (default: the monitored ones)")
+    p.add_argument("--candidates", metavar="NAME[,NAME...]",
+                   help="parameters fitted as the cause (default: every tunable Real parameter; of a system run, "
+                        "every component's, named component.parameter); a component's name (motor) stands for all "
+                        "of its tunable Real parameters")
     p.add_argument("--lookback", type=float, default=defaults.lookback, metavar="S",
                    help="s before the first alarm where the change may lie (default %(default)s)")
     p.add_argument("--horizon", type=float, default=defaults.horizon, metavar="S",
@@ -132,6 +140,7 @@ def _main(argv: list[str] | None) -> int:
     from .outputs import OutputError, prepare_out_dir, remove_empty, write_outputs
 
     columns = [c.strip() for c in args.columns.split(",") if c.strip()] if args.columns else None
+    candidates = [c.strip() for c in args.candidates.split(",") if c.strip()] if args.candidates else None
     out = Path(args.out) if args.out else RunFolder(args.run_dir).diagnosis_folder
     options = DiagnoseOptions(lookback=args.lookback, horizon=args.horizon, max_horizon=args.max_horizon,
                               noise_span=args.noise_span, ramp=not args.no_ramp)
@@ -141,7 +150,7 @@ def _main(argv: list[str] | None) -> int:
         warnings.simplefilter("always")
         try:
             inputs = read_inputs(args.run_dir, summary=args.summary, fmu=args.fmu, columns=columns,
-                                 use_run_fmu=args.use_run_fmu)
+                                 use_run_fmu=args.use_run_fmu, candidates=candidates)
             created = prepare_out_dir(out, plot=not args.no_plot)      # before the long part
             if inputs.resimulates and not args.use_run_fmu:
                 print(f"fourbar-diagnose: note: {inputs.run_fmu.name} cannot save its state and no FMU of the same "

@@ -410,7 +410,7 @@ def _separating(inputs: RunInputs, w: "_Window", best: Fit, runner: Fit, scales:
                if v.causality == "output" and v.type == "Real" and v.name not in _NOT_MEASURED]
     try:
         with Simulator(fmu, inputs.parameters, outputs, inputs.grid, inputs.tolerance, w.first, w.last,
-                       method=options.method) as sim:
+                       method=options.method, master=inputs.master) as sim:
             problem = Problem(sim=sim, data=np.zeros_like(sim.healthy), sigma=np.ones(len(outputs)),
                               fit_from=w.fit_from, latest=w.last - 1, base=inputs.parameters, scales=scales)
             a, b = problem.model_of(best), problem.model_of(runner)
@@ -477,7 +477,7 @@ def _refit(inputs: RunInputs, index: np.ndarray, alarm: int, sigma: np.ndarray, 
     grid = inputs.grid
     w = _window(inputs, index, alarm, options, horizon)
     with Simulator(inputs.simulator_fmu, inputs.parameters, inputs.columns, grid, inputs.tolerance, w.first,
-                   w.last, method=options.method) as sim:
+                   w.last, method=options.method, master=inputs.master) as sim:
         problem = Problem(sim=sim, data=w.data, sigma=sigma, fit_from=w.fit_from, latest=min(alarm, w.last - 1),
                           base=inputs.parameters, scales=scales)
         fit = fit_on(problem)
@@ -533,7 +533,7 @@ def _settle(inputs: RunInputs, index: np.ndarray, alarm: int, c0: int, ranking: 
         horizon = min(2.0 * horizon, options.max_horizon)
         w = _window(inputs, index, alarm, options, horizon)
         with Simulator(inputs.simulator_fmu, inputs.parameters, inputs.columns, grid, inputs.tolerance, w.first,
-                       w.last, method=options.method) as sim:
+                       w.last, method=options.method, master=inputs.master) as sim:
             problem = Problem(sim=sim, data=w.data, sigma=sigma, fit_from=w.fit_from,
                               latest=min(alarm, w.last - 1), base=inputs.parameters, scales=scales)
             fits = sorted((min(_step_searched(problem, name, c0, options), _step_near(problem, fit, options),
@@ -615,7 +615,7 @@ def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOption
     first, fit_from, last, data = w.first, w.fit_from, w.last, w.data
     fmu = inputs.simulator_fmu
     with Simulator(fmu, inputs.parameters, inputs.columns, grid, inputs.tolerance, first, last,
-                   method=options.method) as sim:
+                   method=options.method, master=inputs.master) as sim:
         residual = data - sim.healthy
         k_fit = fit_from - first
         sigma = noise_levels(residual[:k_fit], NOISE_FLOOR)
@@ -703,12 +703,13 @@ def diagnose_inputs(inputs: RunInputs, options: DiagnoseOptions = DiagnoseOption
 
 
 def diagnose(run_dir: str | Path, *, summary: str | Path | None = None, fmu: str | Path | None = None,
-             columns=None, use_run_fmu: bool = False, **options: Any) -> Diagnosis:
+             columns=None, use_run_fmu: bool = False, candidates=None, **options: Any) -> Diagnosis:
     """Diagnose the run in ``run_dir`` (reads exchange.csv, run.json, monitor/summary.json).
 
     Keyword ``options`` are :class:`DiagnoseOptions` fields.  Raises
     :class:`~diagnose.errors.DiagnoseError` for bad input (:class:`~diagnose.errors.NoAlarm`
     when the monitor raised no alarm).
     """
-    inputs = read_inputs(run_dir, summary=summary, fmu=fmu, columns=columns, use_run_fmu=use_run_fmu)
+    inputs = read_inputs(run_dir, summary=summary, fmu=fmu, columns=columns, use_run_fmu=use_run_fmu,
+                         candidates=candidates)
     return diagnose_inputs(inputs, DiagnoseOptions(**options))

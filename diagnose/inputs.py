@@ -66,6 +66,7 @@ class RunInputs:
     run_id: str | None
     events: tuple[Event, ...]   # the injected truth, for scoring only
     record: RunRecord | None = None     # run.json as read (schema 1: completed with the FMU's defaults)
+    master: Any = None              # a system run: its orchestrator Master (simulator_fmu is the system)
 
     @property
     def resimulates(self) -> bool:
@@ -185,13 +186,51 @@ def _pick_simulator(run_description, needed: set[str], prefer_run_fmu: bool):
     return run_description
 
 
+def _system(path: Path, record: RunRecord, run_json: Path):
+    """The system a system run ran (its .ssp, SHA-256 checked) and the master that stepped it."""
+    from orchestrator.case import Master
+    from orchestrator.ssp import SspError
+    from orchestrator.system_description import describe_system
+
+    recorded = record.system
+    if not path.is_file():
+        raise DiagnoseError(f"{path}: the run's system file is missing; rebuild it (python build_fmu.py --system NAME) "
+                            f"and run the case again, or pass --fmu PATH if it moved")
+    try:
+        description = describe_system(path)
+    except (SspError, OSError) as exc:
+        raise DiagnoseError(f"{path}: the run's system is not readable ({' '.join(str(exc).split())})") from None
+    if description.guid != recorded.sha256:
+        raise DiagnoseError(f"{path}: SHA-256 {description.guid} is not the {recorded.sha256} {run_json} records: the "
+                            f"system was rebuilt after the run, so it may not be the model that made the data; run the "
+                            f"case again (or pass --fmu with the .ssp the run used)")
+    order = tuple(recorded.order) if recorded.algorithm == "gauss-seidel" else ()
+    return description, Master(algorithm=recorded.algorithm, inputs=recorded.inputs, order=order)
+
+
+def _narrowed(hypotheses: tuple[str, ...], candidates: Sequence[str]) -> tuple[str, ...]:
+    """The hypotheses named by ``candidates``: a parameter's name, or a system component's name
+    (every hypothesis ``component.*``); a name that matches none is an input error."""
+    chosen = []
+    for name in candidates:
+        matched = [h for h in hypotheses if h == name or h.startswith(f"{name}.")]
+        if not matched:
+            raise DiagnoseError(f"--candidates {name}: not a tunable Real parameter (nor a component of them); "
+                                f"candidates: {', '.join(hypotheses)}")
+        chosen.extend(h for h in matched if h not in chosen)
+    return tuple(h for h in hypotheses if h in chosen)
+
+
 def read_inputs(run_dir: str | Path, *, summary: str | Path | None = None, fmu: str | Path | None = None,
-                columns: Sequence[str] | None = None, use_run_fmu: bool = False) -> RunInputs:
+                columns: Sequence[str] | None = None, use_run_fmu: bool = False,
+                candidates: Sequence[str] | None = None) -> RunInputs:
     """Read and check a run folder (module docstring); raise :class:`DiagnoseError` on bad input.
 
     ``summary`` defaults to ``RUN_DIR/monitor/summary.json``; ``fmu`` replaces run.json's FMU
     path (a moved build; its GUID must still match); ``columns`` replaces the monitored
-    columns; ``use_run_fmu`` simulates with the run's FMU even when a faster one is beside it.
+    columns; ``use_run_fmu`` simulates with the run's FMU even when a faster one is beside it;
+    ``candidates`` narrows the hypotheses to these parameters (``motor.R``) or every tunable
+    Real parameter of these components (``motor``).
     """
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
@@ -216,12 +255,16 @@ def read_inputs(run_dir: str | Path, *, summary: str | Path | None = None, fmu: 
         raise DiagnoseError(f"{run_json}: no fmu (path, guid, model_name); expected run.json written by fourbar-run")
     guid = record.fmu.guid
     run_fmu = Path(fmu) if fmu is not None else Path(record.fmu.path)
-    if not run_fmu.is_file():
-        raise DiagnoseError(f"{run_fmu}: the run's FMU is missing; rebuild it with `python build_fmu.py` and run the "
-                            f"case again, or pass --fmu PATH if it moved")
-    run_description = _describe(run_fmu, "the run's FMU")
-    if run_description.guid != guid:
-        raise DiagnoseError(_guid_mismatch(run_fmu, run_description, record.fmu, run_json))
+    master = None
+    if record.system is not None:
+        run_description, master = _system(run_fmu, record, run_json)
+    else:
+        if not run_fmu.is_file():
+            raise DiagnoseError(f"{run_fmu}: the run's FMU is missing; rebuild it with `python build_fmu.py` and run "
+                                f"the case again, or pass --fmu PATH if it moved")
+        run_description = _describe(run_fmu, "the run's FMU")
+        if run_description.guid != guid:
+            raise DiagnoseError(_guid_mismatch(run_fmu, run_description, record.fmu, run_json))
 
     if record.experiment is None:
         raise DiagnoseError(f"{run_json}: no experiment (start, stop, step); expected run.json written by fourbar-run")
@@ -238,6 +281,8 @@ def read_inputs(run_dir: str | Path, *, summary: str | Path | None = None, fmu: 
     if not hypotheses:
         raise DiagnoseError(f"{run_json}: records no tunable Real parameter of {run_fmu.name} with a start value, "
                             f"so no parameter can be fitted as the cause")
+    if candidates:
+        hypotheses = _narrowed(hypotheses, candidates)
 
     monitored = info.monitored
     wanted = tuple(columns) if columns else tuple(monitored)
@@ -266,10 +311,11 @@ def read_inputs(run_dir: str | Path, *, summary: str | Path | None = None, fmu: 
     if off_grid > 1e-6:
         raise DiagnoseError(f"{exchange}: rows are not on run.json's grid (start {grid.start} s, step {grid.step} s)")
 
-    simulator = _pick_simulator(run_description, set(wanted) | set(parameters), use_run_fmu)
+    simulator = (run_description if master is not None
+                 else _pick_simulator(run_description, set(wanted) | set(parameters), use_run_fmu))
     units = {c: record.units.get(c, "") for c in wanted}
     return RunInputs(run_dir=run_dir, times=times, data=np.column_stack([rows.values[c] for c in wanted]), columns=wanted,
                      units=units, alarm_time=float(alarm), parameters=parameters, hypotheses=hypotheses, grid=grid,
                      tolerance=record.experiment.tolerance, run_fmu=run_fmu, guid=guid,
                      simulator_fmu=simulator, case=record.case or run_dir.name, run_id=record.run_id,
-                     events=record.events, record=record)
+                     events=record.events, record=record, master=master)

@@ -21,6 +21,12 @@ window the FMU takes one-second communication steps (an FMU integrates each step
 tolerance, so this changes the result by less than that tolerance and makes hour-long
 runs cheap to replay).
 
+A system run (``master`` given: run.json's ``system`` record) is replayed by the
+orchestrator's :class:`~orchestrator.system.SystemInstance` with the run's master algorithm,
+names ``component.variable``; it takes the run's macro step everywhere (the coupling error
+depends on the macro step, so a longer one would not replay the run), and snapshots when
+every component can save its state.
+
 Every FMU call runs inside :func:`fourbar_common.signals.deferred`: Ctrl-C or SIGTERM is
 raised between two calls (at the latest at the end of a branch), never inside a pythonfmu
 FMU's own Python code, where it would make the FMU fail fatally and crash the process.
@@ -66,7 +72,7 @@ class Simulator:
     """
 
     def __init__(self, description, parameters: Mapping[str, float], columns: Sequence[str], grid: Grid,
-                 tolerance: float | None, first: int, last: int, method: str = "auto"):
+                 tolerance: float | None, first: int, last: int, method: str = "auto", master=None):
         if method not in ("auto", "snapshot", "resimulate"):
             raise ValueError(f"method: expected auto, snapshot or resimulate, got {method!r}")
         can_save = bool(getattr(description.model.coSimulation, "canGetAndSetFMUstate", False))
@@ -74,6 +80,7 @@ class Simulator:
             raise ValueError(f"{description.path.name} cannot save its state (canGetAndSetFMUstate is false)")
         self.method = ("snapshot" if can_save else "resimulate") if method == "auto" else method
         self.description = description
+        self.master = master
         self.parameters = dict(parameters)
         self.columns = tuple(columns)
         self.grid = grid
@@ -88,10 +95,8 @@ class Simulator:
 
     # -- life cycle ---------------------------------------------------------------------
     def __enter__(self) -> "Simulator":
-        from orchestrator.instance import instance_for
-
         with deferred():
-            self._fmu = instance_for(self.description, "fourbar-diagnose").__enter__()
+            self._fmu = self._instance().__enter__()
             try:
                 self._read = self._fmu.reader(self.columns)
                 self._initialise()
@@ -115,6 +120,15 @@ class Simulator:
             fmu.__exit__(exc_type, exc, tb)
 
     # -- the FMU ------------------------------------------------------------------------
+    def _instance(self):
+        if self.master is not None:
+            from orchestrator.system import SystemInstance
+
+            return SystemInstance(self.description, self.master, "fourbar-diagnose")
+        from orchestrator.instance import instance_for
+
+        return instance_for(self.description, "fourbar-diagnose")
+
     def _initialise(self) -> None:
         fmu = self._fmu
         stop = self.grid.time(self.last)
@@ -125,7 +139,7 @@ class Simulator:
 
     def _advance(self, k_from: int, k_to: int) -> None:
         """Healthy steps from grid point ``k_from`` to ``k_to`` in steps of about ``_FAST_STEP``."""
-        per = max(1, int(round(_FAST_STEP / self.grid.step)))
+        per = 1 if self.master is not None else max(1, int(round(_FAST_STEP / self.grid.step)))
         k = k_from
         while k < k_to:
             checkpoint()

@@ -88,7 +88,8 @@ class MonitorOptions(Checked):
 
     signal: str = option("", SIGNAL, "column(s) to monitor, e.g. x2 or x2,x3,y4 (monitored jointly); default: the "
                          "run's first output column (the exchange file's first column after time, else run.json's "
-                         "first recorded output: x2 for the four-bar)", flag="--signal", group="model")
+                         "first recorded output: x2 for the four-bar; a system run's first case output, its columns "
+                         "named component.variable, e.g. motor.current)", flag="--signal", group="model")
     train: tuple[float, float] = option((0.0, 9.0), TRAIN, "training window in s (the paper's: 0 9)",
                                         flag="--train", group="model")
     model: str = option("prophet", choice(forecaster_names), "prophet (the paper's) or harmonic (least-squares "

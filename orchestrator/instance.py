@@ -54,6 +54,15 @@ class Fmi2CoSimulation(CoSimulation, Fmi2Instance):
 
         return FMU2Slave
 
+    def direct_calls(self) -> tuple:
+        """``(component, fmi2DoStep, fmi2GetReal, fmi2SetReal, failure)``: the FMU's own functions
+        for a replay's fast loop (a system's, orchestrator.system); ``failure(what, status)`` is
+        the :class:`FmuError` for a call that returned ``status``, with the FMU's recent log."""
+        functions = self._fmu._functions
+        mark = self._log_count
+        return (self._fmu.component, functions["fmi2DoStep"], functions["fmi2GetReal"], functions["fmi2SetReal"],
+                lambda what, status: self._failure(what, status, mark))
+
     def step_through(self, times: Sequence[float], outputs: Sequence[str], out,
                      changes: tuple[str, Sequence[float]] | None = None) -> None:
         """Step from ``times[0]`` through every later time, writing the Real ``outputs`` after

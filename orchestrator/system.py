@@ -33,6 +33,11 @@ output at ``t_k``):
 
 The first step uses ``y(t0)``, the outputs after initialisation (FMPy's ``simulate_ssp`` gives
 every input 0.0 at its first step instead: docs/orchestrator.md, "Systems").
+
+The replay of ``fourbar-diagnose`` (diagnose.simulator) drives the same instance through
+``get_state``/``set_state``/``free_state`` (every component's FMU state plus the master's
+memory of the connected outputs: a branch restarts exactly where the healthy replay was),
+``reset`` and ``step_through``.
 """
 from __future__ import annotations
 
@@ -41,6 +46,8 @@ import shutil
 import tempfile
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
+
+import numpy as np
 
 from .case import FmuDescription, Master, _stamp
 from .fmi_instance import FmuError
@@ -312,6 +319,141 @@ class SystemInstance:
         self._named(name, lambda: instance.set_values([(link.input, v) for link, v in zip(links, values)]))
         if interpolate:
             self._named(name, lambda: instance.set_real_input_derivatives([link.input for link in links], slopes))
+
+    # -- the replay (fourbar-diagnose) ----------------------------------------------------
+    def get_state(self) -> "_SystemState":
+        """Every component's FMU state and the master's connected outputs (free it with :meth:`free_state`)."""
+        states: dict[str, Any] = {}
+        try:
+            for name, instance in self.instances.items():
+                states[name] = self._named(name, instance.get_state)
+        except BaseException:
+            for name, state in states.items():
+                self.instances[name].free_state(state)
+            raise
+        return _SystemState(states, dict(self._now), dict(self._before), self._h_before)
+
+    def set_state(self, state: "_SystemState") -> None:
+        for name, instance in self.instances.items():
+            self._named(name, lambda: instance.set_state(state.components[name]))
+        self._now, self._before, self._h_before = dict(state.now), dict(state.before), state.h_before
+
+    def free_state(self, state: "_SystemState") -> None:
+        for name, instance in self.instances.items():
+            self._named(name, lambda: instance.free_state(state.components[name]))
+
+    def reset(self) -> None:
+        for name, instance in self.instances.items():
+            self._named(name, instance.reset)
+        self._now, self._before, self._h_before = {}, {}, None
+
+    def step_through(self, times: Sequence[float], outputs: Sequence[str], out,
+                     changes: tuple[str, Sequence[float]] | None = None) -> None:
+        """Macro steps from ``times[0]`` through every later time, the ``component.variable``
+        ``outputs`` after step ``i`` in row ``i`` of ``out``; ``changes = (name, values)`` sets
+        ``name`` to ``values[i]`` before step ``i`` (as the run sets a fault), as
+        :meth:`orchestrator.instance.Fmi2CoSimulation.step_through` does for one FMU."""
+        name, values = changes if changes else ("", ())
+        if not self._extrapolate and all(hasattr(i, "direct_calls") for i in self.instances.values()):
+            self._direct_steps(times, outputs, out, name, values)
+            return
+        read = self.reader(outputs) if len(outputs) else None
+        for i in range(len(times) - 1):
+            if i < len(values):
+                self.set_values([(name, float(values[i]))])
+            self.do_step(times[i], times[i + 1] - times[i])
+            if read is not None:
+                out[i] = read()
+
+
+    def _direct_steps(self, times: Sequence[float], outputs: Sequence[str], out, name: str, values) -> None:
+        """:meth:`step_through` with held inputs, through each component's own FMI 2.0 functions
+        (ctypes, buffers made once): the same calls in the same order as :meth:`do_step`, so
+        the same numbers, about three times faster (the replay takes ~10^5 macro steps)."""
+        from ctypes import c_double, c_uint
+
+        gauss_seidel = self.master.algorithm == "gauss-seidel"
+        plans = []
+        for component in self.order:
+            instance = self.instances[component]
+            handle, do_step, get_real, set_real, failure = instance.direct_calls()
+            links = self._feeding[component]
+            in_keys = [link.key for link in links]
+            in_vrs = (c_uint * len(links))(*(instance.variables[link.input].valueReference for link in links))
+            own = sorted({link.output for link in self.links if link.source == component})
+            out_keys = [f"{component}.{o}" for o in own]
+            out_vrs = (c_uint * len(own))(*(instance.variables[o].valueReference for o in own))
+            plans.append((component, handle, do_step, get_real, set_real, failure, in_keys, in_vrs,
+                          (c_double * len(links))(), out_keys, out_vrs, (c_double * len(own))()))
+        rows = self._by_component((n, i) for i, n in enumerate(outputs))
+        readers = []
+        for component, items in rows.items():
+            instance = self.instances[component]
+            vrs = (c_uint * len(items))(*(instance.variables[v].valueReference for v, _ in items))
+            readers.append((instance.direct_calls(), vrs, (c_double * len(items))(), [i for _, i in items]))
+        row = np.empty(len(outputs))
+
+        def failed(component: str, what: str, status: int, failure) -> FmuError:
+            source = self.description.component(component).source.rsplit("/", 1)[-1]
+            exc = failure(what, status)
+            return FmuError(f"component {component!r} ({source}): {exc}", exc.status)
+
+        def give(plan, now: dict) -> None:
+            component, handle, _, _, set_real, failure, in_keys, in_vrs, in_buf = plan[:9]
+            if in_keys:
+                for j, key in enumerate(in_keys):
+                    in_buf[j] = now[key]
+                status = set_real(handle, in_vrs, len(in_keys), in_buf)
+                if status > 1:
+                    raise failed(component, "fmi2SetReal (connected inputs)", status, failure)
+
+        def take(plan, now: dict) -> None:
+            component, handle, _, get_real, _, failure = plan[:6]
+            out_keys, out_vrs, out_buf = plan[9:]
+            if out_keys:
+                status = get_real(handle, out_vrs, len(out_keys), out_buf)
+                if status > 1:
+                    raise failed(component, "fmi2GetReal (connected outputs)", status, failure)
+                for j, key in enumerate(out_keys):
+                    now[key] = out_buf[j]
+
+        for i in range(len(times) - 1):
+            if i < len(values):
+                self.set_values([(name, float(values[i]))])
+            t = times[i]
+            h = times[i + 1] - t
+            start = self._now
+            newest = dict(start)
+            if not gauss_seidel:
+                for plan in plans:
+                    give(plan, start)
+            for plan in plans:
+                if gauss_seidel:
+                    give(plan, newest)
+                status = plan[2](plan[1], t, h, 1)
+                if status > 1:
+                    raise failed(plan[0], f"fmi2DoStep(t = {t!r} s, h = {h!r} s)", status, plan[5])
+                if gauss_seidel:
+                    take(plan, newest)
+            if not gauss_seidel:
+                for plan in plans:
+                    take(plan, newest)
+            self._before, self._now, self._h_before = start, newest, h
+            for (handle, _, get_real, _, failure), vrs, buf, where in readers:
+                get_real(handle, vrs, len(where), buf)
+                for j, k in enumerate(where):
+                    row[k] = buf[j]
+            if len(outputs):
+                out[i] = row
+
+
+class _SystemState:
+    """A saved system (:meth:`SystemInstance.get_state`)."""
+
+    __slots__ = ("components", "now", "before", "h_before")
+
+    def __init__(self, components: dict, now: dict, before: dict, h_before: float | None):
+        self.components, self.now, self.before, self.h_before = components, now, before, h_before
 
 
 def _typed(kind: str, value: Any) -> Any:

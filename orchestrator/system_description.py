@@ -4,7 +4,8 @@ The system is seen as one model whose variables are named ``component.variable``
 
 The system description answers what case validation and run.json ask of an
 :class:`~orchestrator.case.FmuDescription` (``model.modelVariables``, ``variables``,
-``units``, ``parameter_starts``, ``is_current``, ``guid``), so every check of a case (a
+``units``, ``parameter_starts``, ``is_current``, ``guid``; ``canGetAndSetFMUstate`` when every
+component can, for the diagnosis' replay), so every check of a case (a
 parameter's type and range, an event's variable, an output, noise, an input signal) works
 unchanged on ``motor.R`` or ``fourbar.omega2``.  Each component keeps its own model
 description (:class:`ComponentDescription`) for the run (:mod:`orchestrator.system`).
@@ -104,7 +105,9 @@ class SystemDescription:
                 twin = copy.copy(v)
                 twin.name = f"{component.name}.{v.name}"
                 variables.append(twin)
-        cs = SimpleNamespace(modelIdentifier=self.ssp.name, canInterpolateInputs=False, maxOutputDerivativeOrder=0)
+        saves = all(getattr(c.model.coSimulation, "canGetAndSetFMUstate", False) for c in self.components)
+        cs = SimpleNamespace(modelIdentifier=self.ssp.name, canInterpolateInputs=False, maxOutputDerivativeOrder=0,
+                             canGetAndSetFMUstate=saves)
         return SimpleNamespace(modelVariables=variables, fmiVersion="2.0", coSimulation=cs, modelExchange=None,
                                guid=self.ssp.sha256, modelName=self.ssp.name, outputs=[])
 
