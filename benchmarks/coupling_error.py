@@ -79,8 +79,8 @@ def _parameters(description) -> dict[str, float]:
 
 def reference_order(description) -> tuple[str, ...]:
     """``[master] order`` for the monolithic master when the .ssp needs one (the mechanism's FMU
-    declares no output dependencies): :func:`orchestrator.monolithic.suggested_order`; else ()."""
-    from orchestrator.monolithic import AlgebraicLoop, evaluation_plan, suggested_order
+    declares no output dependencies): :func:`orchestrator.system_order.suggested_order`; else ()."""
+    from orchestrator.system_order import AlgebraicLoop, evaluation_plan, suggested_order
 
     try:
         evaluation_plan(description)

@@ -212,7 +212,7 @@ class Master:
     """How a system (``system = "X.ssp"``) is stepped: ``algorithm`` jacobi | gauss-seidel |
     monolithic, ``inputs`` hold | extrapolate, ``order`` the Gauss–Seidel order (monolithic: the
     evaluation order) the case gave (empty: from the connections,
-    :func:`orchestrator.system.gauss_seidel_order`, :func:`orchestrator.monolithic.evaluation_plan`).
+    :func:`orchestrator.system_order.gauss_seidel_order`, :func:`orchestrator.system_order.evaluation_plan`).
     The macro step is ``[experiment] step``."""
 
     algorithm: str = "jacobi"

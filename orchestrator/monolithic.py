@@ -37,9 +37,9 @@ from typing import Any, Iterable, Sequence
 from .fmi_instance import FmuError
 from .system import SystemInstance
 from .system_description import SystemDescription
+from .system_order import AlgebraicLoop, evaluation_plan, suggested_order
 
-__all__ = ["ALGORITHM", "ATOL_RATIO", "DEFAULT_RTOL", "AlgebraicLoop", "MonolithicSystem", "evaluation_plan",
-           "monolithic_problems", "suggested_order"]
+__all__ = ["ALGORITHM", "ATOL_RATIO", "DEFAULT_RTOL", "MonolithicSystem", "monolithic_problems"]
 
 #: The ``[master] algorithm`` of this master.
 ALGORITHM = "monolithic"
@@ -48,108 +48,6 @@ ALGORITHM = "monolithic"
 DEFAULT_RTOL = 1e-10
 #: The absolute tolerance is this times the relative one.
 ATOL_RATIO = 1e-2
-
-
-class AlgebraicLoop(ValueError):
-    """The connections close a loop of direct feed-through; the message names it."""
-
-
-def _direct_inputs(system: SystemDescription, component: str, output: str) -> tuple[str, ...]:
-    """The inputs of ``component`` that ``output`` depends on directly (ModelStructure; an output
-    that lists no dependencies, or is not listed, depends on every input)."""
-    model = system.component(component).model
-    inputs = tuple(v.name for v in model.modelVariables if v.causality == "input")
-    for unknown in model.outputs:
-        if unknown.variable.name == output:
-            if unknown.dependencies is None:
-                return inputs
-            return tuple(d.name for d in unknown.dependencies if d.name in inputs)
-    return inputs
-
-
-def evaluation_plan(system: SystemDescription, order: Sequence[str] = ()) -> tuple[tuple[str, tuple[str, ...]], ...]:
-    """The order the connected outputs are read in: ``(component, (output, ...))`` pairs.
-
-    With ``order`` (the case's), each component once in that order with all its connected
-    outputs.  Otherwise a topological order of the connected outputs along their direct
-    dependencies (ties in the SSD's component order), consecutive outputs of one component
-    merged; :class:`AlgebraicLoop` naming the loop when there is none.
-    """
-    connections = system.ssp.connections
-    outputs: dict[str, list[str]] = {}
-    for c in connections:
-        outputs.setdefault(c.start_component, [])
-        if c.start_connector not in outputs[c.start_component]:
-            outputs[c.start_component].append(c.start_connector)
-    if order:
-        return tuple((name, tuple(outputs[name])) for name in order if name in outputs)
-    feeder = {(c.end_component, c.end_connector): f"{c.start_component}.{c.start_connector}" for c in connections}
-    rank = {name: i for i, name in enumerate(system.ssp.component_names)}
-    nodes = sorted((f"{comp}.{out}" for comp, outs in outputs.items() for out in outs),
-                   key=lambda key: (rank[key.partition(".")[0]], key))
-    needs: dict[str, list[tuple[str, str]]] = {}   # output -> [(source output, the input it feeds)]
-    for key in nodes:
-        comp, _, out = key.partition(".")
-        needs[key] = [(feeder[comp, i], f"{comp}.{i}") for i in _direct_inputs(system, comp, out) if (comp, i) in feeder]
-    done: list[str] = []
-    remaining = list(nodes)
-    while remaining:
-        ready = next((key for key in remaining if all(s in done for s, _ in needs[key])), None)
-        if ready is None:
-            raise AlgebraicLoop(_loop_message(remaining, needs))
-        done.append(ready)
-        remaining.remove(ready)
-    plan: list[tuple[str, list[str]]] = []
-    for key in done:
-        comp, _, out = key.partition(".")
-        if plan and plan[-1][0] == comp:
-            plan[-1][1].append(out)
-        else:
-            plan.append((comp, [out]))
-    return tuple((comp, tuple(outs)) for comp, outs in plan)
-
-
-def _loop_message(remaining: list[str], needs: dict[str, list[tuple[str, str]]]) -> str:
-    """'a -> b.in -> b.out -> ... -> a': one loop among the outputs that cannot be ordered."""
-    path, key = [], remaining[0]
-    while key not in path:
-        path.append(key)
-        key = next(s for s, _ in needs[key] if s in remaining)
-    loop = path[path.index(key):] + [key]
-    loop.reverse()          # along the signal: source output -> input -> the output that depends on it
-    steps = [loop[0]]
-    for source, target in zip(loop, loop[1:]):
-        through = next(i for s, i in needs[target] if s == source)
-        steps += [through, target]
-    return (f"the connections close an algebraic loop: {' -> '.join(steps)} (each output depends directly on "
-            f"the input before it, from its FMU's <ModelStructure>; an output that lists no dependencies "
-            f"depends on every input); a monolithic integration needs every input known before it is read: "
-            f"give [master] order, the order to evaluate the components in, if an output does not really "
-            f"depend on its input")
-
-
-def suggested_order(system: SystemDescription) -> tuple[str, ...]:
-    """An order to offer for ``[master] order`` when an FMU that declares no output dependencies
-    at all (e.g. a mechanism FMU, whose outputs are its coordinates and their rates: states)
-    closes a loop: those components first, then the others along the connections that feed
-    through by their declarations; () when every FMU declares its dependencies."""
-    undeclared = {c.name for c in system.components
-                  if c.model.outputs and all(u.dependencies is None for u in c.model.outputs)}
-    if not undeclared:
-        return ()
-    feeds = set()
-    for c in system.ssp.connections:
-        if c.end_component not in undeclared:
-            outputs = {x.start_connector for x in system.ssp.connections if x.start_component == c.end_component}
-            if any(c.end_connector in _direct_inputs(system, c.end_component, o) for o in outputs):
-                feeds.add((c.start_component, c.end_component))
-    order, remaining = [], list(system.ssp.component_names)
-    while remaining:
-        ready = [n for n in remaining if n in undeclared] or \
-                [n for n in remaining if not any((s, n) in feeds for s in remaining if s != n)] or remaining
-        order.append(ready[0])
-        remaining.remove(ready[0])
-    return tuple(order)
 
 
 def monolithic_problems(system: SystemDescription, order: Sequence[str] = ()) -> list[str]:

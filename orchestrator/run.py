@@ -251,7 +251,7 @@ def _parameter_starts(case: Case) -> tuple[ParameterStart, ...]:
 
 def _system_record(case: Case, parameters: tuple[ParameterStart, ...]) -> RecordedSystem:
     """run.json's ``system``: the archive, the master, each component's FMU and effective parameters."""
-    from .system import step_order
+    from .system_order import step_order
 
     described = case.fmu_description
     ssp = described.ssp

@@ -20,7 +20,7 @@ output at ``t_k``):
 - **Jacobi** (what FMPy's ``simulate_ssp`` and libcosim do): every connected input is set to
   ``y_k``, then every component steps from ``t_k``; then the connected outputs are read
   (``y_{k+1}``).  The components are independent within a step.
-- **Gauss–Seidel**: the components step one after the other in :func:`gauss_seidel_order`;
+- **Gauss–Seidel**: the components step one after the other in :func:`~orchestrator.system_order.gauss_seidel_order`;
   each is given the newest value of each of its inputs: ``y_{k+1}`` of a source that stepped
   before it in this macro step, ``y_k`` of one that did not.
 - **Inputs** ``hold`` (default): each input is constant over the step at that value.
@@ -52,53 +52,9 @@ import numpy as np
 from .case import FmuDescription, Master, _stamp
 from .fmi_instance import FmuError
 from .system_description import SystemDescription
+from .system_order import step_order
 
-__all__ = ["SystemInstance", "gauss_seidel_order", "step_order"]
-
-
-def gauss_seidel_order(system: SystemDescription) -> tuple[str, ...]:
-    """The order the components step in under Gauss–Seidel, from the connections.
-
-    Repeatedly take the first component (in the SSD's order) that no remaining component
-    feeds (a topological order along the connections).  When every remaining component is
-    fed by another (a loop), take the first whose connected outputs do not depend directly
-    on its inputs (the modelDescription's ModelStructure: an output with no ``dependencies``
-    attribute depends on every input), else the first in the SSD's order; it steps with the
-    previous values of the inputs the loop feeds it.
-    """
-    names = list(system.ssp.component_names)
-    feeds = {(c.start_component, c.end_component) for c in system.ssp.connections
-             if c.start_component != c.end_component}
-    outputs: dict[str, set[str]] = {}
-    for c in system.ssp.connections:
-        outputs.setdefault(c.start_component, set()).add(c.start_connector)
-    order: list[str] = []
-    remaining = list(names)
-    while remaining:
-        ready = [c for c in remaining if not any((s, c) in feeds for s in remaining if s != c)]
-        if not ready:
-            ready = [c for c in remaining
-                     if not any(system.component(c).direct_inputs(o) for o in outputs.get(c, ()))] or remaining
-        order.append(ready[0])
-        remaining.remove(ready[0])
-    return tuple(order)
-
-
-def step_order(system: SystemDescription, master: Master) -> tuple[str, ...]:
-    """The order the components step in: ``master.order`` when the case gave one, else
-    :func:`gauss_seidel_order` for Gauss–Seidel, the SSD's order for Jacobi (where it changes
-    nothing: every component steps from the same values); for the monolithic master the order
-    its evaluation reads them in (:func:`orchestrator.monolithic.evaluation_plan`)."""
-    if master.order:
-        return tuple(master.order)
-    if master.algorithm == "monolithic":          # the order its evaluation reads the outputs in
-        from .monolithic import evaluation_plan
-
-        read = list(dict.fromkeys(name for name, _ in evaluation_plan(system)))
-        return (*read, *(n for n in system.ssp.component_names if n not in read))
-    if master.algorithm == "gauss-seidel":
-        return gauss_seidel_order(system)
-    return system.ssp.component_names
+__all__ = ["SystemInstance"]
 
 
 class _Link:

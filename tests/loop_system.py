@@ -119,10 +119,10 @@ def run_system(folder: Path, ssp: Path, name: str, *, step: float, stop: float, 
 
 def bench_order(ssp: Path) -> str:
     """The ``[master] order = [...]`` line the monolithic master needs for ``ssp`` ("" when its
-    FMUs' declared dependencies order it): :func:`orchestrator.monolithic.suggested_order`."""
+    FMUs' declared dependencies order it): :func:`orchestrator.system_order.suggested_order`."""
     import json
 
-    from orchestrator.monolithic import AlgebraicLoop, evaluation_plan, suggested_order
+    from orchestrator.system_order import AlgebraicLoop, evaluation_plan, suggested_order
     from orchestrator.system_description import describe_system
 
     system = describe_system(ssp)

@@ -8,7 +8,7 @@ master can tell which outputs feed an input straight through.
   dependent must (tests/mechanisms/input_pendulum.toml: four inputs that act like loads;
   tests/mechanisms/input_driven_crank.toml: a driver input, which moves the positions).
 - ``fmpy validate`` finds nothing in the three FMUs (pythonfmu, native FMI 2.0 and 3.0).
-- ``orchestrator.system.gauss_seidel_order`` breaks a loop at the mechanism: on a small test
+- ``orchestrator.system_order.gauss_seidel_order`` breaks a loop at the mechanism: on a small test
   .ssp of two pendulums (tests/ssp_testing.py) and on the shipped bench (systems/motor_fourbar.toml).
 
 FMUs come from the session's ``mechanism_fmus`` (built once, shared with tests/test_fmu_inputs.py).
@@ -27,7 +27,7 @@ from fmpy.validation import validate_fmu
 
 from fmu_src.mechanism.check import prepare_mechanism
 from fmu_src.mechanism.table import derivative_dependencies, output_dependencies
-from orchestrator.system import gauss_seidel_order
+from orchestrator.system_order import gauss_seidel_order
 from orchestrator.system_description import describe_system
 from ssp_testing import TestComponent, write_ssp
 from support import REPO

@@ -121,14 +121,14 @@ def _system(names, connections, feedthrough: set[str]):
 
 
 def test_gauss_seidel_order_follows_the_connections():
-    from orchestrator.system import gauss_seidel_order
+    from orchestrator.system_order import gauss_seidel_order
 
     chain = _system(["c3", "c1", "c2"], [("c1", "c2"), ("c2", "c3")], feedthrough={"c1", "c2", "c3"})
     assert gauss_seidel_order(chain) == ("c1", "c2", "c3")
 
 
 def test_a_loop_is_broken_where_no_output_feeds_through():
-    from orchestrator.system import gauss_seidel_order
+    from orchestrator.system_order import gauss_seidel_order
 
     loop = [("ctrl", "plant"), ("plant", "ctrl")]
     assert gauss_seidel_order(_system(["ctrl", "plant"], loop, feedthrough={"ctrl"})) == ("plant", "ctrl")
