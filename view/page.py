@@ -321,7 +321,10 @@ class RunPage:
 
     def _add_component_plots(self, groups) -> None:
         """A recent plot per component of a system run, a line per signal (its source
-        ``component_NAME`` holds ``time`` and the signals)."""
+        ``component_NAME`` holds ``time`` and the signals); nothing for a one-FMU run or a run.json
+        that cannot be read (no groups)."""
+        if not groups:
+            return
         from bokeh.models import ColumnDataSource, DataRange1d
         from bokeh.palettes import Category10_10
         from bokeh.plotting import figure
