@@ -125,6 +125,13 @@ void model_log(ModelInstance *m, ModelStatus status, const char *category, const
 void *model_allocate(const ModelInstance *m, size_t size);
 void model_release(const ModelInstance *m, void *p);
 
+/* A failure logged with the model's and the instance's names ("<name> '<instance>': ..."); returns
+   MODEL_ERROR (model_checks.c, as the rest below). */
+ModelStatus model_fail(ModelInstance *m, const char *fmt, ...);
+/* v as Python's repr writes it, in buf (n bytes). */
+const char *model_real_text(char *buf, size_t n, double v);
+/* t on the FMU's 1 ns grid (round half to even, as Python's round()). */
+double model_snap_time(double t);
 void model_reset(ModelInstance *m);                       /* start values, mode instantiated */
 ModelStatus model_initialize(ModelInstance *m);            /* check, assemble, start (exit init mode) */
 ModelStatus model_do_step(ModelInstance *m, double current_time, double step);
