@@ -37,7 +37,8 @@ HERE = Path(__file__).resolve().parent
 #: The hand-written C of a block FMU: the shared FMI layers and integrator (fmu_src/native/) and the
 #: block model (fmu_src/native/block/); FMI 3.0 swaps fmi2Functions.c for fmi3/fmi3Functions.c.
 BLOCK_HAND_WRITTEN = ("fmi2Functions.c", "fmi_calls.h", "fmi_layer.c", "fmi_layer.h", "rk.c", "rk.h",
-                      "glibc_compat.h", "model_checks.c", "saved_state.c", "block/model.h", "block/block.c")
+                      "glibc_compat.h", "model_types.h", "model_api.h", "model_checks.c", "saved_state.c",
+                      "block/model.h", "block/block.c")
 
 
 @dataclass(frozen=True)

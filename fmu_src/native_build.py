@@ -54,8 +54,9 @@ MODEL_IDENTIFIER = "FourBarNative"
 #: and the calls' work; fmi_calls.h: the entry points both standards define alike), the slave behind
 #: it, the DAE algorithm, the Runge-Kutta driver, linear algebra, and the header that pins glibc
 #: symbol versions for binaries/linux64 (force-included there only).  None of it knows a mechanism.
-HAND_WRITTEN = ("fmi2Functions.c", "fmi_calls.h", "fmi_layer.c", "fmi_layer.h", "model.c", "model.h", "model_checks.c",
-                "saved_state.c", "state_check.c", "dae.c", "dae.h", "linalg.h", "rk.c", "rk.h", "glibc_compat.h")
+HAND_WRITTEN = ("fmi2Functions.c", "fmi_calls.h", "fmi_layer.c", "fmi_layer.h", "model.c", "model.h", "model_types.h",
+                "model_api.h", "model_checks.c", "saved_state.c", "state_check.c", "dae.c", "dae.h", "linalg.h", "rk.c",
+                "rk.h", "glibc_compat.h")
 #: The FMI 3.0 FMU's: the same model, behind the FMI 3.0 layer (fmu_src/native/fmi3/fmi3Functions.c: a
 #: folder of its own, so that fmu_src/native/ holds exactly the FMI 2.0 FMU's hand-written C).
 HAND_WRITTEN_FMI3 = tuple("fmi3/fmi3Functions.c" if name == "fmi2Functions.c" else name for name in HAND_WRITTEN)
