@@ -44,7 +44,8 @@ from .mechanism.table import (derivative_dependencies, model_exchange_states, na
 
 __all__ = ["NativeBuildResult", "CompilerNotFound", "build_native_fmu", "find_compiler", "model_identifier",
            "native_sources", "model_description", "fmi3_model_description", "build_description", "MODEL_IDENTIFIER",
-           "HAND_WRITTEN", "HAND_WRITTEN_FMI3", "GENERATED", "FMI_VERSIONS"]
+           "HAND_WRITTEN", "HAND_WRITTEN_FMI3", "GENERATED", "FMI_VERSIONS", "fmi2_interfaces", "fmi2_variables",
+           "fmi3_interfaces", "fmi3_variables", "build_description_of"]
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
@@ -255,6 +256,86 @@ def model_description(eqs: MechanismEquations, guid: str, source_files, fmi_vers
     return _flavour(fmi_version).describe(eqs, guid, source_files)
 
 
+def fmi2_interfaces(root: ET.Element, identifier: str, source_files, *, has_inputs: bool,
+                    completed_step_needed: bool) -> None:
+    """FMI 2.0's <ModelExchange> and <CoSimulation> of a native FMU (a mechanism's or a
+    component's), each with <SourceFiles>.  FMI 2.0 orders them ModelExchange, then CoSimulation
+    (FMI Library, and the FMU Compliance Checker built on it, skip a ModelExchange that comes
+    second: 'not an ME FMU')."""
+    me = ET.SubElement(root, "ModelExchange", {
+        "modelIdentifier": identifier, "needsExecutionTool": "false",
+        "completedIntegratorStepNotNeeded": "false" if completed_step_needed else "true",
+        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
+        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true"})
+    cs = ET.SubElement(root, "CoSimulation", {
+        "modelIdentifier": identifier, "needsExecutionTool": "false",
+        "canHandleVariableCommunicationStepSize": "true",
+        "canInterpolateInputs": "true" if has_inputs else "false",
+        "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
+        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
+        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true",
+        "providesDirectionalDerivative": "false"})
+    for element in (me, cs):
+        files = ET.SubElement(element, "SourceFiles")
+        for name in source_files:
+            ET.SubElement(files, "File", {"name": name})
+
+
+def fmi2_variables(variables: ET.Element, table, state_of: Mapping[int, int]) -> None:
+    """FMI 2.0's <ScalarVariable>s of a variable table (value reference = row), ``derivative``
+    naming the state's ScalarVariable index (1-based) for each row in ``state_of``."""
+    for vr, var in enumerate(table):
+        sv = ET.SubElement(variables, "ScalarVariable", {
+            "name": var.name, "valueReference": str(vr), "description": var.description,
+            "causality": var.causality, "variability": var.variability})
+        attrs = {}
+        if vr in state_of:
+            attrs["derivative"] = str(state_of[vr] + 1)       # ScalarVariable indices (1-based)
+        if var.start is not None:
+            attrs["start"] = repr(float(var.start)) if var.type == "Real" else str(var.start)
+        attrs.update(_variable_attributes(var))
+        ET.SubElement(sv, var.type, attrs)
+
+
+def fmi3_interfaces(root: ET.Element, identifier: str, *, completed_step_needed: bool) -> None:
+    """FMI 3.0's <ModelExchange> and <CoSimulation> of a native FMU: directional derivatives in
+    model exchange only."""
+    common = {"modelIdentifier": identifier, "needsExecutionTool": "false",
+              "canBeInstantiatedOnlyOncePerProcess": "false", "canGetAndSetFMUState": "true",
+              "canSerializeFMUState": "true", "providesDirectionalDerivatives": "false",
+              "providesAdjointDerivatives": "false", "providesPerElementDependencies": "false"}
+    ET.SubElement(root, "ModelExchange", {**common, "providesDirectionalDerivatives": "true",
+                                          "needsCompletedIntegratorStep": "true" if completed_step_needed else "false",
+                                          "providesEvaluateDiscreteStates": "false"})
+    ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true",
+                                         "maxOutputDerivativeOrder": "0", "providesIntermediateUpdate": "false",
+                                         "mightReturnEarlyFromDoStep": "false",
+                                         "canReturnEarlyAfterIntermediateUpdate": "false", "hasEventMode": "false",
+                                         "providesEvaluateDiscreteStates": "false"})
+
+
+def fmi3_variables(variables: ET.Element, table, state_of: Mapping[int, int]) -> None:
+    """FMI 3.0's variables: the independent ``time`` (value reference len(table), as
+    fmi3Functions.c reads it), then the table's as Float64 (Real) and String; ``derivative`` names
+    the state's value reference."""
+    ET.SubElement(variables, "Float64", {"name": "time", "valueReference": str(len(table)),
+                                         "description": "Simulation time", "causality": "independent",
+                                         "variability": "continuous", "unit": "s"})
+    for vr, var in enumerate(table):
+        attrs = {"name": var.name, "valueReference": str(vr), "description": var.description,
+                 "causality": var.causality, "variability": var.variability}
+        if var.type == "String":
+            element = ET.SubElement(variables, "String", attrs)
+            ET.SubElement(element, "Start", {"value": str(var.start)})
+            continue
+        if vr in state_of:
+            attrs["derivative"] = str(state_of[vr])
+        if var.start is not None:
+            attrs["start"] = repr(float(var.start))
+        attrs.update(_variable_attributes(var))
+        ET.SubElement(variables, "Float64", attrs)
+
+
 def _fmi2_model_description(eqs: MechanismEquations, guid: str, source_files) -> bytes:
     """FMI 2.0's, the drawing annotation between DefaultExperiment and ModelVariables."""
     mech = eqs.mechanism
@@ -262,24 +343,7 @@ def _fmi2_model_description(eqs: MechanismEquations, guid: str, source_files) ->
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "2.0", "modelName": identifier, "guid": guid, "description": _description_text(eqs),
         **_HEADER_ATTRIBUTES, "numberOfEventIndicators": "0"})
-    # FMI 2.0 orders them ModelExchange, then CoSimulation (FMI Library, and the FMU Compliance
-    # Checker built on it, skip a ModelExchange that comes second: 'not an ME FMU')
-    me = ET.SubElement(root, "ModelExchange", {
-        "modelIdentifier": identifier, "needsExecutionTool": "false", "completedIntegratorStepNotNeeded": "false",
-        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
-        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true"})
-    cs = ET.SubElement(root, "CoSimulation", {
-        "modelIdentifier": identifier, "needsExecutionTool": "false",
-        "canHandleVariableCommunicationStepSize": "true",
-        "canInterpolateInputs": "true" if eqs.inputs else "false",
-        "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
-        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
-        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true",
-        "providesDirectionalDerivative": "false"})
-    for element in (cs, me):
-        files = ET.SubElement(element, "SourceFiles")
-        for name in source_files:
-            ET.SubElement(files, "File", {"name": name})
+    fmi2_interfaces(root, identifier, source_files, has_inputs=bool(eqs.inputs), completed_step_needed=True)
     root.append(unit_definitions())
     root.append(_log_categories("fmi2"))
     ET.SubElement(root, "DefaultExperiment", _DEFAULT_EXPERIMENT)
@@ -287,17 +351,7 @@ def _fmi2_model_description(eqs: MechanismEquations, guid: str, source_files) ->
     variables = ET.SubElement(root, "ModelVariables")
     table = native_variable_table(eqs)
     structure = _structure(eqs)
-    for vr, var in enumerate(table):
-        sv = ET.SubElement(variables, "ScalarVariable", {
-            "name": var.name, "valueReference": str(vr), "description": var.description,
-            "causality": var.causality, "variability": var.variability})
-        attrs = {}
-        if vr in structure.state_of:
-            attrs["derivative"] = str(structure.state_of[vr] + 1)       # ScalarVariable indices (1-based)
-        if var.start is not None:
-            attrs["start"] = repr(float(var.start)) if var.type == "Real" else str(var.start)
-        attrs.update(_variable_attributes(var))
-        ET.SubElement(sv, var.type, attrs)
+    fmi2_variables(variables, table, structure.state_of)
     element = ET.SubElement(root, "ModelStructure")
     group = ET.SubElement(element, "Outputs")
     for vr, depends in structure.outputs:
@@ -326,41 +380,14 @@ def fmi3_model_description(eqs: MechanismEquations, token: str) -> bytes:
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "3.0", "modelName": identifier, "instantiationToken": token,
         "description": _description_text(eqs), **_HEADER_ATTRIBUTES})
-    common = {"modelIdentifier": identifier, "needsExecutionTool": "false",
-              "canBeInstantiatedOnlyOncePerProcess": "false", "canGetAndSetFMUState": "true",
-              "canSerializeFMUState": "true", "providesDirectionalDerivatives": "false",
-              "providesAdjointDerivatives": "false", "providesPerElementDependencies": "false"}
-    # directional derivatives in model exchange only (the states are its knowns; the FMU has no inputs)
-    ET.SubElement(root, "ModelExchange", {**common, "providesDirectionalDerivatives": "true",
-                                          "needsCompletedIntegratorStep": "true",
-                                          "providesEvaluateDiscreteStates": "false"})
-    ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true",
-                                         "maxOutputDerivativeOrder": "0", "providesIntermediateUpdate": "false",
-                                         "mightReturnEarlyFromDoStep": "false",
-                                         "canReturnEarlyAfterIntermediateUpdate": "false", "hasEventMode": "false",
-                                         "providesEvaluateDiscreteStates": "false"})
+    fmi3_interfaces(root, identifier, completed_step_needed=True)
     root.append(unit_definitions())
     root.append(_log_categories("fmi3"))
     ET.SubElement(root, "DefaultExperiment", _DEFAULT_EXPERIMENT)
     variables = ET.SubElement(root, "ModelVariables")
     table = native_variable_table(eqs)
     structure = _structure(eqs)
-    ET.SubElement(variables, "Float64", {"name": "time", "valueReference": str(len(table)),
-                                         "description": "Simulation time", "causality": "independent",
-                                         "variability": "continuous", "unit": "s"})
-    for vr, var in enumerate(table):
-        attrs = {"name": var.name, "valueReference": str(vr), "description": var.description,
-                 "causality": var.causality, "variability": var.variability}
-        if var.type == "String":
-            element = ET.SubElement(variables, "String", attrs)
-            ET.SubElement(element, "Start", {"value": str(var.start)})
-            continue
-        if vr in structure.state_of:
-            attrs["derivative"] = str(structure.state_of[vr])
-        if var.start is not None:
-            attrs["start"] = repr(float(var.start))
-        attrs.update(_variable_attributes(var))
-        ET.SubElement(variables, "Float64", attrs)
+    fmi3_variables(variables, table, structure.state_of)
     element = ET.SubElement(root, "ModelStructure")
     for vr, depends in structure.outputs:
         ET.SubElement(element, "Output", {"valueReference": str(vr), "dependencies": " ".join(map(str, depends))})
@@ -382,8 +409,13 @@ def fmi3_model_description(eqs: MechanismEquations, token: str) -> bytes:
 def build_description(eqs: MechanismEquations, source_files) -> bytes:
     """FMI 3.0's sources/buildDescription.xml: how ``fmpy compile`` (or any importer) builds the
     binary from sources/ (C99, the .c files; on linux the glibc pinning header is optional)."""
+    return build_description_of(model_identifier(eqs, 3), source_files)
+
+
+def build_description_of(identifier: str, source_files) -> bytes:
+    """buildDescription.xml for the FMI 3.0 FMU ``identifier`` (a mechanism's or a component's)."""
     root = ET.Element("fmiBuildDescription", {"fmiVersion": "3.0"})
-    config = ET.SubElement(root, "BuildConfiguration", {"modelIdentifier": model_identifier(eqs, 3)})
+    config = ET.SubElement(root, "BuildConfiguration", {"modelIdentifier": identifier})
     files = ET.SubElement(config, "SourceFileSet", {"language": "C99"})
     for name in source_files:
         ET.SubElement(files, "SourceFile", {"name": name})
