@@ -13,24 +13,17 @@ description declares each output's and derivative's dependencies on the inputs a
 from __future__ import annotations
 
 import hashlib
-import platform
-import sys
-import tempfile
 import uuid
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from fourbar_common import replace_atomically
-
 from .block.c_code import block_variable_table, generate_block_sources
 from .block.derivation import BlockEquations, derive_block
 from .block.units import BLOCK_UNITS
-from .native_build import (BINARY_COMPRESSION, FMI3_HEADERS, FMI_HEADERS, GLIBC_COMPAT, CompilerNotFound,
-                           _compile, _DEFAULT_EXPERIMENT, _fmi_header_dir, _HEADER_ATTRIBUTES, _log_categories,
-                           _platform, build_description_of, find_compiler, fmi2_interfaces, fmi2_variables,
-                           fmi3_interfaces, fmi3_variables)
+from .native_build import (FMI3_HEADERS, FMI_HEADERS, CompilerNotFound, _DEFAULT_EXPERIMENT, _fmi_header_dir,
+                           _HEADER_ATTRIBUTES, _log_categories, find_compiler, fmi2_interfaces, fmi2_variables,
+                           fmi3_interfaces, fmi3_variables, package_native_fmu)
 
 __all__ = ["BlockBuildResult", "build_block_fmu", "block_identifier", "block_sources", "BLOCK_HAND_WRITTEN"]
 
@@ -198,33 +191,15 @@ def build_block_fmu_result(source: str | Path, out: Path | None = None, *, fmi_v
     dest = Path(out if out is not None else Path("build") / f"{identifier}.fmu").resolve()
     guid = _guid(eqs, fmi_version)
     files = block_sources(eqs, guid, fmi_version)
-    c_files = sorted(name for name in files if name.endswith(".c"))
-    with tempfile.TemporaryDirectory(prefix="fourbar_block_") as tmp:
-        src = Path(tmp) / "sources"
-        src.mkdir()
-        for name, data in files.items():
-            (src / name).write_bytes(data)
-        folder, suffix = _platform(fmi_version)
-        library = Path(tmp) / (identifier + suffix)
-        pin_glibc = sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc"
-        _compile(compiler, src, c_files, library, extra=("-include", str(src / GLIBC_COMPAT)) if pin_glibc else ())
-        sources = dict(files)
-        if fmi_version == 3:
-            sources["buildDescription.xml"] = build_description_of(identifier, c_files)
-        description = (_fmi3_description(eqs, guid) if fmi_version == 3
-                       else _fmi2_description(eqs, guid, c_files))
+    dest.parent.mkdir(parents=True, exist_ok=True)
 
-        def write(tmp_dest: Path) -> None:
-            with zipfile.ZipFile(tmp_dest, "w", zipfile.ZIP_DEFLATED) as z:
-                z.writestr("modelDescription.xml", description)
-                z.write(library, f"binaries/{folder}/{identifier}{suffix}", compress_type=BINARY_COMPRESSION)
-                for name in sorted(sources):
-                    z.writestr(f"sources/{name}", sources[name])
+    def describe(c_files: list[str]) -> bytes:
+        return _fmi3_description(eqs, guid) if fmi_version == 3 else _fmi2_description(eqs, guid, c_files)
 
-        dest.parent.mkdir(parents=True, exist_ok=True)
-        replace_atomically(dest, write)
+    platforms = package_native_fmu(dest, identifier, files, fmi_version=fmi_version, compiler=compiler,
+                                   describe=describe, cross_compile=False)
     problems: tuple[str, ...] = ()
     if validate:
         from fmpy.validation import validate_fmu
         problems = tuple(validate_fmu(str(dest)))
-    return BlockBuildResult(dest, guid, (folder,), problems, identifier, fmi_version)
+    return BlockBuildResult(dest, guid, platforms, problems, identifier, fmi_version)

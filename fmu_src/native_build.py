@@ -45,7 +45,7 @@ from .mechanism.table import (derivative_dependencies, model_exchange_states, na
 __all__ = ["NativeBuildResult", "CompilerNotFound", "build_native_fmu", "find_compiler", "model_identifier",
            "native_sources", "model_description", "fmi3_model_description", "build_description", "MODEL_IDENTIFIER",
            "HAND_WRITTEN", "HAND_WRITTEN_FMI3", "GENERATED", "FMI_VERSIONS", "fmi2_interfaces", "fmi2_variables",
-           "fmi3_interfaces", "fmi3_variables", "build_description_of"]
+           "fmi3_interfaces", "fmi3_variables", "build_description_of", "package_native_fmu"]
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
@@ -501,6 +501,25 @@ def build_native_fmu(dest: str | Path | None = None, mechanism: str | Path | Mec
     files = native_sources(eqs, guid, replace, fmi_version)
     if not replace and dest.is_relative_to(REPO) and flavour.editor_copies:   # for the repository, not a test
         _write_editor_copies(identifier, files)
+    platforms = package_native_fmu(dest, identifier, files, fmi_version=fmi_version, compiler=compiler,
+                                   describe=lambda c_files: model_description(eqs, guid, c_files, fmi_version))
+    problems: tuple[str, ...] = ()
+    if validate:
+        from fmpy.validation import validate_fmu
+        problems = tuple(validate_fmu(str(dest)))
+    return NativeBuildResult(path=dest, guid=guid, platforms=tuple(platforms), problems=problems,
+                             model_identifier=identifier, fmi_version=fmi_version)
+
+
+def package_native_fmu(dest: Path, identifier: str, files: Mapping[str, bytes], *, fmi_version: int, compiler: str,
+                       describe: Callable[[list[str]], bytes], cross_compile: bool = True) -> tuple[str, ...]:
+    """Compile ``files`` (the FMU's flat sources/) and zip the FMU at ``dest`` (a mechanism's or a
+    component's): modelDescription.xml from ``describe(c_files)``, the binary for this platform (and,
+    with ``cross_compile`` and a MinGW-w64 compiler, for win64), sources/ (FMI 3.0: with
+    buildDescription.xml).  Returns the platform folders.  dest is written atomically: a uniquely
+    named temporary file beside it, renamed over it when complete and removed on any failure or
+    interrupt, so dest is the old FMU or the new one, never a part of either."""
+    flavour = _flavour(fmi_version)
     c_files = sorted(name for name in files if name.endswith(".c"))
     platforms = []
     with tempfile.TemporaryDirectory(prefix="fourbar_native_") as tmp:
@@ -515,7 +534,7 @@ def build_native_fmu(dest: str | Path | None = None, mechanism: str | Path | Mec
         _compile(compiler, src, c_files, library, extra=("-include", str(src / GLIBC_COMPAT)) if pin_glibc else ())
         binaries = [(f"binaries/{folder}/{identifier}{suffix}", library)]
         platforms.append(folder)
-        cross = shutil.which(_WIN64_COMPILER)
+        cross = shutil.which(_WIN64_COMPILER) if cross_compile else None
         windows = flavour.platform_folders["win32"]
         if cross and folder != windows:
             dll = stage / (identifier + ".dll")
@@ -525,23 +544,16 @@ def build_native_fmu(dest: str | Path | None = None, mechanism: str | Path | Mec
             platforms.append(windows)
         sources = dict(files)
         if flavour.build_description:
-            sources["buildDescription.xml"] = build_description(eqs, c_files)
+            sources["buildDescription.xml"] = build_description_of(identifier, c_files)
+        description = describe(c_files)
 
         def write(tmp_dest: Path) -> None:
             with zipfile.ZipFile(tmp_dest, "w", zipfile.ZIP_DEFLATED) as z:
-                z.writestr("modelDescription.xml", model_description(eqs, guid, c_files, fmi_version))
+                z.writestr("modelDescription.xml", description)
                 for arcname, path in binaries:     # stored: see BINARY_COMPRESSION
                     z.write(path, arcname, compress_type=BINARY_COMPRESSION)
                 for name in sorted(sources):
                     z.writestr(f"sources/{name}", sources[name])
 
-        # A uniquely named temporary file beside dest, renamed over it when complete and
-        # removed on any failure or interrupt: dest is the old FMU or the new one, never a
-        # part of either, and nothing is left beside it.
         replace_atomically(dest, write)
-    problems: tuple[str, ...] = ()
-    if validate:
-        from fmpy.validation import validate_fmu
-        problems = tuple(validate_fmu(str(dest)))
-    return NativeBuildResult(path=dest, guid=guid, platforms=tuple(platforms), problems=problems,
-                             model_identifier=identifier, fmi_version=fmi_version)
+    return tuple(platforms)
