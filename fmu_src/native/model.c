@@ -23,12 +23,7 @@
 #define MSG MODEL_MESSAGE
 
 static const double REAL_STARTS[FMU_N_VARIABLES] = FMU_REAL_STARTS;
-static const int KINDS[FMU_N_VARIABLES] = FMU_VARIABLE_KINDS;
 static const char *const NAMES[FMU_N_VARIABLES] = FMU_VARIABLE_NAMES;
-static const int POSITIVE[FMU_N_VARIABLES] = FMU_POSITIVE;
-static const double MINIMUM[FMU_N_VARIABLES] = FMU_MINIMUM;
-static const double MAXIMUM[FMU_N_VARIABLES] = FMU_MAXIMUM;
-static const char *const UNITS[FMU_N_VARIABLES] = FMU_MESSAGE_UNITS;
 static const int PARAMETER_VRS[MECH_ALLOC(MECH_N_PARAMETERS)] = MECH_PARAMETER_VRS;
 static const int INDEPENDENT[MECH_ALLOC(MECH_K)] = MECH_INDEPENDENT;
 static const int START_POSITION_VRS[MECH_ALLOC(MECH_K)] = MECH_START_POSITION_VRS;
@@ -41,36 +36,8 @@ static const char *const COORDINATES[MECH_N] = MECH_COORDINATE_NAMES;
 static const int STATE_VRS[] = FMU_STATE_VRS;
 static const int STATE_START_VRS[] = FMU_STATE_START_VRS;
 static const int DERIVATIVE_VRS[] = FMU_DERIVATIVE_VRS;
-enum { KIND_TUNABLE = 0, KIND_FIXED = 1 };
 
 /* -- parameters ---------------------------------------------------------------------- */
-
-/* Every problem with the set parameter values, "; "-separated (slave.py's _problem); 0 when none. */
-static int check_parameters(const ModelState *s, char *out, size_t n)
-{
-    char num[40], low[40], high[40];
-    size_t used = 0;
-    int count = 0;
-    out[0] = '\0';
-#define ADD(...) do { if (used < n) used += snprintf(out + used, n - used, "%s", count++ ? "; " : ""); \
-                      if (used < n) used += snprintf(out + used, n - used, __VA_ARGS__); } while (0)
-    for (int vr = 0; vr < FMU_N_VARIABLES; vr++) {
-        if (KINDS[vr] != KIND_TUNABLE && KINDS[vr] != KIND_FIXED) continue;
-        const double v = s->values[vr];
-        const char *gap = UNITS[vr][0] ? " " : "";
-        if (POSITIVE[vr] && !(isfinite(v) && v > 0.0))
-            ADD("%s = %s%s%s: must be a finite positive number", NAMES[vr], model_real_text(num, sizeof num, v), gap,
-                UNITS[vr]);
-        else if (!isfinite(v))
-            ADD("%s = %s: must be finite", NAMES[vr], model_real_text(num, sizeof num, v));
-        else if (v < MINIMUM[vr] || v > MAXIMUM[vr])
-            ADD("%s = %s%s%s: must be within [%s, %s]", NAMES[vr], model_real_text(num, sizeof num, v), gap, UNITS[vr],
-                isfinite(MINIMUM[vr]) ? model_real_text(low, sizeof low, MINIMUM[vr]) : "-inf",
-                isfinite(MAXIMUM[vr]) ? model_real_text(high, sizeof high, MAXIMUM[vr]) : "inf");
-    }
-#undef ADD
-    return count;
-}
 
 /* p: the file's parameters, then the inputs (as set: held). */
 static void parameters_from_values(const ModelState *s, double *p)
@@ -159,7 +126,7 @@ static ModelStatus me_evaluate(ModelInstance *m)
 static int initial_state(const ModelState *s, ModelState *scratch, char *why, size_t n)
 {
     double guess[MECH_N], rates[MECH_N];
-    if (check_parameters(s, why, n)) return 1;
+    if (model_check_parameters(s, why, n)) return 1;
     *scratch = *s;
     parameters_from_values(scratch, scratch->p);
     start_configuration(scratch, guess, rates);
@@ -266,7 +233,8 @@ ModelStatus model_initialize(ModelInstance *m)
     ModelState *s = &m->state;
     char problems[4 * MSG], given[MSG], num[40];
     double guess[MECH_N], rates[MECH_N];
-    if (check_parameters(s, problems, sizeof problems)) return model_fail(m, "invalid parameters: %s", problems);
+    if (model_check_parameters(s, problems, sizeof problems))
+        return model_fail(m, "invalid parameters: %s", problems);
     parameters_from_values(s, s->p);
     start_configuration(s, guess, rates);
     if (dae_assemble(s, dae_snap_time(s->start_time), guess, rates)) {
@@ -310,7 +278,7 @@ static ModelStatus apply_parameter_changes(ModelInstance *m, double current_time
             differs = 1;
         }
     if (!differs) return MODEL_OK;
-    if (check_parameters(s, problems, sizeof problems))
+    if (model_check_parameters(s, problems, sizeof problems))
         return model_fail(m, "at t = %.9g s: %s", current_time, problems);
     int r = dae_change_parameters(s, p);
     if (!r) r = m->model_exchange ? dae_me_start(s) : dae_start(s, s->solver.h_abs);

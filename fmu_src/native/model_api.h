@@ -54,6 +54,9 @@ ModelStatus model_fail(ModelInstance *m, const char *fmt, ...);
 const char *model_real_text(char *buf, size_t n, double v);
 /* t on the FMU's 1 ns grid (round half to even, as Python's round()). */
 double model_snap_time(double t);
+/* Every problem with the set parameter values (positive, finite, within their bounds), "; "-separated
+   in out (n bytes), as slave.py's _problem words them; 0 when none. */
+int model_check_parameters(const ModelState *s, char *out, size_t n);
 void model_reset(ModelInstance *m);                       /* start values, mode instantiated */
 ModelStatus model_initialize(ModelInstance *m);            /* check, assemble, start (exit init mode) */
 ModelStatus model_do_step(ModelInstance *m, double current_time, double step);
@@ -71,8 +74,8 @@ int model_non_finite_values(ModelInstance *m, const char *function, const unsign
                             size_t n);
 /* 1, after logging why, when a continuous state the host sets (Model Exchange) is not finite. */
 int model_non_finite_states(ModelInstance *m, const char *function, const double *x, size_t n);
-/* Model Exchange (model.c with dae.c, or block/block.c): the states (FMU_N_STATES values, value references FMU_STATE_VRS), set and
-   evaluated lazily; the derivatives; an accepted integrator step; an event's parameter changes
+/* Model Exchange (model.c with dae.c, or block/block.c): the states (FMU_N_STATES values, value
+   references FMU_STATE_VRS), set and evaluated lazily; the derivatives; an accepted integrator step; an event's parameter changes
    (a mechanism re-assembles keeping the states).  MODEL_ERROR after logging why. */
 void model_me_get_states(ModelInstance *m, double *x);
 void model_me_set_time(ModelInstance *m, double t);

@@ -1,8 +1,9 @@
-/* What every model behind the FMI layers checks and says the same way (model.h): a failure logged
- * with the model's and instance's names, numbers written as Python's repr writes them, times on the
- * FMU's 1 ns grid, and the checks of a communication step and of values a host sets.  Compiled into
- * the mechanisms' FMUs (model.c) and the components' (block/block.c): they depend only on the
- * generated tables (equations.h, variables.h) and ModelState's stop_time, not on the model.
+/* What every model behind the FMI layers checks and says the same way (model_api.h): a failure
+ * logged with the model's and instance's names, numbers written as Python's repr writes them, times
+ * on the FMU's 1 ns grid, and the checks of the parameters, of a communication step and of values a
+ * host sets.  Compiled into the mechanisms' FMUs (model.c) and the components' (block/block.c): they
+ * depend only on the generated tables (equations.h, variables.h) and ModelState's values and
+ * stop_time, not on the model.
  */
 #include <math.h>
 #include <stdarg.h>
@@ -11,8 +12,14 @@
 #include <string.h>
 #include "model.h"
 
+static const int KINDS[FMU_N_VARIABLES] = FMU_VARIABLE_KINDS;
 static const char *const NAMES[FMU_N_VARIABLES] = FMU_VARIABLE_NAMES;
+static const int POSITIVE[FMU_N_VARIABLES] = FMU_POSITIVE;
+static const double MINIMUM[FMU_N_VARIABLES] = FMU_MINIMUM;
+static const double MAXIMUM[FMU_N_VARIABLES] = FMU_MAXIMUM;
+static const char *const UNITS[FMU_N_VARIABLES] = FMU_MESSAGE_UNITS;
 static const int STATE_VRS[] = FMU_STATE_VRS;
+enum { KIND_TUNABLE = 0, KIND_FIXED = 1 };      /* FMU_VARIABLE_KINDS' parameters */
 
 ModelStatus model_fail(ModelInstance *m, const char *fmt, ...)
 {
@@ -43,6 +50,32 @@ const char *model_real_text(char *buf, size_t n, double v)
 double model_snap_time(double t)
 {
     return nearbyint(t * 1e9) / 1e9;    /* round half to even, as Python's round() */
+}
+
+int model_check_parameters(const ModelState *s, char *out, size_t n)
+{
+    char num[40], low[40], high[40];
+    size_t used = 0;
+    int count = 0;
+    out[0] = '\0';
+#define ADD(...) do { if (used < n) used += snprintf(out + used, n - used, "%s", count++ ? "; " : ""); \
+                      if (used < n) used += snprintf(out + used, n - used, __VA_ARGS__); } while (0)
+    for (int vr = 0; vr < FMU_N_VARIABLES; vr++) {
+        if (KINDS[vr] != KIND_TUNABLE && KINDS[vr] != KIND_FIXED) continue;
+        const double v = s->values[vr];
+        const char *gap = UNITS[vr][0] ? " " : "";
+        if (POSITIVE[vr] && !(isfinite(v) && v > 0.0))
+            ADD("%s = %s%s%s: must be a finite positive number", NAMES[vr], model_real_text(num, sizeof num, v), gap,
+                UNITS[vr]);
+        else if (!isfinite(v))
+            ADD("%s = %s: must be finite", NAMES[vr], model_real_text(num, sizeof num, v));
+        else if (v < MINIMUM[vr] || v > MAXIMUM[vr])
+            ADD("%s = %s%s%s: must be within [%s, %s]", NAMES[vr], model_real_text(num, sizeof num, v), gap, UNITS[vr],
+                isfinite(MINIMUM[vr]) ? model_real_text(low, sizeof low, MINIMUM[vr]) : "-inf",
+                isfinite(MAXIMUM[vr]) ? model_real_text(high, sizeof high, MAXIMUM[vr]) : "inf");
+    }
+#undef ADD
+    return count;
 }
 
 int model_past_stop_time(ModelInstance *m, const char *function, double current_time, double step)

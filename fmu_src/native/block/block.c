@@ -23,10 +23,6 @@
 static const double REAL_STARTS[FMU_N_VARIABLES] = FMU_REAL_STARTS;
 static const int KINDS[FMU_N_VARIABLES] = FMU_VARIABLE_KINDS;
 static const char *const NAMES[FMU_N_VARIABLES] = FMU_VARIABLE_NAMES;
-static const int POSITIVE[FMU_N_VARIABLES] = FMU_POSITIVE;
-static const double MINIMUM[FMU_N_VARIABLES] = FMU_MINIMUM;
-static const double MAXIMUM[FMU_N_VARIABLES] = FMU_MAXIMUM;
-static const char *const UNITS[FMU_N_VARIABLES] = FMU_MESSAGE_UNITS;
 static const int PARAMETER_VRS[BLOCK_ALLOC(BLOCK_N_PARAMETERS)] = BLOCK_PARAMETER_VRS;
 static const int INPUT_VRS[BLOCK_ALLOC(NU)] = BLOCK_INPUT_VRS;
 static const int OUTPUT_VRS[NY] = BLOCK_OUTPUT_VRS;
@@ -37,33 +33,6 @@ enum { KIND_TUNABLE = 0, KIND_FIXED = 1, KIND_INPUT = 6 };
 #define ALL_GROUPS (FMU_GROUP_STATE | FMU_GROUP_STATES)
 
 /* -- parameters ---------------------------------------------------------------------- */
-
-/* Every problem with the set parameter values, "; "-separated; 0 when none. */
-static int check_parameters(const ModelState *s, char *out, size_t n)
-{
-    char num[40], low[40], high[40];
-    size_t used = 0;
-    int count = 0;
-    out[0] = '\0';
-#define ADD(...) do { if (used < n) used += snprintf(out + used, n - used, "%s", count++ ? "; " : ""); \
-                      if (used < n) used += snprintf(out + used, n - used, __VA_ARGS__); } while (0)
-    for (int vr = 0; vr < FMU_N_VARIABLES; vr++) {
-        if (KINDS[vr] != KIND_TUNABLE && KINDS[vr] != KIND_FIXED) continue;
-        const double v = s->values[vr];
-        const char *gap = UNITS[vr][0] ? " " : "";
-        if (POSITIVE[vr] && !(isfinite(v) && v > 0.0))
-            ADD("%s = %s%s%s: must be a finite positive number", NAMES[vr], model_real_text(num, sizeof num, v), gap,
-                UNITS[vr]);
-        else if (!isfinite(v))
-            ADD("%s = %s: must be finite", NAMES[vr], model_real_text(num, sizeof num, v));
-        else if (v < MINIMUM[vr] || v > MAXIMUM[vr])
-            ADD("%s = %s%s%s: must be within [%s, %s]", NAMES[vr], model_real_text(num, sizeof num, v), gap, UNITS[vr],
-                isfinite(MINIMUM[vr]) ? model_real_text(low, sizeof low, MINIMUM[vr]) : "-inf",
-                isfinite(MAXIMUM[vr]) ? model_real_text(high, sizeof high, MAXIMUM[vr]) : "inf");
-    }
-#undef ADD
-    return count;
-}
 
 static void parameters_of(const ModelState *s, double *p)
 {
@@ -130,7 +99,7 @@ void model_preview_outputs(ModelInstance *m, int groups)
     char why[MSG];
     (void)groups;                        /* a block computes all its outputs at once: cheap */
     if ((m->state.mode == MODE_INSTANTIATED || m->state.mode == MODE_INITIALIZATION)
-        && check_parameters(&m->state, why, sizeof why))
+        && model_check_parameters(&m->state, why, sizeof why))
         return;                          /* fmi2ExitInitializationMode says why */
     current_point(m, p, u, x);
     store(&m->state, p, u, x);
@@ -167,7 +136,8 @@ ModelStatus model_initialize(ModelInstance *m)
 {
     ModelState *s = &m->state;
     char problems[4 * MSG];
-    if (check_parameters(s, problems, sizeof problems)) return model_fail(m, "invalid parameters: %s", problems);
+    if (model_check_parameters(s, problems, sizeof problems))
+        return model_fail(m, "invalid parameters: %s", problems);
     s->t = model_snap_time(s->start_time);
     start_states(s, s->x);
     inputs_set_now(s, s->u_now);
@@ -215,7 +185,7 @@ ModelStatus model_do_step(ModelInstance *m, double current_time, double step)
     if (fabs(model_snap_time(current_time) - s->t) > 1e-9 * fmax(1.0, fabs(s->t)))
         return model_fail(m, "do_step at t = %s s, but the model is at t = %s s",
                           model_real_text(a, sizeof a, current_time), model_real_text(b, sizeof b, s->t));
-    if (check_parameters(s, problems, sizeof problems))
+    if (model_check_parameters(s, problems, sizeof problems))
         return model_fail(m, "at t = %.9g s: %s", current_time, problems);
     const double t_end = model_snap_time(current_time + step);
     s->input_t0 = s->t;
@@ -327,7 +297,7 @@ ModelStatus model_me_completed_step(ModelInstance *m)
 ModelStatus model_me_event_update(ModelInstance *m)
 {
     char problems[4 * MSG];
-    if (check_parameters(&m->state, problems, sizeof problems))
+    if (model_check_parameters(&m->state, problems, sizeof problems))
         return model_fail(m, "at t = %.9g s: %s", m->state.me_t, problems);
     m->state.outputs_pending = ALL_GROUPS;
     return MODEL_OK;
@@ -368,7 +338,7 @@ ModelStatus model_me_directional(ModelInstance *m, Directional *d)
     double p[BLOCK_ALLOC(BLOCK_N_PARAMETERS)], u[BLOCK_ALLOC(NU)], x[RK_N];
     double f_x[BLOCK_ALLOC(NX * NX)], f_u[BLOCK_ALLOC(NX * NU)], y_x[BLOCK_ALLOC(NY * NX)], y_u[BLOCK_ALLOC(NY * NU)];
     char why[MSG];
-    if (m->state.mode == MODE_INITIALIZATION && check_parameters(&m->state, why, sizeof why))
+    if (m->state.mode == MODE_INITIALIZATION && model_check_parameters(&m->state, why, sizeof why))
         return model_fail(m, "the start values give no state to differentiate at: %s", why);
     current_point(m, p, u, x);
     block_jacobians(p, u, x, f_x, f_u, y_x, y_u);
