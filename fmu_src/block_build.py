@@ -13,23 +13,17 @@ description declares each output's and derivative's dependencies on the inputs a
 from __future__ import annotations
 
 import hashlib
-import platform
-import sys
-import tempfile
 import uuid
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from fourbar_common import replace_atomically
-
 from .block.c_code import block_variable_table, generate_block_sources
 from .block.derivation import BlockEquations, derive_block
 from .block.units import BLOCK_UNITS
-from .native_build import (BINARY_COMPRESSION, FMI3_HEADERS, FMI_HEADERS, GLIBC_COMPAT, CompilerNotFound,
-                           _compile, _DEFAULT_EXPERIMENT, _fmi_header_dir, _HEADER_ATTRIBUTES, _log_categories,
-                           _platform, _variable_attributes, find_compiler)
+from .native_build import (FMI3_HEADERS, FMI_HEADERS, CompilerNotFound, _DEFAULT_EXPERIMENT, _fmi_header_dir,
+                           _HEADER_ATTRIBUTES, _log_categories, find_compiler, fmi2_interfaces, fmi2_variables,
+                           fmi3_interfaces, fmi3_variables, package_native_fmu)
 
 __all__ = ["BlockBuildResult", "build_block_fmu", "block_identifier", "block_sources", "BLOCK_HAND_WRITTEN"]
 
@@ -37,7 +31,8 @@ HERE = Path(__file__).resolve().parent
 #: The hand-written C of a block FMU: the shared FMI layers and integrator (fmu_src/native/) and the
 #: block model (fmu_src/native/block/); FMI 3.0 swaps fmi2Functions.c for fmi3/fmi3Functions.c.
 BLOCK_HAND_WRITTEN = ("fmi2Functions.c", "fmi_calls.h", "fmi_layer.c", "fmi_layer.h", "rk.c", "rk.h",
-                      "glibc_compat.h", "block/model.h", "block/block.c")
+                      "glibc_compat.h", "model_types.h", "model_api.h", "model_checks.c", "saved_state.c",
+                      "block/model.h", "block/block.c")
 
 
 @dataclass(frozen=True)
@@ -124,37 +119,13 @@ def _fmi2_description(eqs: BlockEquations, guid: str, source_files) -> bytes:
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "2.0", "modelName": identifier, "guid": guid, "description": _description(eqs),
         **_HEADER_ATTRIBUTES, "numberOfEventIndicators": "0"})
-    me = ET.SubElement(root, "ModelExchange", {
-        "modelIdentifier": identifier, "needsExecutionTool": "false", "completedIntegratorStepNotNeeded": "true",
-        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
-        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true"})
-    cs = ET.SubElement(root, "CoSimulation", {
-        "modelIdentifier": identifier, "needsExecutionTool": "false",
-        "canHandleVariableCommunicationStepSize": "true",
-        "canInterpolateInputs": "true" if has_inputs else "false",
-        "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
-        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
-        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true", "providesDirectionalDerivative": "false"})
-    for element in (me, cs):
-        files = ET.SubElement(element, "SourceFiles")
-        for name in source_files:
-            ET.SubElement(files, "File", {"name": name})
+    fmi2_interfaces(root, identifier, source_files, has_inputs=has_inputs, completed_step_needed=False)
     root.append(_units(table))
     root.append(_log_categories("fmi2"))
     ET.SubElement(root, "DefaultExperiment", {**_DEFAULT_EXPERIMENT, "stopTime": "1.0", "stepSize": "0.001"})
     variables = ET.SubElement(root, "ModelVariables")
     structure = _structure(eqs)
-    for k, var in enumerate(table):
-        sv = ET.SubElement(variables, "ScalarVariable", {
-            "name": var.name, "valueReference": str(k), "description": var.description,
-            "causality": var.causality, "variability": var.variability})
-        attrs = {}
-        if k in structure.state_of:
-            attrs["derivative"] = str(structure.state_of[k] + 1)
-        if var.start is not None:
-            attrs["start"] = repr(float(var.start)) if var.type == "Real" else str(var.start)
-        attrs.update(_variable_attributes(var))
-        ET.SubElement(sv, var.type, attrs)
+    fmi2_variables(variables, table, structure.state_of)
     element = ET.SubElement(root, "ModelStructure")
     for tag, rows in (("Outputs", structure.outputs), ("Derivatives", structure.derivatives)):
         if not rows:
@@ -175,39 +146,13 @@ def _fmi3_description(eqs: BlockEquations, token: str) -> bytes:
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "3.0", "modelName": identifier, "instantiationToken": token,
         "description": _description(eqs), **_HEADER_ATTRIBUTES})
-    common = {"modelIdentifier": identifier, "needsExecutionTool": "false",
-              "canBeInstantiatedOnlyOncePerProcess": "false", "canGetAndSetFMUState": "true",
-              "canSerializeFMUState": "true", "providesDirectionalDerivatives": "false",
-              "providesAdjointDerivatives": "false", "providesPerElementDependencies": "false"}
-    ET.SubElement(root, "ModelExchange", {**common, "providesDirectionalDerivatives": "true",
-                                          "needsCompletedIntegratorStep": "false",
-                                          "providesEvaluateDiscreteStates": "false"})
-    ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true",
-                                         "maxOutputDerivativeOrder": "0", "providesIntermediateUpdate": "false",
-                                         "mightReturnEarlyFromDoStep": "false",
-                                         "canReturnEarlyAfterIntermediateUpdate": "false", "hasEventMode": "false",
-                                         "providesEvaluateDiscreteStates": "false"})
+    fmi3_interfaces(root, identifier, completed_step_needed=False)
     root.append(_units(table))
     root.append(_log_categories("fmi3"))
     ET.SubElement(root, "DefaultExperiment", {**_DEFAULT_EXPERIMENT, "stopTime": "1.0", "stepSize": "0.001"})
     variables = ET.SubElement(root, "ModelVariables")
     structure = _structure(eqs)
-    ET.SubElement(variables, "Float64", {"name": "time", "valueReference": str(len(table)),
-                                         "description": "Simulation time", "causality": "independent",
-                                         "variability": "continuous", "unit": "s"})
-    for k, var in enumerate(table):
-        attrs = {"name": var.name, "valueReference": str(k), "description": var.description,
-                 "causality": var.causality, "variability": var.variability}
-        if var.type == "String":
-            element = ET.SubElement(variables, "String", attrs)
-            ET.SubElement(element, "Start", {"value": str(var.start)})
-            continue
-        if k in structure.state_of:
-            attrs["derivative"] = str(structure.state_of[k])
-        if var.start is not None:
-            attrs["start"] = repr(float(var.start))
-        attrs.update(_variable_attributes(var))
-        ET.SubElement(variables, "Float64", attrs)
+    fmi3_variables(variables, table, structure.state_of)
     element = ET.SubElement(root, "ModelStructure")
     for tag, rows in (("Output", structure.outputs), ("ContinuousStateDerivative", structure.derivatives)):
         for k, deps in rows:
@@ -219,16 +164,6 @@ def _fmi3_description(eqs: BlockEquations, token: str) -> bytes:
             ET.SubElement(element, tag, attrs)
     for k in structure.initial:
         ET.SubElement(element, "InitialUnknown", {"valueReference": str(k)})
-    ET.indent(root)
-    return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
-
-
-def _build_description(eqs: BlockEquations, source_files) -> bytes:
-    root = ET.Element("fmiBuildDescription", {"fmiVersion": "3.0"})
-    config = ET.SubElement(root, "BuildConfiguration", {"modelIdentifier": block_identifier(eqs, 3)})
-    files = ET.SubElement(config, "SourceFileSet", {"language": "C99"})
-    for name in source_files:
-        ET.SubElement(files, "SourceFile", {"name": name})
     ET.indent(root)
     return ET.tostring(root, encoding="UTF-8", xml_declaration=True)
 
@@ -256,33 +191,15 @@ def build_block_fmu_result(source: str | Path, out: Path | None = None, *, fmi_v
     dest = Path(out if out is not None else Path("build") / f"{identifier}.fmu").resolve()
     guid = _guid(eqs, fmi_version)
     files = block_sources(eqs, guid, fmi_version)
-    c_files = sorted(name for name in files if name.endswith(".c"))
-    with tempfile.TemporaryDirectory(prefix="fourbar_block_") as tmp:
-        src = Path(tmp) / "sources"
-        src.mkdir()
-        for name, data in files.items():
-            (src / name).write_bytes(data)
-        folder, suffix = _platform(fmi_version)
-        library = Path(tmp) / (identifier + suffix)
-        pin_glibc = sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc"
-        _compile(compiler, src, c_files, library, extra=("-include", str(src / GLIBC_COMPAT)) if pin_glibc else ())
-        sources = dict(files)
-        if fmi_version == 3:
-            sources["buildDescription.xml"] = _build_description(eqs, c_files)
-        description = (_fmi3_description(eqs, guid) if fmi_version == 3
-                       else _fmi2_description(eqs, guid, c_files))
+    dest.parent.mkdir(parents=True, exist_ok=True)
 
-        def write(tmp_dest: Path) -> None:
-            with zipfile.ZipFile(tmp_dest, "w", zipfile.ZIP_DEFLATED) as z:
-                z.writestr("modelDescription.xml", description)
-                z.write(library, f"binaries/{folder}/{identifier}{suffix}", compress_type=BINARY_COMPRESSION)
-                for name in sorted(sources):
-                    z.writestr(f"sources/{name}", sources[name])
+    def describe(c_files: list[str]) -> bytes:
+        return _fmi3_description(eqs, guid) if fmi_version == 3 else _fmi2_description(eqs, guid, c_files)
 
-        dest.parent.mkdir(parents=True, exist_ok=True)
-        replace_atomically(dest, write)
+    platforms = package_native_fmu(dest, identifier, files, fmi_version=fmi_version, compiler=compiler,
+                                   describe=describe, cross_compile=False)
     problems: tuple[str, ...] = ()
     if validate:
         from fmpy.validation import validate_fmu
         problems = tuple(validate_fmu(str(dest)))
-    return BlockBuildResult(dest, guid, (folder,), problems, identifier, fmi_version)
+    return BlockBuildResult(dest, guid, platforms, problems, identifier, fmi_version)

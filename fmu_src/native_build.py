@@ -44,7 +44,8 @@ from .mechanism.table import (derivative_dependencies, model_exchange_states, na
 
 __all__ = ["NativeBuildResult", "CompilerNotFound", "build_native_fmu", "find_compiler", "model_identifier",
            "native_sources", "model_description", "fmi3_model_description", "build_description", "MODEL_IDENTIFIER",
-           "HAND_WRITTEN", "HAND_WRITTEN_FMI3", "GENERATED", "FMI_VERSIONS"]
+           "HAND_WRITTEN", "HAND_WRITTEN_FMI3", "GENERATED", "FMI_VERSIONS", "fmi2_interfaces", "fmi2_variables",
+           "fmi3_interfaces", "fmi3_variables", "build_description_of", "package_native_fmu"]
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
@@ -54,8 +55,9 @@ MODEL_IDENTIFIER = "FourBarNative"
 #: and the calls' work; fmi_calls.h: the entry points both standards define alike), the slave behind
 #: it, the DAE algorithm, the Runge-Kutta driver, linear algebra, and the header that pins glibc
 #: symbol versions for binaries/linux64 (force-included there only).  None of it knows a mechanism.
-HAND_WRITTEN = ("fmi2Functions.c", "fmi_calls.h", "fmi_layer.c", "fmi_layer.h", "model.c", "model.h", "saved_state.c",
-                "dae.c", "dae.h", "linalg.h", "rk.c", "rk.h", "glibc_compat.h")
+HAND_WRITTEN = ("fmi2Functions.c", "fmi_calls.h", "fmi_layer.c", "fmi_layer.h", "model.c", "model.h", "model_types.h",
+                "model_api.h", "model_checks.c", "saved_state.c", "state_check.c", "dae.c", "dae.h", "linalg.h", "rk.c",
+                "rk.h", "glibc_compat.h")
 #: The FMI 3.0 FMU's: the same model, behind the FMI 3.0 layer (fmu_src/native/fmi3/fmi3Functions.c: a
 #: folder of its own, so that fmu_src/native/ holds exactly the FMI 2.0 FMU's hand-written C).
 HAND_WRITTEN_FMI3 = tuple("fmi3/fmi3Functions.c" if name == "fmi2Functions.c" else name for name in HAND_WRITTEN)
@@ -254,6 +256,86 @@ def model_description(eqs: MechanismEquations, guid: str, source_files, fmi_vers
     return _flavour(fmi_version).describe(eqs, guid, source_files)
 
 
+def fmi2_interfaces(root: ET.Element, identifier: str, source_files, *, has_inputs: bool,
+                    completed_step_needed: bool) -> None:
+    """FMI 2.0's <ModelExchange> and <CoSimulation> of a native FMU (a mechanism's or a
+    component's), each with <SourceFiles>.  FMI 2.0 orders them ModelExchange, then CoSimulation
+    (FMI Library, and the FMU Compliance Checker built on it, skip a ModelExchange that comes
+    second: 'not an ME FMU')."""
+    me = ET.SubElement(root, "ModelExchange", {
+        "modelIdentifier": identifier, "needsExecutionTool": "false",
+        "completedIntegratorStepNotNeeded": "false" if completed_step_needed else "true",
+        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
+        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true"})
+    cs = ET.SubElement(root, "CoSimulation", {
+        "modelIdentifier": identifier, "needsExecutionTool": "false",
+        "canHandleVariableCommunicationStepSize": "true",
+        "canInterpolateInputs": "true" if has_inputs else "false",
+        "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
+        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
+        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true",
+        "providesDirectionalDerivative": "false"})
+    for element in (me, cs):
+        files = ET.SubElement(element, "SourceFiles")
+        for name in source_files:
+            ET.SubElement(files, "File", {"name": name})
+
+
+def fmi2_variables(variables: ET.Element, table, state_of: Mapping[int, int]) -> None:
+    """FMI 2.0's <ScalarVariable>s of a variable table (value reference = row), ``derivative``
+    naming the state's ScalarVariable index (1-based) for each row in ``state_of``."""
+    for vr, var in enumerate(table):
+        sv = ET.SubElement(variables, "ScalarVariable", {
+            "name": var.name, "valueReference": str(vr), "description": var.description,
+            "causality": var.causality, "variability": var.variability})
+        attrs = {}
+        if vr in state_of:
+            attrs["derivative"] = str(state_of[vr] + 1)       # ScalarVariable indices (1-based)
+        if var.start is not None:
+            attrs["start"] = repr(float(var.start)) if var.type == "Real" else str(var.start)
+        attrs.update(_variable_attributes(var))
+        ET.SubElement(sv, var.type, attrs)
+
+
+def fmi3_interfaces(root: ET.Element, identifier: str, *, completed_step_needed: bool) -> None:
+    """FMI 3.0's <ModelExchange> and <CoSimulation> of a native FMU: directional derivatives in
+    model exchange only."""
+    common = {"modelIdentifier": identifier, "needsExecutionTool": "false",
+              "canBeInstantiatedOnlyOncePerProcess": "false", "canGetAndSetFMUState": "true",
+              "canSerializeFMUState": "true", "providesDirectionalDerivatives": "false",
+              "providesAdjointDerivatives": "false", "providesPerElementDependencies": "false"}
+    ET.SubElement(root, "ModelExchange", {**common, "providesDirectionalDerivatives": "true",
+                                          "needsCompletedIntegratorStep": "true" if completed_step_needed else "false",
+                                          "providesEvaluateDiscreteStates": "false"})
+    ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true",
+                                         "maxOutputDerivativeOrder": "0", "providesIntermediateUpdate": "false",
+                                         "mightReturnEarlyFromDoStep": "false",
+                                         "canReturnEarlyAfterIntermediateUpdate": "false", "hasEventMode": "false",
+                                         "providesEvaluateDiscreteStates": "false"})
+
+
+def fmi3_variables(variables: ET.Element, table, state_of: Mapping[int, int]) -> None:
+    """FMI 3.0's variables: the independent ``time`` (value reference len(table), as
+    fmi3Functions.c reads it), then the table's as Float64 (Real) and String; ``derivative`` names
+    the state's value reference."""
+    ET.SubElement(variables, "Float64", {"name": "time", "valueReference": str(len(table)),
+                                         "description": "Simulation time", "causality": "independent",
+                                         "variability": "continuous", "unit": "s"})
+    for vr, var in enumerate(table):
+        attrs = {"name": var.name, "valueReference": str(vr), "description": var.description,
+                 "causality": var.causality, "variability": var.variability}
+        if var.type == "String":
+            element = ET.SubElement(variables, "String", attrs)
+            ET.SubElement(element, "Start", {"value": str(var.start)})
+            continue
+        if vr in state_of:
+            attrs["derivative"] = str(state_of[vr])
+        if var.start is not None:
+            attrs["start"] = repr(float(var.start))
+        attrs.update(_variable_attributes(var))
+        ET.SubElement(variables, "Float64", attrs)
+
+
 def _fmi2_model_description(eqs: MechanismEquations, guid: str, source_files) -> bytes:
     """FMI 2.0's, the drawing annotation between DefaultExperiment and ModelVariables."""
     mech = eqs.mechanism
@@ -261,24 +343,7 @@ def _fmi2_model_description(eqs: MechanismEquations, guid: str, source_files) ->
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "2.0", "modelName": identifier, "guid": guid, "description": _description_text(eqs),
         **_HEADER_ATTRIBUTES, "numberOfEventIndicators": "0"})
-    # FMI 2.0 orders them ModelExchange, then CoSimulation (FMI Library, and the FMU Compliance
-    # Checker built on it, skip a ModelExchange that comes second: 'not an ME FMU')
-    me = ET.SubElement(root, "ModelExchange", {
-        "modelIdentifier": identifier, "needsExecutionTool": "false", "completedIntegratorStepNotNeeded": "false",
-        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
-        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true"})
-    cs = ET.SubElement(root, "CoSimulation", {
-        "modelIdentifier": identifier, "needsExecutionTool": "false",
-        "canHandleVariableCommunicationStepSize": "true",
-        "canInterpolateInputs": "true" if eqs.inputs else "false",
-        "maxOutputDerivativeOrder": "0", "canRunAsynchronuously": "false",
-        "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "false",
-        "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true",
-        "providesDirectionalDerivative": "false"})
-    for element in (cs, me):
-        files = ET.SubElement(element, "SourceFiles")
-        for name in source_files:
-            ET.SubElement(files, "File", {"name": name})
+    fmi2_interfaces(root, identifier, source_files, has_inputs=bool(eqs.inputs), completed_step_needed=True)
     root.append(unit_definitions())
     root.append(_log_categories("fmi2"))
     ET.SubElement(root, "DefaultExperiment", _DEFAULT_EXPERIMENT)
@@ -286,17 +351,7 @@ def _fmi2_model_description(eqs: MechanismEquations, guid: str, source_files) ->
     variables = ET.SubElement(root, "ModelVariables")
     table = native_variable_table(eqs)
     structure = _structure(eqs)
-    for vr, var in enumerate(table):
-        sv = ET.SubElement(variables, "ScalarVariable", {
-            "name": var.name, "valueReference": str(vr), "description": var.description,
-            "causality": var.causality, "variability": var.variability})
-        attrs = {}
-        if vr in structure.state_of:
-            attrs["derivative"] = str(structure.state_of[vr] + 1)       # ScalarVariable indices (1-based)
-        if var.start is not None:
-            attrs["start"] = repr(float(var.start)) if var.type == "Real" else str(var.start)
-        attrs.update(_variable_attributes(var))
-        ET.SubElement(sv, var.type, attrs)
+    fmi2_variables(variables, table, structure.state_of)
     element = ET.SubElement(root, "ModelStructure")
     group = ET.SubElement(element, "Outputs")
     for vr, depends in structure.outputs:
@@ -325,41 +380,14 @@ def fmi3_model_description(eqs: MechanismEquations, token: str) -> bytes:
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "3.0", "modelName": identifier, "instantiationToken": token,
         "description": _description_text(eqs), **_HEADER_ATTRIBUTES})
-    common = {"modelIdentifier": identifier, "needsExecutionTool": "false",
-              "canBeInstantiatedOnlyOncePerProcess": "false", "canGetAndSetFMUState": "true",
-              "canSerializeFMUState": "true", "providesDirectionalDerivatives": "false",
-              "providesAdjointDerivatives": "false", "providesPerElementDependencies": "false"}
-    # directional derivatives in model exchange only (the states are its knowns; the FMU has no inputs)
-    ET.SubElement(root, "ModelExchange", {**common, "providesDirectionalDerivatives": "true",
-                                          "needsCompletedIntegratorStep": "true",
-                                          "providesEvaluateDiscreteStates": "false"})
-    ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true",
-                                         "maxOutputDerivativeOrder": "0", "providesIntermediateUpdate": "false",
-                                         "mightReturnEarlyFromDoStep": "false",
-                                         "canReturnEarlyAfterIntermediateUpdate": "false", "hasEventMode": "false",
-                                         "providesEvaluateDiscreteStates": "false"})
+    fmi3_interfaces(root, identifier, completed_step_needed=True)
     root.append(unit_definitions())
     root.append(_log_categories("fmi3"))
     ET.SubElement(root, "DefaultExperiment", _DEFAULT_EXPERIMENT)
     variables = ET.SubElement(root, "ModelVariables")
     table = native_variable_table(eqs)
     structure = _structure(eqs)
-    ET.SubElement(variables, "Float64", {"name": "time", "valueReference": str(len(table)),
-                                         "description": "Simulation time", "causality": "independent",
-                                         "variability": "continuous", "unit": "s"})
-    for vr, var in enumerate(table):
-        attrs = {"name": var.name, "valueReference": str(vr), "description": var.description,
-                 "causality": var.causality, "variability": var.variability}
-        if var.type == "String":
-            element = ET.SubElement(variables, "String", attrs)
-            ET.SubElement(element, "Start", {"value": str(var.start)})
-            continue
-        if vr in structure.state_of:
-            attrs["derivative"] = str(structure.state_of[vr])
-        if var.start is not None:
-            attrs["start"] = repr(float(var.start))
-        attrs.update(_variable_attributes(var))
-        ET.SubElement(variables, "Float64", attrs)
+    fmi3_variables(variables, table, structure.state_of)
     element = ET.SubElement(root, "ModelStructure")
     for vr, depends in structure.outputs:
         ET.SubElement(element, "Output", {"valueReference": str(vr), "dependencies": " ".join(map(str, depends))})
@@ -381,8 +409,13 @@ def fmi3_model_description(eqs: MechanismEquations, token: str) -> bytes:
 def build_description(eqs: MechanismEquations, source_files) -> bytes:
     """FMI 3.0's sources/buildDescription.xml: how ``fmpy compile`` (or any importer) builds the
     binary from sources/ (C99, the .c files; on linux the glibc pinning header is optional)."""
+    return build_description_of(model_identifier(eqs, 3), source_files)
+
+
+def build_description_of(identifier: str, source_files) -> bytes:
+    """buildDescription.xml for the FMI 3.0 FMU ``identifier`` (a mechanism's or a component's)."""
     root = ET.Element("fmiBuildDescription", {"fmiVersion": "3.0"})
-    config = ET.SubElement(root, "BuildConfiguration", {"modelIdentifier": model_identifier(eqs, 3)})
+    config = ET.SubElement(root, "BuildConfiguration", {"modelIdentifier": identifier})
     files = ET.SubElement(config, "SourceFileSet", {"language": "C99"})
     for name in source_files:
         ET.SubElement(files, "SourceFile", {"name": name})
@@ -468,6 +501,25 @@ def build_native_fmu(dest: str | Path | None = None, mechanism: str | Path | Mec
     files = native_sources(eqs, guid, replace, fmi_version)
     if not replace and dest.is_relative_to(REPO) and flavour.editor_copies:   # for the repository, not a test
         _write_editor_copies(identifier, files)
+    platforms = package_native_fmu(dest, identifier, files, fmi_version=fmi_version, compiler=compiler,
+                                   describe=lambda c_files: model_description(eqs, guid, c_files, fmi_version))
+    problems: tuple[str, ...] = ()
+    if validate:
+        from fmpy.validation import validate_fmu
+        problems = tuple(validate_fmu(str(dest)))
+    return NativeBuildResult(path=dest, guid=guid, platforms=tuple(platforms), problems=problems,
+                             model_identifier=identifier, fmi_version=fmi_version)
+
+
+def package_native_fmu(dest: Path, identifier: str, files: Mapping[str, bytes], *, fmi_version: int, compiler: str,
+                       describe: Callable[[list[str]], bytes], cross_compile: bool = True) -> tuple[str, ...]:
+    """Compile ``files`` (the FMU's flat sources/) and zip the FMU at ``dest`` (a mechanism's or a
+    component's): modelDescription.xml from ``describe(c_files)``, the binary for this platform (and,
+    with ``cross_compile`` and a MinGW-w64 compiler, for win64), sources/ (FMI 3.0: with
+    buildDescription.xml).  Returns the platform folders.  dest is written atomically: a uniquely
+    named temporary file beside it, renamed over it when complete and removed on any failure or
+    interrupt, so dest is the old FMU or the new one, never a part of either."""
+    flavour = _flavour(fmi_version)
     c_files = sorted(name for name in files if name.endswith(".c"))
     platforms = []
     with tempfile.TemporaryDirectory(prefix="fourbar_native_") as tmp:
@@ -482,7 +534,7 @@ def build_native_fmu(dest: str | Path | None = None, mechanism: str | Path | Mec
         _compile(compiler, src, c_files, library, extra=("-include", str(src / GLIBC_COMPAT)) if pin_glibc else ())
         binaries = [(f"binaries/{folder}/{identifier}{suffix}", library)]
         platforms.append(folder)
-        cross = shutil.which(_WIN64_COMPILER)
+        cross = shutil.which(_WIN64_COMPILER) if cross_compile else None
         windows = flavour.platform_folders["win32"]
         if cross and folder != windows:
             dll = stage / (identifier + ".dll")
@@ -492,23 +544,16 @@ def build_native_fmu(dest: str | Path | None = None, mechanism: str | Path | Mec
             platforms.append(windows)
         sources = dict(files)
         if flavour.build_description:
-            sources["buildDescription.xml"] = build_description(eqs, c_files)
+            sources["buildDescription.xml"] = build_description_of(identifier, c_files)
+        description = describe(c_files)
 
         def write(tmp_dest: Path) -> None:
             with zipfile.ZipFile(tmp_dest, "w", zipfile.ZIP_DEFLATED) as z:
-                z.writestr("modelDescription.xml", model_description(eqs, guid, c_files, fmi_version))
+                z.writestr("modelDescription.xml", description)
                 for arcname, path in binaries:     # stored: see BINARY_COMPRESSION
                     z.write(path, arcname, compress_type=BINARY_COMPRESSION)
                 for name in sorted(sources):
                     z.writestr(f"sources/{name}", sources[name])
 
-        # A uniquely named temporary file beside dest, renamed over it when complete and
-        # removed on any failure or interrupt: dest is the old FMU or the new one, never a
-        # part of either, and nothing is left beside it.
         replace_atomically(dest, write)
-    problems: tuple[str, ...] = ()
-    if validate:
-        from fmpy.validation import validate_fmu
-        problems = tuple(validate_fmu(str(dest)))
-    return NativeBuildResult(path=dest, guid=guid, platforms=tuple(platforms), problems=problems,
-                             model_identifier=identifier, fmi_version=fmi_version)
+    return tuple(platforms)

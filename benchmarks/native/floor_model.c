@@ -3,6 +3,7 @@
  * Compiled in place of fmu_src/native/model.c, it gives an FMU with the native FMU's FMI
  * layer, variables and value references whose doStep only copies a number, so the wall
  * time of a run through FMPy is FMPy's own cost: the floor the native FMU is compared with.
+ * The checks of a step and of the values a host sets are the real ones (fmu_src/native/model_checks.c).
  */
 #include <math.h>
 #include <string.h>
@@ -122,29 +123,4 @@ ModelStatus model_set_input_derivatives(ModelInstance *m, const char *function, 
 {
     (void)m; (void)function; (void)vr; (void)nvr; (void)order; (void)value;
     return MODEL_OK;
-}
-
-int model_past_stop_time(ModelInstance *m, const char *function, double current_time, double step)
-{
-    (void)m; (void)function; (void)current_time; (void)step;
-    return 0;
-}
-
-int model_bad_step(ModelInstance *m, const char *function, double current_time, double step)
-{
-    (void)m; (void)function; (void)current_time; (void)step;
-    return 0;
-}
-
-int model_non_finite_values(ModelInstance *m, const char *function, const unsigned int *vr, const double *value,
-                            size_t n)
-{
-    (void)m; (void)function; (void)vr; (void)value; (void)n;
-    return 0;
-}
-
-int model_non_finite_states(ModelInstance *m, const char *function, const double *x, size_t n)
-{
-    (void)m; (void)function; (void)x; (void)n;
-    return 0;
 }

@@ -154,7 +154,7 @@ static NOINLINE void dense_solve_transposed(const double *lu, const int *piv, co
 
 double dae_snap_time(double t)
 {
-    return nearbyint(t * 1e9) / 1e9;    /* round half to even, as Python's round() */
+    return model_snap_time(t);
 }
 
 void dae_drive_at(const double *p, double t, double *d)

@@ -14,7 +14,6 @@
  *   every step; the values are the same).
  */
 #include <math.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -24,12 +23,7 @@
 #define MSG MODEL_MESSAGE
 
 static const double REAL_STARTS[FMU_N_VARIABLES] = FMU_REAL_STARTS;
-static const int KINDS[FMU_N_VARIABLES] = FMU_VARIABLE_KINDS;
 static const char *const NAMES[FMU_N_VARIABLES] = FMU_VARIABLE_NAMES;
-static const int POSITIVE[FMU_N_VARIABLES] = FMU_POSITIVE;
-static const double MINIMUM[FMU_N_VARIABLES] = FMU_MINIMUM;
-static const double MAXIMUM[FMU_N_VARIABLES] = FMU_MAXIMUM;
-static const char *const UNITS[FMU_N_VARIABLES] = FMU_MESSAGE_UNITS;
 static const int PARAMETER_VRS[MECH_ALLOC(MECH_N_PARAMETERS)] = MECH_PARAMETER_VRS;
 static const int INDEPENDENT[MECH_ALLOC(MECH_K)] = MECH_INDEPENDENT;
 static const int START_POSITION_VRS[MECH_ALLOC(MECH_K)] = MECH_START_POSITION_VRS;
@@ -42,62 +36,8 @@ static const char *const COORDINATES[MECH_N] = MECH_COORDINATE_NAMES;
 static const int STATE_VRS[] = FMU_STATE_VRS;
 static const int STATE_START_VRS[] = FMU_STATE_START_VRS;
 static const int DERIVATIVE_VRS[] = FMU_DERIVATIVE_VRS;
-enum { KIND_TUNABLE = 0, KIND_FIXED = 1 };
-
-static ModelStatus fail(ModelInstance *m, const char *fmt, ...)
-{
-    char text[2 * MSG];
-    va_list args;
-    va_start(args, fmt);
-    vsnprintf(text, sizeof text, fmt, args);
-    va_end(args);
-    model_log(m, MODEL_ERROR, "logStatusError", "%s '%s': %s", MECH_NAME, m->instance_name, text);
-    return MODEL_ERROR;
-}
-
-/* A double as Python's repr writes it: the shortest of %.15g, %.16g, %.17g that reads back as
-   the same value, with ".0" on whole numbers (so messages read the same from both FMUs). */
-static const char *real_text(char *buf, size_t n, double v)
-{
-    if (isnan(v)) {                      /* Python has one NaN: 'nan', whatever its sign bit */
-        snprintf(buf, n, "nan");
-        return buf;
-    }
-    snprintf(buf, n, "%.15g", v);
-    if (isfinite(v) && strtod(buf, NULL) != v) snprintf(buf, n, "%.16g", v);
-    if (isfinite(v) && strtod(buf, NULL) != v) snprintf(buf, n, "%.17g", v);
-    if (isfinite(v) && !strpbrk(buf, ".e")) strncat(buf, ".0", n - strlen(buf) - 1);
-    return buf;
-}
 
 /* -- parameters ---------------------------------------------------------------------- */
-
-/* Every problem with the set parameter values, "; "-separated (slave.py's _problem); 0 when none. */
-static int check_parameters(const ModelState *s, char *out, size_t n)
-{
-    char num[40], low[40], high[40];
-    size_t used = 0;
-    int count = 0;
-    out[0] = '\0';
-#define ADD(...) do { if (used < n) used += snprintf(out + used, n - used, "%s", count++ ? "; " : ""); \
-                      if (used < n) used += snprintf(out + used, n - used, __VA_ARGS__); } while (0)
-    for (int vr = 0; vr < FMU_N_VARIABLES; vr++) {
-        if (KINDS[vr] != KIND_TUNABLE && KINDS[vr] != KIND_FIXED) continue;
-        const double v = s->values[vr];
-        const char *gap = UNITS[vr][0] ? " " : "";
-        if (POSITIVE[vr] && !(isfinite(v) && v > 0.0))
-            ADD("%s = %s%s%s: must be a finite positive number", NAMES[vr], real_text(num, sizeof num, v), gap,
-                UNITS[vr]);
-        else if (!isfinite(v))
-            ADD("%s = %s: must be finite", NAMES[vr], real_text(num, sizeof num, v));
-        else if (v < MINIMUM[vr] || v > MAXIMUM[vr])
-            ADD("%s = %s%s%s: must be within [%s, %s]", NAMES[vr], real_text(num, sizeof num, v), gap, UNITS[vr],
-                isfinite(MINIMUM[vr]) ? real_text(low, sizeof low, MINIMUM[vr]) : "-inf",
-                isfinite(MAXIMUM[vr]) ? real_text(high, sizeof high, MAXIMUM[vr]) : "inf");
-    }
-#undef ADD
-    return count;
-}
 
 /* p: the file's parameters, then the inputs (as set: held). */
 static void parameters_from_values(const ModelState *s, double *p)
@@ -167,14 +107,14 @@ static ModelStatus me_evaluate(ModelInstance *m)
         s->p[k] = s->values[PARAMETER_VRS[k]];
     if (dae_me_evaluate(s, s->me_t, s->me_y, s->me_f)) {
         s->t = t;
-        return fail(m, "at t = %.9g s: %s", s->me_t, s->rhs_message);
+        return model_fail(m, "at t = %.9g s: %s", s->me_t, s->rhs_message);
     }
     for (int k = 0; k < FMU_N_STATES; k++)
         if (!isfinite(s->me_f[k])) {       /* states of no physical size (1e308) overflow */
             char a[40];
-            return fail(m, "at t = %.9g s: the derivative der(%s) = %s is not finite at the states the host set "
+            return model_fail(m, "at t = %.9g s: the derivative der(%s) = %s is not finite at the states the host set "
                         "(are they of a physical size?)", s->me_t, NAMES[STATE_VRS[k]],
-                        real_text(a, sizeof a, s->me_f[k]));
+                        model_real_text(a, sizeof a, s->me_f[k]));
         }
     s->me_fresh = 1;
     publish(m);
@@ -186,7 +126,7 @@ static ModelStatus me_evaluate(ModelInstance *m)
 static int initial_state(const ModelState *s, ModelState *scratch, char *why, size_t n)
 {
     double guess[MECH_N], rates[MECH_N];
-    if (check_parameters(s, why, n)) return 1;
+    if (model_check_parameters(s, why, n)) return 1;
     *scratch = *s;
     parameters_from_values(scratch, scratch->p);
     start_configuration(scratch, guess, rates);
@@ -236,7 +176,7 @@ void model_preview_outputs(ModelInstance *m, int groups)
     }
     if ((groups & FMU_GROUP_FORCE) && MECH_N_FORCE_OUTPUTS > 0) {
         if (dae_outputs_force(s->p, s->d, s->t, s->q, s->qd, out, s->rhs_message)) {
-            fail(m, "at t = %.9g s %s", s->t, s->rhs_message);
+            model_fail(m, "at t = %.9g s %s", s->t, s->rhs_message);
             return;
         }
         store_outputs(s, out, MECH_OUTPUT_FORCE);
@@ -247,7 +187,7 @@ void model_preview_outputs(ModelInstance *m, int groups)
         if (m->model_exchange) {
             memcpy(f, s->me_f, sizeof f);
         } else if (dae_derivatives(s, f)) {
-            fail(m, "at t = %.9g s %s", s->t, s->rhs_message);
+            model_fail(m, "at t = %.9g s %s", s->t, s->rhs_message);
             return;
         }
         store_states(s, f);
@@ -293,7 +233,8 @@ ModelStatus model_initialize(ModelInstance *m)
     ModelState *s = &m->state;
     char problems[4 * MSG], given[MSG], num[40];
     double guess[MECH_N], rates[MECH_N];
-    if (check_parameters(s, problems, sizeof problems)) return fail(m, "invalid parameters: %s", problems);
+    if (model_check_parameters(s, problems, sizeof problems))
+        return model_fail(m, "invalid parameters: %s", problems);
     parameters_from_values(s, s->p);
     start_configuration(s, guess, rates);
     if (dae_assemble(s, dae_snap_time(s->start_time), guess, rates)) {
@@ -301,17 +242,18 @@ ModelStatus model_initialize(ModelInstance *m)
         given[0] = '\0';
         for (int j = 0; j < MECH_K && used < sizeof given; j++)
             used += snprintf(given + used, sizeof given - used, "%s%s = %s", j ? ", " : "",
-                             NAMES[START_POSITION_VRS[j]], real_text(num, sizeof num, s->values[START_POSITION_VRS[j]]));
-        return fail(m, "initial assembly with %s failed: %s", MECH_K ? given : "the drivers' start values",
+                             NAMES[START_POSITION_VRS[j]],
+                             model_real_text(num, sizeof num, s->values[START_POSITION_VRS[j]]));
+        return model_fail(m, "initial assembly with %s failed: %s", MECH_K ? given : "the drivers' start values",
                     s->rhs_message);
     }
     if (m->model_exchange) {
-        if (dae_me_start(s)) return fail(m, "%s", s->rhs_message);
+        if (dae_me_start(s)) return model_fail(m, "%s", s->rhs_message);
         s->me_t = s->t;
         dae_states(s, s->me_y);
         s->me_fresh = 0;
     } else if (dae_start(s, 0.0)) {
-        return fail(m, "%s", s->rhs_message);
+        return model_fail(m, "%s", s->rhs_message);
     }
     return publish(m);
 }
@@ -336,7 +278,8 @@ static ModelStatus apply_parameter_changes(ModelInstance *m, double current_time
             differs = 1;
         }
     if (!differs) return MODEL_OK;
-    if (check_parameters(s, problems, sizeof problems)) return fail(m, "at t = %.9g s: %s", current_time, problems);
+    if (model_check_parameters(s, problems, sizeof problems))
+        return model_fail(m, "at t = %.9g s: %s", current_time, problems);
     int r = dae_change_parameters(s, p);
     if (!r) r = m->model_exchange ? dae_me_start(s) : dae_start(s, s->solver.h_abs);
     if (!r && m->model_exchange) {        /* the states are kept: the new current state is their evaluation */
@@ -344,8 +287,9 @@ static ModelStatus apply_parameter_changes(ModelInstance *m, double current_time
         dae_states(s, s->me_y);
         s->me_fresh = 0;
     }
-    if (r == DAE_ASSEMBLY) return fail(m, "cannot apply %s at t = %.9g s: %s", changed, current_time, s->rhs_message);
-    if (r) return fail(m, "%s", s->rhs_message);
+    if (r == DAE_ASSEMBLY)
+        return model_fail(m, "cannot apply %s at t = %.9g s: %s", changed, current_time, s->rhs_message);
+    if (r) return model_fail(m, "%s", s->rhs_message);
     used = 0;
     kept[0] = '\0';
     for (int j = 0; j < MECH_K && used < sizeof kept; j++)
@@ -394,8 +338,9 @@ static ModelStatus apply_inputs(ModelInstance *m, double current_time)
     s->interpolating = interpolating;
     int r = dae_change_parameters(s, p);
     if (!r) r = dae_start(s, s->solver.h_abs);
-    if (r == DAE_ASSEMBLY) return fail(m, "cannot apply the inputs at t = %.9g s: %s", current_time, s->rhs_message);
-    if (r) return fail(m, "%s", s->rhs_message);
+    if (r == DAE_ASSEMBLY)
+        return model_fail(m, "cannot apply the inputs at t = %.9g s: %s", current_time, s->rhs_message);
+    if (r) return model_fail(m, "%s", s->rhs_message);
 #else
     (void)m;
     (void)current_time;
@@ -419,15 +364,15 @@ ModelStatus model_set_input_derivatives(ModelInstance *m, const char *function, 
     char buf[40], num[40];
     for (size_t i = 0; i < nvr; i++) {
         if (input_index(vr[i]) < 0)
-            return fail(m, "%s: %s is not an input (nothing was set)", function,
+            return model_fail(m, "%s: %s is not an input (nothing was set)", function,
                         vr[i] < FMU_N_VARIABLES ? NAMES[vr[i]] : (snprintf(buf, sizeof buf, "value reference %u",
                                                                           (unsigned)vr[i]), buf));
         if (order[i] != 1 && order[i] != 2)
-            return fail(m, "%s: order %d for %s: the FMU interpolates inputs with derivatives of order 1 and 2 "
+            return model_fail(m, "%s: order %d for %s: the FMU interpolates inputs with derivatives of order 1 and 2 "
                         "(nothing was set)", function, order[i], NAMES[vr[i]]);
         if (!isfinite(value[i]))
-            return fail(m, "%s: the derivative of order %d of %s = %s: must be finite (nothing was set)", function,
-                        order[i], NAMES[vr[i]], real_text(num, sizeof num, value[i]));
+            return model_fail(m, "%s: the derivative of order %d of %s = %s: must be finite (nothing was set)",
+                              function, order[i], NAMES[vr[i]], model_real_text(num, sizeof num, value[i]));
     }
     for (size_t i = 0; i < nvr; i++) m->state.input_der[input_index(vr[i])][order[i] - 1] = value[i];
     return MODEL_OK;
@@ -438,13 +383,13 @@ ModelStatus model_do_step(ModelInstance *m, double current_time, double step)
     ModelState *s = &m->state;
     char a[40], b[40];
     if (fabs(dae_snap_time(current_time) - s->t) > 1e-9 * fmax(1.0, fabs(s->t)))
-        return fail(m, "do_step at t = %s s, but the model is at t = %s s", real_text(a, sizeof a, current_time),
-                    real_text(b, sizeof b, s->t));
+        return model_fail(m, "do_step at t = %s s, but the model is at t = %s s",
+                          model_real_text(a, sizeof a, current_time), model_real_text(b, sizeof b, s->t));
     if (apply_parameter_changes(m, current_time) != MODEL_OK) return MODEL_ERROR;
     if (apply_inputs(m, current_time) != MODEL_OK) return MODEL_ERROR;
     const unsigned long before = s->rhs_evaluations;
     if (dae_advance(s, dae_snap_time(current_time + step), s->values[VR_max_evaluations]))
-        return fail(m, "%s", s->rhs_message);
+        return model_fail(m, "%s", s->rhs_message);
     if (s->rhs_evaluations - before > s->most_step_evaluations) s->most_step_evaluations = s->rhs_evaluations - before;
     return publish(m);
 }
@@ -512,10 +457,10 @@ ModelStatus model_me_seed(ModelInstance *m, const char *function, Directional *d
             return MODEL_OK;
         }
     if (initializing)
-        return fail(m, "%s: %s is neither a continuous state, an input nor a state's start parameter: in "
+        return model_fail(m, "%s: %s is neither a continuous state, an input nor a state's start parameter: in "
                     "initialization mode those are the knowns of a directional derivative (derivatives with respect "
                     "to other parameters are not provided)", function, variable_name(vr, buf, sizeof buf));
-    return fail(m, "%s: %s is not a continuous state or an input: the knowns of a directional derivative are "
+    return model_fail(m, "%s: %s is not a continuous state or an input: the knowns of a directional derivative are "
                 "the states and the inputs", function, variable_name(vr, buf, sizeof buf));
 }
 
@@ -526,70 +471,15 @@ ModelStatus model_me_directional(ModelInstance *m, Directional *d)
         ModelState scratch;
         char why[MSG];
         if (initial_state(s, &scratch, why, sizeof why))
-            return fail(m, "the start values give no state to differentiate at: %s", why);
+            return model_fail(m, "the start values give no state to differentiate at: %s", why);
         if (dae_me_start(&scratch) || dae_directional(&scratch, d->dy, d->du, d->df, d->dout))
-            return fail(m, "at the start: %s", scratch.rhs_message);
+            return model_fail(m, "at the start: %s", scratch.rhs_message);
         return MODEL_OK;
     }
     if (me_evaluate(m) != MODEL_OK) return MODEL_ERROR;
-    if (dae_directional(s, d->dy, d->du, d->df, d->dout)) return fail(m, "at t = %.9g s: %s", s->t, s->rhs_message);
+    if (dae_directional(s, d->dy, d->du, d->df, d->dout))
+        return model_fail(m, "at t = %.9g s: %s", s->t, s->rhs_message);
     return MODEL_OK;
-}
-
-int model_past_stop_time(ModelInstance *m, const char *function, double current_time, double step)
-{
-    const ModelState *s = &m->state;
-    if (!(dae_snap_time(current_time + step) > dae_snap_time(s->stop_time))) return 0;
-    fail(m, "%s: a step from t = %.9g s to %.9g s goes past the stop time %.9g s the host defined at initialization",
-         function, current_time, current_time + step, s->stop_time);
-    return 1;
-}
-
-int model_bad_step(ModelInstance *m, const char *function, double current_time, double step)
-{
-    char a[40], b[40];
-    if (!isfinite(current_time)) {
-        fail(m, "%s: the current communication point must be finite (got %s s)", function,
-             real_text(a, sizeof a, current_time));
-        return 1;
-    }
-    if (!isfinite(step) || !(step > 0.0) || !isfinite(current_time + step)) {
-        fail(m, "%s: the communication step size must be a finite positive number of seconds (got %s s at "
-             "t = %s s)", function, real_text(a, sizeof a, step), real_text(b, sizeof b, current_time));
-        return 1;
-    }
-    if (!(dae_snap_time(current_time + step) > dae_snap_time(current_time))) {
-        fail(m, "%s: a step of %s s from t = %s s cannot advance the time: the FMU's communication times are "
-             "whole nanoseconds (give a step of at least 1e-9 s)", function, real_text(a, sizeof a, step),
-             real_text(b, sizeof b, current_time));
-        return 1;
-    }
-    return 0;
-}
-
-int model_non_finite_values(ModelInstance *m, const char *function, const unsigned int *vr, const double *value,
-                            size_t n)
-{
-    char a[40];
-    for (size_t i = 0; i < n; i++)
-        if (!isfinite(value[i])) {
-            fail(m, "%s: %s = %s: must be finite (nothing was set)", function,
-                 vr[i] < FMU_N_VARIABLES ? NAMES[vr[i]] : "?", real_text(a, sizeof a, value[i]));
-            return 1;
-        }
-    return 0;
-}
-
-int model_non_finite_states(ModelInstance *m, const char *function, const double *x, size_t n)
-{
-    char a[40];
-    for (size_t i = 0; i < n && i < FMU_N_STATES; i++)
-        if (!isfinite(x[i])) {
-            fail(m, "%s: the continuous state %s = %s: must be finite (nothing was set)", function,
-                 NAMES[STATE_VRS[i]], real_text(a, sizeof a, x[i]));
-            return 1;
-        }
-    return 0;
 }
 
 ModelStatus model_me_sensitivity(ModelInstance *m, const char *function, const Directional *d, unsigned long vr,
@@ -612,7 +502,7 @@ ModelStatus model_me_sensitivity(ModelInstance *m, const char *function, const D
             *value = d->dout[k];
             return MODEL_OK;
         }
-    return fail(m, "%s: %s is neither a state's derivative nor an output: the unknowns of a directional "
+    return model_fail(m, "%s: %s is neither a state's derivative nor an output: the unknowns of a directional "
                 "derivative are those of <ModelStructure>", function, variable_name(vr, buf, sizeof buf));
 }
 

@@ -10,7 +10,6 @@
  * the FMU state's serialized form (checked field by field before use).
  */
 #include <math.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -24,10 +23,6 @@
 static const double REAL_STARTS[FMU_N_VARIABLES] = FMU_REAL_STARTS;
 static const int KINDS[FMU_N_VARIABLES] = FMU_VARIABLE_KINDS;
 static const char *const NAMES[FMU_N_VARIABLES] = FMU_VARIABLE_NAMES;
-static const int POSITIVE[FMU_N_VARIABLES] = FMU_POSITIVE;
-static const double MINIMUM[FMU_N_VARIABLES] = FMU_MINIMUM;
-static const double MAXIMUM[FMU_N_VARIABLES] = FMU_MAXIMUM;
-static const char *const UNITS[FMU_N_VARIABLES] = FMU_MESSAGE_UNITS;
 static const int PARAMETER_VRS[BLOCK_ALLOC(BLOCK_N_PARAMETERS)] = BLOCK_PARAMETER_VRS;
 static const int INPUT_VRS[BLOCK_ALLOC(NU)] = BLOCK_INPUT_VRS;
 static const int OUTPUT_VRS[NY] = BLOCK_OUTPUT_VRS;
@@ -37,61 +32,7 @@ static const int DERIVATIVE_VRS[BLOCK_ALLOC(NX)] = FMU_DERIVATIVE_VRS;
 enum { KIND_TUNABLE = 0, KIND_FIXED = 1, KIND_INPUT = 6 };
 #define ALL_GROUPS (FMU_GROUP_STATE | FMU_GROUP_STATES)
 
-static ModelStatus fail(ModelInstance *m, const char *fmt, ...)
-{
-    char text[2 * MSG];
-    va_list args;
-    va_start(args, fmt);
-    vsnprintf(text, sizeof text, fmt, args);
-    va_end(args);
-    model_log(m, MODEL_ERROR, "logStatusError", "%s '%s': %s", MECH_NAME, m->instance_name, text);
-    return MODEL_ERROR;
-}
-
-/* A double as Python's repr writes it (the shortest %.15g-%.17g that reads back). */
-static const char *real_text(char *buf, size_t n, double v)
-{
-    if (isnan(v)) {
-        snprintf(buf, n, "nan");
-        return buf;
-    }
-    snprintf(buf, n, "%.15g", v);
-    if (isfinite(v) && strtod(buf, NULL) != v) snprintf(buf, n, "%.16g", v);
-    if (isfinite(v) && strtod(buf, NULL) != v) snprintf(buf, n, "%.17g", v);
-    if (isfinite(v) && !strpbrk(buf, ".e")) strncat(buf, ".0", n - strlen(buf) - 1);
-    return buf;
-}
-
-static double snap_time(double t) { return nearbyint(t * 1e9) / 1e9; }
-
 /* -- parameters ---------------------------------------------------------------------- */
-
-/* Every problem with the set parameter values, "; "-separated; 0 when none. */
-static int check_parameters(const ModelState *s, char *out, size_t n)
-{
-    char num[40], low[40], high[40];
-    size_t used = 0;
-    int count = 0;
-    out[0] = '\0';
-#define ADD(...) do { if (used < n) used += snprintf(out + used, n - used, "%s", count++ ? "; " : ""); \
-                      if (used < n) used += snprintf(out + used, n - used, __VA_ARGS__); } while (0)
-    for (int vr = 0; vr < FMU_N_VARIABLES; vr++) {
-        if (KINDS[vr] != KIND_TUNABLE && KINDS[vr] != KIND_FIXED) continue;
-        const double v = s->values[vr];
-        const char *gap = UNITS[vr][0] ? " " : "";
-        if (POSITIVE[vr] && !(isfinite(v) && v > 0.0))
-            ADD("%s = %s%s%s: must be a finite positive number", NAMES[vr], real_text(num, sizeof num, v), gap,
-                UNITS[vr]);
-        else if (!isfinite(v))
-            ADD("%s = %s: must be finite", NAMES[vr], real_text(num, sizeof num, v));
-        else if (v < MINIMUM[vr] || v > MAXIMUM[vr])
-            ADD("%s = %s%s%s: must be within [%s, %s]", NAMES[vr], real_text(num, sizeof num, v), gap, UNITS[vr],
-                isfinite(MINIMUM[vr]) ? real_text(low, sizeof low, MINIMUM[vr]) : "-inf",
-                isfinite(MAXIMUM[vr]) ? real_text(high, sizeof high, MAXIMUM[vr]) : "inf");
-    }
-#undef ADD
-    return count;
-}
 
 static void parameters_of(const ModelState *s, double *p)
 {
@@ -158,7 +99,7 @@ void model_preview_outputs(ModelInstance *m, int groups)
     char why[MSG];
     (void)groups;                        /* a block computes all its outputs at once: cheap */
     if ((m->state.mode == MODE_INSTANTIATED || m->state.mode == MODE_INITIALIZATION)
-        && check_parameters(&m->state, why, sizeof why))
+        && model_check_parameters(&m->state, why, sizeof why))
         return;                          /* fmi2ExitInitializationMode says why */
     current_point(m, p, u, x);
     store(&m->state, p, u, x);
@@ -195,8 +136,9 @@ ModelStatus model_initialize(ModelInstance *m)
 {
     ModelState *s = &m->state;
     char problems[4 * MSG];
-    if (check_parameters(s, problems, sizeof problems)) return fail(m, "invalid parameters: %s", problems);
-    s->t = snap_time(s->start_time);
+    if (model_check_parameters(s, problems, sizeof problems))
+        return model_fail(m, "invalid parameters: %s", problems);
+    s->t = model_snap_time(s->start_time);
     start_states(s, s->x);
     inputs_set_now(s, s->u_now);
     s->me_t = s->t;
@@ -240,12 +182,12 @@ ModelStatus model_do_step(ModelInstance *m, double current_time, double step)
 {
     ModelState *s = &m->state;
     char a[40], b[40], problems[4 * MSG];
-    if (fabs(snap_time(current_time) - s->t) > 1e-9 * fmax(1.0, fabs(s->t)))
-        return fail(m, "do_step at t = %s s, but the model is at t = %s s", real_text(a, sizeof a, current_time),
-                    real_text(b, sizeof b, s->t));
-    if (check_parameters(s, problems, sizeof problems))
-        return fail(m, "at t = %.9g s: %s", current_time, problems);
-    const double t_end = snap_time(current_time + step);
+    if (fabs(model_snap_time(current_time) - s->t) > 1e-9 * fmax(1.0, fabs(s->t)))
+        return model_fail(m, "do_step at t = %s s, but the model is at t = %s s",
+                          model_real_text(a, sizeof a, current_time), model_real_text(b, sizeof b, s->t));
+    if (model_check_parameters(s, problems, sizeof problems))
+        return model_fail(m, "at t = %.9g s: %s", current_time, problems);
+    const double t_end = model_snap_time(current_time + step);
     s->input_t0 = s->t;
     for (int k = 0; k < NU; k++) {
         s->input_poly[k][0] = s->values[INPUT_VRS[k]];
@@ -267,11 +209,11 @@ ModelStatus model_do_step(ModelInstance *m, double current_time, double step)
         if (count > s->most_step_evaluations) s->most_step_evaluations = count;
         if (r != RK_OK || s->solver.status != RK_FINISHED) {
             if (count > c.limit)
-                return fail(m, "the communication step from t = %.9g s to %.9g s needed more than max_evaluations = "
-                            "%.17g right-hand-side evaluations (raise max_evaluations, a fixed parameter, or "
-                            "shorten the step)", s->t, t_end, s->values[VR_max_evaluations]);
-            return fail(m, "the integration from t = %.9g s to %.9g s failed at t = %.9g s (the derivatives are not "
-                        "finite, or the step size fell below round-off)", s->t, t_end, s->solver.t);
+                return model_fail(m, "the communication step from t = %.9g s to %.9g s needed more than "
+                                  "max_evaluations = %.17g right-hand-side evaluations (raise max_evaluations, a "
+                                  "fixed parameter, or shorten the step)", s->t, t_end, s->values[VR_max_evaluations]);
+            return model_fail(m, "the integration from t = %.9g s to %.9g s failed at t = %.9g s (the derivatives "
+                              "are not finite, or the step size fell below round-off)", s->t, t_end, s->solver.t);
         }
         memcpy(s->x, s->solver.y, sizeof s->x);
     }
@@ -297,75 +239,18 @@ ModelStatus model_set_input_derivatives(ModelInstance *m, const char *function, 
     char buf[40], num[40];
     for (size_t i = 0; i < nvr; i++) {
         if (input_index(vr[i]) < 0)
-            return fail(m, "%s: %s is not an input (nothing was set)", function,
+            return model_fail(m, "%s: %s is not an input (nothing was set)", function,
                         vr[i] < FMU_N_VARIABLES ? NAMES[vr[i]] : (snprintf(buf, sizeof buf, "value reference %u",
                                                                           (unsigned)vr[i]), buf));
         if (order[i] != 1 && order[i] != 2)
-            return fail(m, "%s: order %d for %s: the FMU interpolates inputs with derivatives of order 1 and 2 "
+            return model_fail(m, "%s: order %d for %s: the FMU interpolates inputs with derivatives of order 1 and 2 "
                         "(nothing was set)", function, order[i], NAMES[vr[i]]);
         if (!isfinite(value[i]))
-            return fail(m, "%s: the derivative of order %d of %s = %s: must be finite (nothing was set)", function,
-                        order[i], NAMES[vr[i]], real_text(num, sizeof num, value[i]));
+            return model_fail(m, "%s: the derivative of order %d of %s = %s: must be finite (nothing was set)",
+                              function, order[i], NAMES[vr[i]], model_real_text(num, sizeof num, value[i]));
     }
     for (size_t i = 0; i < nvr; i++) m->state.input_der[input_index(vr[i])][order[i] - 1] = value[i];
     return MODEL_OK;
-}
-
-int model_past_stop_time(ModelInstance *m, const char *function, double current_time, double step)
-{
-    const ModelState *s = &m->state;
-    if (!(snap_time(current_time + step) > snap_time(s->stop_time))) return 0;
-    fail(m, "%s: a step from t = %.9g s to %.9g s goes past the stop time %.9g s the host defined at initialization",
-         function, current_time, current_time + step, s->stop_time);
-    return 1;
-}
-
-int model_bad_step(ModelInstance *m, const char *function, double current_time, double step)
-{
-    char a[40], b[40];
-    if (!isfinite(current_time)) {
-        fail(m, "%s: the current communication point must be finite (got %s s)", function,
-             real_text(a, sizeof a, current_time));
-        return 1;
-    }
-    if (!isfinite(step) || !(step > 0.0) || !isfinite(current_time + step)) {
-        fail(m, "%s: the communication step size must be a finite positive number of seconds (got %s s at "
-             "t = %s s)", function, real_text(a, sizeof a, step), real_text(b, sizeof b, current_time));
-        return 1;
-    }
-    if (!(snap_time(current_time + step) > snap_time(current_time))) {
-        fail(m, "%s: a step of %s s from t = %s s cannot advance the time: the FMU's communication times are "
-             "whole nanoseconds (give a step of at least 1e-9 s)", function, real_text(a, sizeof a, step),
-             real_text(b, sizeof b, current_time));
-        return 1;
-    }
-    return 0;
-}
-
-int model_non_finite_values(ModelInstance *m, const char *function, const unsigned int *vr, const double *value,
-                            size_t n)
-{
-    char a[40];
-    for (size_t i = 0; i < n; i++)
-        if (!isfinite(value[i])) {
-            fail(m, "%s: %s = %s: must be finite (nothing was set)", function,
-                 vr[i] < FMU_N_VARIABLES ? NAMES[vr[i]] : "?", real_text(a, sizeof a, value[i]));
-            return 1;
-        }
-    return 0;
-}
-
-int model_non_finite_states(ModelInstance *m, const char *function, const double *x, size_t n)
-{
-    char a[40];
-    const size_t n_states = NX;          /* a variable: NX may be 0 (no always-false comparison) */
-    for (size_t i = 0; i < n && i < n_states; i++)
-        if (!isfinite(x[i])) {
-            fail(m, "%s: the continuous state %s = %s: must be finite (nothing was set)", function,
-                 NAMES[STATE_VRS[i]], real_text(a, sizeof a, x[i]));
-            return 1;
-        }
-    return 0;
 }
 
 /* -- Model Exchange ------------------------------------------------------------------ */
@@ -396,8 +281,8 @@ ModelStatus model_me_derivatives(ModelInstance *m, double *dx)
     m->state.rhs_evaluations++;
     for (int k = 0; k < NX; k++)
         if (!isfinite(f[k]))
-            return fail(m, "at t = %.9g s: the derivative der(%s) = %s is not finite at the states the host set",
-                        m->state.me_t, NAMES[STATE_VRS[k]], real_text(text, sizeof text, f[k]));
+            return model_fail(m, "at t = %.9g s: the derivative der(%s) = %s is not finite at the states the host set",
+                        m->state.me_t, NAMES[STATE_VRS[k]], model_real_text(text, sizeof text, f[k]));
     if (NX > 0) memcpy(dx, f, NX * sizeof *dx);
     return MODEL_OK;
 }
@@ -412,8 +297,8 @@ ModelStatus model_me_completed_step(ModelInstance *m)
 ModelStatus model_me_event_update(ModelInstance *m)
 {
     char problems[4 * MSG];
-    if (check_parameters(&m->state, problems, sizeof problems))
-        return fail(m, "at t = %.9g s: %s", m->state.me_t, problems);
+    if (model_check_parameters(&m->state, problems, sizeof problems))
+        return model_fail(m, "at t = %.9g s: %s", m->state.me_t, problems);
     m->state.outputs_pending = ALL_GROUPS;
     return MODEL_OK;
 }
@@ -443,7 +328,7 @@ ModelStatus model_me_seed(ModelInstance *m, const char *function, Directional *d
             d->dy[k] += seed;
             return MODEL_OK;
         }
-    return fail(m, "%s: %s is not a continuous state or an input: the knowns of a directional derivative are the "
+    return model_fail(m, "%s: %s is not a continuous state or an input: the knowns of a directional derivative are the "
                 "states and the inputs%s", function, variable_name(vr, buf, sizeof buf),
                 initializing ? " (in initialization mode also the states' start parameters)" : "");
 }
@@ -453,8 +338,8 @@ ModelStatus model_me_directional(ModelInstance *m, Directional *d)
     double p[BLOCK_ALLOC(BLOCK_N_PARAMETERS)], u[BLOCK_ALLOC(NU)], x[RK_N];
     double f_x[BLOCK_ALLOC(NX * NX)], f_u[BLOCK_ALLOC(NX * NU)], y_x[BLOCK_ALLOC(NY * NX)], y_u[BLOCK_ALLOC(NY * NU)];
     char why[MSG];
-    if (m->state.mode == MODE_INITIALIZATION && check_parameters(&m->state, why, sizeof why))
-        return fail(m, "the start values give no state to differentiate at: %s", why);
+    if (m->state.mode == MODE_INITIALIZATION && model_check_parameters(&m->state, why, sizeof why))
+        return model_fail(m, "the start values give no state to differentiate at: %s", why);
     current_point(m, p, u, x);
     block_jacobians(p, u, x, f_x, f_u, y_x, y_u);
     for (int i = 0; i < NX; i++) {
@@ -492,35 +377,11 @@ ModelStatus model_me_sensitivity(ModelInstance *m, const char *function, const D
             *value = d->dout[k];
             return MODEL_OK;
         }
-    return fail(m, "%s: %s is neither a state's derivative nor an output: the unknowns of a directional "
+    return model_fail(m, "%s: %s is neither a state's derivative nor an output: the unknowns of a directional "
                 "derivative are those of <ModelStructure>", function, variable_name(vr, buf, sizeof buf));
 }
 
 /* -- FMU state ----------------------------------------------------------------------- */
-
-typedef struct {
-    char magic[8];
-    unsigned int state_size;
-    char guid[48];
-    int model_exchange;
-} StateHeader;
-
-size_t model_serialized_size(void)
-{
-    return sizeof(StateHeader) + sizeof(ModelState);
-}
-
-void model_serialize(const SavedState *saved, const char magic[8], unsigned char *bytes)
-{
-    StateHeader header;
-    memset(&header, 0, sizeof header);
-    memcpy(header.magic, magic, sizeof header.magic);
-    header.state_size = (unsigned int)sizeof(ModelState);
-    strncpy(header.guid, FMU_GUID, sizeof header.guid - 1);
-    header.model_exchange = saved->model_exchange;
-    memcpy(bytes, &header, sizeof header);
-    memcpy(bytes + sizeof header, &saved->state, sizeof(ModelState));
-}
 
 static int first_non_finite(const double *x, size_t n)
 {
@@ -569,22 +430,3 @@ int model_check_state(const ModelState *s, int model_exchange, char *why, size_t
 }
 #undef BAD
 #undef FINITE
-
-int model_deserialize(const unsigned char *bytes, size_t size, const char magic[8], SavedState *saved, char *why,
-                      size_t n)
-{
-    StateHeader header;
-    SavedState read;
-    if (n > 0) why[0] = '\0';
-    if (size != model_serialized_size()) return MODEL_WRONG_SIZE;
-    memcpy(&header, bytes, sizeof header);
-    if (memcmp(header.magic, magic, sizeof header.magic) != 0 || header.state_size != sizeof(ModelState)
-        || strncmp(header.guid, FMU_GUID, sizeof header.guid) != 0
-        || (header.model_exchange != 0 && header.model_exchange != 1))
-        return MODEL_NOT_OURS;
-    memcpy(&read.state, bytes + sizeof header, sizeof(ModelState));
-    read.model_exchange = header.model_exchange;
-    if (model_check_state(&read.state, read.model_exchange, why, n)) return MODEL_INVALID;
-    *saved = read;
-    return 0;
-}
